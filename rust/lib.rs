@@ -1,0 +1,18 @@
+//! nrdepth core: per-pixel and per-triangle work of the nrdepth pipeline.
+//!
+//! One module per stage, usable from Rust without Python; `python` (behind the
+//! `python` cargo feature) is the only place pyo3 appears.
+
+pub mod error;
+pub mod image_io;
+pub mod mesh;
+pub mod params;
+pub mod rng;
+pub mod synthesis;
+
+#[cfg(feature = "python")]
+mod python;
+
+pub use error::InvalidArgument;
+pub use params::{Range, SurfaceConfig, SurfaceParams};
+pub use synthesis::{synthesize, synthesize_batch, Synthesizer};

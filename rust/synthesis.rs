@@ -1,0 +1,561 @@
+//! Deforming-surface synthesis by FFT coloured noise (paper eqs. vdm, vdm_Fourier).
+//!
+//! `f(x, t) = E_t(x + d(x, t))` with `x` on the bi-unit square embedded as
+//! `(x, y, 0)` and
+//!
+//! ```text
+//! d(x, t) = κ · G_ν(x) · diag(ζ, ζ, 1) · r(x, t)
+//! r_i(x, t) = Re F⁻¹{ w · G_ξ · G_Σ · cos(t φ_i + θ_i) · e^{iψ_i} }(x) / n
+//! ```
+//!
+//! - Frequencies `u = k / PERIOD` (cycles per unit) on an M×M grid, `M = 2(grid − 1)`:
+//!   the field is periodic over PERIOD = 4 units, twice the patch, so opposite
+//!   borders of the patch move independently and half-wave bends of the whole
+//!   sheet exist (a period equal to the patch would force the left border to
+//!   copy the right one).
+//! - `w(u) = 1 − exp(−(|u|/W_RADIUS)²)`: radial, in [0, 1), `w(0) = 0`, so `r`
+//!   has exactly zero mean over its period.
+//! - `G_ξ(u) = exp(−|u|²/(2ξ²))`: width ξ grows with *flexibility*.
+//! - `G_Σ(u) = exp(−uᵀΣu)`: *orientation* of the folds.
+//! - `φ_i(u) = speeds[i] · ρ_i(u)`, `ρ_i ~ U[0.5, 1.5]`; `θ_i ~ U[0, 2π)`.
+//! - `ψ_i ~ U[0, 2π)` is a spatial phase the paper's formula does not have: with
+//!   a real spectrum, `Re F⁻¹` is an even function of `x` and every surface would
+//!   be point-symmetric about the patch centre. A unit phase factor leaves
+//!   |spectrum| and so every parameter's meaning unchanged and removes that.
+//! - `n = sqrt(Σ_{half plane} S²)` makes `E[r_i²] = 1`: κ is the RMS of each
+//!   channel before the envelope and folding, whatever ξ and Σ.
+//! - `G_ν(x) = exp(−ν|x|²)`; `E_t(p) = R(rotation + t · rotation_rate) p + t · drift`
+//!   with `R(v)` the rotation by |v| about v; `t = frame / (frames − 1)`.
+//!
+//! Each random draw of frequency `k` (signed integers) is `hash(phase_seed, channel, k)`,
+//! so a surface is the same continuous field sampled more finely on a larger grid.
+//! Frequencies whose amplitude is below SPECTRUM_CUTOFF × the largest are dropped.
+//!
+//! Cost: only the frequency rows that hold energy go through the first FFT pass
+//! and only the `grid` output columns through the second; two real channels are
+//! packed in one complex FFT (their spectra are Hermitian). Output: f32 vertex
+//! positions, shape (frames, grid, grid, 3), row index = y, column index = x.
+
+use std::f64::consts::TAU;
+use std::sync::Arc;
+
+use nalgebra::{Rotation3, Vector3};
+use rayon::prelude::*;
+use rustfft::num_complex::Complex32;
+use rustfft::{Fft, FftPlanner};
+
+use crate::error::{size_in, InvalidArgument, Result};
+use crate::params::SurfaceParams;
+use crate::rng::{hash, unit_f64};
+
+/// Period of the displacement field in units (the patch is 2 units wide).
+pub const PERIOD: f64 = 4.0;
+/// Radius (cycles per unit) of the radial profile `w(u) = 1 − exp(−(|u|/W_RADIUS)²)`.
+pub const W_RADIUS: f64 = 0.25;
+/// Relative amplitude below which a frequency is dropped.
+pub const SPECTRUM_CUTOFF: f64 = 1e-4;
+pub const MAX_GRID: i64 = 4096;
+pub const MAX_FRAMES: i64 = 4096;
+
+const TAG_THETA: u64 = 1;
+const TAG_PSI: u64 = 2;
+const TAG_RHO: u64 = 3;
+
+/// Validated (frames, grid).
+pub fn check_sizes(frames: i64, grid: i64) -> Result<(usize, usize)> {
+    Ok((size_in("frames", frames, 1, MAX_FRAMES)?, size_in("grid", grid, 2, MAX_GRID)?))
+}
+
+/// Number of f32 values of one clip: frames · grid · grid · 3.
+pub fn clip_len(frames: usize, grid: usize) -> usize {
+    frames * grid * grid * 3
+}
+
+/// The undeformed coordinate of grid index `j`: −1 at 0, +1 at grid − 1.
+#[inline]
+pub fn grid_coordinate(j: usize, grid: usize) -> f64 {
+    -1.0 + 2.0 * j as f64 / (grid - 1) as f64
+}
+
+/// `t` of a frame: 0 at the first, 1 at the last.
+#[inline]
+pub fn frame_time(frame: usize, frames: usize) -> f64 {
+    if frames > 1 {
+        frame as f64 / (frames - 1) as f64
+    } else {
+        0.0
+    }
+}
+
+/// Unnormalised spectrum magnitude `w · G_ξ · G_Σ` at frequency `u` (cycles per unit).
+pub fn spectrum_magnitude(params: &SurfaceParams, ux: f64, uy: f64) -> f64 {
+    let r2 = ux * ux + uy * uy;
+    let [sxx, sxy, syy] = params.orientation;
+    let w = 1.0 - (-r2 / (W_RADIUS * W_RADIUS)).exp();
+    let xi = params.flexibility;
+    w * (-r2 / (2.0 * xi * xi) - (sxx * ux * ux + 2.0 * sxy * ux * uy + syy * uy * uy)).exp()
+}
+
+/// Reusable state for synthesising clips of one grid size; one per thread.
+pub struct Synthesizer {
+    grid: usize,
+    m: usize,
+    fft: Arc<dyn Fft<f32>>,
+    fft_scratch: Vec<Complex32>,
+    // Active half-plane frequencies (structure of arrays, one entry per frequency).
+    rows_k: Vec<usize>,
+    cols_k: Vec<usize>,
+    rows_mirror: Vec<usize>,
+    cols_mirror: Vec<usize>,
+    amplitude: Vec<f64>,
+    // Per channel-major (channel, entry): e^{iψ}, cosine recurrence state.
+    phase: Vec<Complex32>,
+    cos_prev: Vec<f64>,
+    cos_now: Vec<f64>,
+    two_cos_step: Vec<f64>,
+    // Amplitudes of the last two frames, (channel, entry), indexed by frame parity.
+    frame_amplitude: [Vec<f32>; 2],
+    row_slot: Vec<usize>,
+    active_rows: Vec<usize>,
+    rows: Vec<Complex32>,
+    cols: Vec<Complex32>,
+    envelope: Vec<f64>,
+}
+
+impl Synthesizer {
+    pub fn new(grid: usize) -> Self {
+        assert!(grid >= 2, "grid must be at least 2");
+        let m = 2 * (grid - 1);
+        let fft = FftPlanner::<f32>::new().plan_fft_inverse(m);
+        let scratch = vec![Complex32::default(); fft.get_inplace_scratch_len()];
+        Self {
+            grid,
+            m,
+            fft,
+            fft_scratch: scratch,
+            rows_k: Vec::new(),
+            cols_k: Vec::new(),
+            rows_mirror: Vec::new(),
+            cols_mirror: Vec::new(),
+            amplitude: Vec::new(),
+            phase: Vec::new(),
+            cos_prev: Vec::new(),
+            cos_now: Vec::new(),
+            two_cos_step: Vec::new(),
+            frame_amplitude: [Vec::new(), Vec::new()],
+            row_slot: vec![usize::MAX; m],
+            active_rows: Vec::new(),
+            rows: Vec::new(),
+            cols: Vec::new(),
+            envelope: Vec::new(),
+        }
+    }
+
+    pub fn grid(&self) -> usize {
+        self.grid
+    }
+
+    /// FFT size M = 2(grid − 1): the number of samples of one field period per axis.
+    pub fn fft_size(&self) -> usize {
+        self.m
+    }
+
+    /// Vertex positions of one clip into `out` (len `clip_len(frames, grid)`).
+    pub fn synthesize_into(&mut self, params: &SurfaceParams, frames: usize, out: &mut [f32]) -> Result<()> {
+        let grid = self.grid;
+        self.fields_into(params, frames, grid, out)?;
+        self.compose(params, frames, out);
+        Ok(())
+    }
+
+    /// The unit-RMS fields `r_i(x, t)` (before envelope, folding and rigid motion)
+    /// at the first `samples` (≤ M) grid points per axis, into `out`
+    /// (frames, samples, samples, 3). `samples = M` gives one full period.
+    pub fn fields_into(&mut self, params: &SurfaceParams, frames: usize, samples: usize, out: &mut [f32]) -> Result<()> {
+        params.validate()?;
+        if frames == 0 || samples == 0 || samples > self.m {
+            return Err(InvalidArgument::new("samples", format!("expected 1..={} samples and frames >= 1", self.m)));
+        }
+        if out.len() != frames * samples * samples * 3 {
+            return Err(InvalidArgument::new("out", format!("expected {} values, got {}", frames * samples * samples * 3, out.len())));
+        }
+        self.build_table(params, frames);
+        let n_entries = self.amplitude.len();
+        let total = 3 * frames;
+        let mut next_field = 0;
+        for frame in 0..frames {
+            let amp = &mut self.frame_amplitude[frame & 1];
+            amp.clear();
+            for c in 0..3 {
+                let now = &self.cos_now[c * n_entries..(c + 1) * n_entries];
+                amp.extend(now.iter().zip(&self.amplitude).map(|(cs, a)| (cs * a) as f32));
+            }
+            self.advance_cosines();
+            // Pair fields in (frame, channel) order; a pair may straddle two frames.
+            let available = 3 * (frame + 1);
+            while next_field + 1 < available || (next_field < available && frame + 1 == frames) {
+                let second = (next_field + 1 < total).then_some(next_field + 1);
+                self.run_pair(next_field, second, samples, out);
+                next_field += 2;
+            }
+        }
+        Ok(())
+    }
+
+    /// Amplitudes, phases and cosine recurrences of this clip's active frequencies.
+    fn build_table(&mut self, params: &SurfaceParams, frames: usize) {
+        let m = self.m;
+        let half = m / 2;
+        let signed = |k: usize| k as i64 - if k >= half { m as i64 } else { 0 };
+        self.rows_k.clear();
+        self.cols_k.clear();
+        self.rows_mirror.clear();
+        self.cols_mirror.clear();
+        self.amplitude.clear();
+        let mut max_amplitude = 0.0f64;
+        for ky in 0..m {
+            for kx in 0..m {
+                let (sx, sy) = (signed(kx), signed(ky));
+                // Half plane without the DC; the Nyquist row and column are dropped
+                // (their frequency is ambiguous between ±M/2).
+                let in_half = sy > 0 || (sy == 0 && sx > 0);
+                if !in_half || kx == half || ky == half {
+                    continue;
+                }
+                let s = spectrum_magnitude(params, sx as f64 / PERIOD, sy as f64 / PERIOD);
+                if s > 0.0 {
+                    max_amplitude = max_amplitude.max(s);
+                    self.rows_k.push(ky);
+                    self.cols_k.push(kx);
+                    self.amplitude.push(s);
+                }
+            }
+        }
+        // Drop the negligible frequencies, then normalise to unit RMS.
+        let threshold = SPECTRUM_CUTOFF * max_amplitude;
+        let mut kept = 0;
+        for i in 0..self.amplitude.len() {
+            if self.amplitude[i] >= threshold && self.amplitude[i] > 0.0 {
+                self.rows_k[kept] = self.rows_k[i];
+                self.cols_k[kept] = self.cols_k[i];
+                self.amplitude[kept] = self.amplitude[i];
+                kept += 1;
+            }
+        }
+        self.rows_k.truncate(kept);
+        self.cols_k.truncate(kept);
+        self.amplitude.truncate(kept);
+        let norm = self.amplitude.iter().map(|a| a * a).sum::<f64>().sqrt();
+        if norm > 0.0 {
+            self.amplitude.iter_mut().for_each(|a| *a /= norm);
+        }
+        for i in 0..kept {
+            self.rows_mirror.push((m - self.rows_k[i]) % m);
+            self.cols_mirror.push((m - self.cols_k[i]) % m);
+        }
+
+        // Compact list of the rows that hold energy (both half planes).
+        self.row_slot.iter_mut().for_each(|s| *s = usize::MAX);
+        for &r in self.rows_k.iter().chain(&self.rows_mirror) {
+            self.row_slot[r] = 0;
+        }
+        self.active_rows.clear();
+        for r in 0..m {
+            if self.row_slot[r] == 0 {
+                self.row_slot[r] = self.active_rows.len();
+                self.active_rows.push(r);
+            }
+        }
+
+        // Per-channel random functions and the cosine recurrence
+        // cos((f+1)Δ + θ) = 2cosΔ · cos(fΔ + θ) − cos((f−1)Δ + θ).
+        let dt = if frames > 1 { 1.0 / (frames - 1) as f64 } else { 0.0 };
+        self.phase.clear();
+        self.cos_prev.clear();
+        self.cos_now.clear();
+        self.two_cos_step.clear();
+        for c in 0..3u64 {
+            for i in 0..kept {
+                let key = |tag| [tag, c, signed(self.cols_k[i]) as u64, signed(self.rows_k[i]) as u64];
+                let theta = TAU * unit_f64(hash(params.phase_seed, &key(TAG_THETA)));
+                let psi = TAU * unit_f64(hash(params.phase_seed, &key(TAG_PSI)));
+                let rho = 0.5 + unit_f64(hash(params.phase_seed, &key(TAG_RHO)));
+                let step = params.speeds[c as usize] * rho * dt;
+                self.phase.push(Complex32::new(psi.cos() as f32, psi.sin() as f32));
+                self.cos_prev.push((theta - step).cos());
+                self.cos_now.push(theta.cos());
+                self.two_cos_step.push(2.0 * step.cos());
+            }
+        }
+    }
+
+    fn advance_cosines(&mut self) {
+        for ((prev, now), k) in self.cos_prev.iter_mut().zip(self.cos_now.iter_mut()).zip(&self.two_cos_step) {
+            let next = k * *now - *prev;
+            *prev = *now;
+            *now = next;
+        }
+    }
+
+    /// Inverse FFT of fields `a` and `b` (indices into (frame, channel) order)
+    /// packed as `H_a + i·H_b`; writes their real outputs into `out`.
+    fn run_pair(&mut self, a: usize, b: Option<usize>, samples: usize, out: &mut [f32]) {
+        let (m, n_entries) = (self.m, self.amplitude.len());
+        let n_rows = self.active_rows.len();
+        let field = |q: usize| ((q / 3) & 1, q % 3);
+        self.rows.clear();
+        self.rows.resize(n_rows * m, Complex32::default());
+        let (pa, ca) = field(a);
+        let amp_a = &self.frame_amplitude[pa][ca * n_entries..(ca + 1) * n_entries];
+        let phase_a = &self.phase[ca * n_entries..(ca + 1) * n_entries];
+        let (amp_b, phase_b) = match b.map(field) {
+            Some((pb, cb)) => (
+                &self.frame_amplitude[pb][cb * n_entries..(cb + 1) * n_entries],
+                &self.phase[cb * n_entries..(cb + 1) * n_entries],
+            ),
+            None => (&amp_a[..0], &phase_a[..0]),
+        };
+        for i in 0..n_entries {
+            let ha = phase_a[i] * amp_a[i];
+            let hb = if amp_b.is_empty() { Complex32::default() } else { phase_b[i] * amp_b[i] };
+            // Z(k) = H_a(k) + i H_b(k); Z(−k) = conj(H_a(k)) + i conj(H_b(k)).
+            let z = Complex32::new(ha.re - hb.im, ha.im + hb.re);
+            let z_mirror = Complex32::new(ha.re + hb.im, hb.re - ha.im);
+            self.rows[self.row_slot[self.rows_k[i]] * m + self.cols_k[i]] += z;
+            self.rows[self.row_slot[self.rows_mirror[i]] * m + self.cols_mirror[i]] += z_mirror;
+        }
+        if n_rows > 0 {
+            self.fft.process_with_scratch(&mut self.rows, &mut self.fft_scratch);
+        }
+        // Transpose the `samples` needed columns, then transform along y.
+        self.cols.clear();
+        self.cols.resize(samples * m, Complex32::default());
+        for (slot, &r) in self.active_rows.iter().enumerate() {
+            let row = &self.rows[slot * m..slot * m + samples];
+            for (x, v) in row.iter().enumerate() {
+                self.cols[x * m + r] = *v;
+            }
+        }
+        self.fft.process_with_scratch(&mut self.cols, &mut self.fft_scratch);
+        for (q, take_im) in [(a, false), (b.unwrap_or(usize::MAX), true)] {
+            if q == usize::MAX {
+                continue;
+            }
+            let (frame, channel) = (q / 3, q % 3);
+            let base = frame * samples * samples;
+            for x in 0..samples {
+                let col = &self.cols[x * m..x * m + samples];
+                for (y, v) in col.iter().enumerate() {
+                    out[(base + y * samples + x) * 3 + channel] = if take_im { v.im } else { v.re };
+                }
+            }
+        }
+    }
+
+    /// Replace the fields in `out` by vertex positions `E_t(x + d(x, t))`.
+    fn compose(&mut self, params: &SurfaceParams, frames: usize, out: &mut [f32]) {
+        let grid = self.grid;
+        self.envelope.clear();
+        for jy in 0..grid {
+            let y = grid_coordinate(jy, grid);
+            for jx in 0..grid {
+                let x = grid_coordinate(jx, grid);
+                self.envelope.push(params.intensity * (-params.constraint * (x * x + y * y)).exp());
+            }
+        }
+        let zeta = params.folding;
+        for (frame, positions) in out.chunks_exact_mut(grid * grid * 3).enumerate() {
+            let t = frame_time(frame, frames);
+            let v = |a: [f64; 3], b: [f64; 3]| Vector3::new(a[0] + t * b[0], a[1] + t * b[1], a[2] + t * b[2]);
+            let rotation = Rotation3::new(v(params.rotation, params.rotation_rate));
+            let translation = v([0.0; 3], params.drift);
+            for (i, p) in positions.chunks_exact_mut(3).enumerate() {
+                let (jy, jx) = (i / grid, i % grid);
+                let g = self.envelope[i];
+                let local = Vector3::new(
+                    grid_coordinate(jx, grid) + g * zeta * p[0] as f64,
+                    grid_coordinate(jy, grid) + g * zeta * p[1] as f64,
+                    g * p[2] as f64,
+                );
+                let world = rotation * local + translation;
+                p.copy_from_slice(&[world.x as f32, world.y as f32, world.z as f32]);
+            }
+        }
+    }
+}
+
+/// Vertex positions of one clip: (frames, grid, grid, 3) flattened.
+pub fn synthesize(params: &SurfaceParams, frames: usize, grid: usize) -> Result<Vec<f32>> {
+    let mut out = vec![0.0; clip_len(frames, grid)];
+    Synthesizer::new(grid).synthesize_into(params, frames, &mut out)?;
+    Ok(out)
+}
+
+/// Many clips in parallel into `out` (n, frames, grid, grid, 3); clip i depends
+/// only on `params[i]`, so the bytes do not depend on the thread count.
+pub fn synthesize_batch(params: &[SurfaceParams], frames: usize, grid: usize, out: &mut [f32]) -> Result<()> {
+    for (i, p) in params.iter().enumerate() {
+        p.validate().map_err(|e| InvalidArgument::new(e.name.replacen("params", &format!("params[{i}]"), 1), e.message))?;
+    }
+    let len = clip_len(frames, grid);
+    if out.len() != params.len() * len {
+        return Err(InvalidArgument::new("out", format!("expected {} values, got {}", params.len() * len, out.len())));
+    }
+    out.par_chunks_mut(len.max(1))
+        .zip(params.par_iter())
+        .try_for_each_init(|| Synthesizer::new(grid), |s, (chunk, p)| s.synthesize_into(p, frames, chunk))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::params::SurfaceConfig;
+
+    fn still(seed: u64) -> SurfaceParams {
+        let mut p = SurfaceConfig::default().sample(seed).unwrap();
+        p.rotation = [0.0; 3];
+        p.rotation_rate = [0.0; 3];
+        p.drift = [0.0; 3];
+        p
+    }
+
+    fn fields(p: &SurfaceParams, frames: usize, grid: usize, samples: usize) -> Vec<f32> {
+        let mut out = vec![0.0; frames * samples * samples * 3];
+        Synthesizer::new(grid).fields_into(p, frames, samples, &mut out).unwrap();
+        out
+    }
+
+    /// Direct evaluation of r_i at one sample from the same frequency table.
+    fn direct_field(p: &SurfaceParams, frames: usize, grid: usize, frame: usize, jx: usize, jy: usize) -> [f64; 3] {
+        let mut s = Synthesizer::new(grid);
+        s.build_table(p, frames);
+        let m = s.m as f64;
+        let n = s.amplitude.len();
+        let t = frame_time(frame, frames);
+        let half = s.m / 2;
+        let signed = |k: usize| k as f64 - if k >= half { m } else { 0.0 };
+        let mut r = [0.0; 3];
+        for c in 0..3 {
+            for i in 0..n {
+                let (kx, ky) = (signed(s.cols_k[i]), signed(s.rows_k[i]));
+                let key = |tag| [tag, c as u64, kx as i64 as u64, ky as i64 as u64];
+                let theta = TAU * unit_f64(hash(p.phase_seed, &key(TAG_THETA)));
+                let psi = TAU * unit_f64(hash(p.phase_seed, &key(TAG_PSI)));
+                let rho = 0.5 + unit_f64(hash(p.phase_seed, &key(TAG_RHO)));
+                let arg = TAU * (kx * jx as f64 + ky * jy as f64) / m + psi;
+                r[c] += 2.0 * s.amplitude[i] * (t * p.speeds[c] * rho + theta).cos() * arg.cos();
+            }
+        }
+        r
+    }
+
+    #[test]
+    fn fft_fields_equal_direct_fourier_sums() {
+        let p = still(3);
+        let (frames, grid) = (5, 17);
+        let f = fields(&p, frames, grid, grid);
+        for &(frame, jx, jy) in &[(0, 0, 0), (4, 3, 11), (2, 16, 16), (3, 7, 0)] {
+            let d = direct_field(&p, frames, grid, frame, jx, jy);
+            for c in 0..3 {
+                let got = f[((frame * grid + jy) * grid + jx) * 3 + c] as f64;
+                assert!((got - d[c]).abs() < 2e-4, "frame {frame} ({jx},{jy}) ch {c}: {got} vs {}", d[c]);
+            }
+        }
+    }
+
+    #[test]
+    fn fields_have_zero_mean_over_a_period_and_unit_rms_on_average() {
+        let mut rms_sum = 0.0;
+        let seeds = 40;
+        for seed in 0..seeds {
+            let p = still(seed);
+            let grid = 33;
+            let m = 2 * (grid - 1);
+            let f = fields(&p, 1, grid, m);
+            for c in 0..3 {
+                let vals: Vec<f64> = f.iter().skip(c).step_by(3).map(|&v| v as f64).collect();
+                let mean = vals.iter().sum::<f64>() / vals.len() as f64;
+                let rms = (vals.iter().map(|v| v * v).sum::<f64>() / vals.len() as f64).sqrt();
+                assert!(mean.abs() < 1e-5 * rms.max(1e-3), "seed {seed} channel {c}: mean {mean}, rms {rms}");
+                rms_sum += rms * rms;
+            }
+        }
+        let mean_ms = rms_sum / (3 * seeds) as f64;
+        assert!((mean_ms - 1.0).abs() < 0.25, "mean square {mean_ms}");
+    }
+
+    #[test]
+    fn surface_is_grid_independent_for_a_band_limited_spectrum() {
+        // Coarse vertex j sits at fine vertex 2j; the same frequencies carry the same draws.
+        let mut p = still(5);
+        p.flexibility = 0.4;
+        let (frames, coarse, fine) = (3, 33, 65);
+        let a = synthesize(&p, frames, coarse).unwrap();
+        let b = synthesize(&p, frames, fine).unwrap();
+        for f in 0..frames {
+            for jy in 0..coarse {
+                for jx in 0..coarse {
+                    for c in 0..3 {
+                        let va = a[((f * coarse + jy) * coarse + jx) * 3 + c];
+                        let vb = b[((f * fine + 2 * jy) * fine + 2 * jx) * 3 + c];
+                        assert!((va - vb).abs() < 1e-5, "{va} vs {vb}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn rigid_motion_is_a_rotation_and_translation_of_the_still_surface() {
+        let mut p = still(8);
+        let (frames, grid) = (4, 9);
+        let base = synthesize(&p, frames, grid).unwrap();
+        p.rotation = [0.1, -0.05, 0.7];
+        p.rotation_rate = [0.02, 0.03, -0.2];
+        p.drift = [0.05, -0.02, 0.1];
+        let moved = synthesize(&p, frames, grid).unwrap();
+        for f in 0..frames {
+            let t = frame_time(f, frames);
+            let v = |a: [f64; 3], b: [f64; 3]| Vector3::new(a[0] + t * b[0], a[1] + t * b[1], a[2] + t * b[2]);
+            let r = Rotation3::new(v(p.rotation, p.rotation_rate));
+            for i in 0..grid * grid {
+                let o = (f * grid * grid + i) * 3;
+                let q = r * Vector3::new(base[o] as f64, base[o + 1] as f64, base[o + 2] as f64) + v([0.0; 3], p.drift);
+                for c in 0..3 {
+                    assert!((q[c] - moved[o + c] as f64).abs() < 1e-5);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn batch_equals_single_clips() {
+        let params: Vec<_> = (0..5).map(|s| SurfaceConfig::default().sample(s).unwrap()).collect();
+        let (frames, grid) = (4, 12);
+        let mut out = vec![0.0; params.len() * clip_len(frames, grid)];
+        synthesize_batch(&params, frames, grid, &mut out).unwrap();
+        for (i, p) in params.iter().enumerate() {
+            let single = synthesize(p, frames, grid).unwrap();
+            let len = single.len();
+            assert!(single.iter().zip(&out[i * len..(i + 1) * len]).all(|(a, b)| a.to_bits() == b.to_bits()));
+        }
+    }
+
+    #[test]
+    fn bad_params_in_a_batch_name_their_index() {
+        let mut params: Vec<_> = (0..3).map(|s| SurfaceConfig::default().sample(s).unwrap()).collect();
+        params[2].folding = -1.0;
+        let mut out = vec![0.0; 3 * clip_len(2, 4)];
+        let err = synthesize_batch(&params, 2, 4, &mut out).unwrap_err();
+        assert_eq!(err.name, "params[2].folding");
+    }
+
+    #[test]
+    fn vanishing_spectrum_gives_a_flat_still_patch_not_nan() {
+        let mut p = still(1);
+        p.flexibility = 1e-3;
+        let out = synthesize(&p, 2, 8).unwrap();
+        assert!(out.iter().all(|v| v.is_finite()));
+        assert!(out.iter().skip(2).step_by(3).all(|&z| z == 0.0));
+    }
+}
