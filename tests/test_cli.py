@@ -1,0 +1,33 @@
+"""The CLI writes a complete PNG of the requested size, or nothing."""
+
+import struct
+
+from nrdepth.cli import main
+
+
+def png_size(path):
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    assert data[12:16] == b"IHDR" and data[-8:-4] == b"IEND"
+    return struct.unpack(">II", data[16:24])
+
+
+def test_surfaces_writes_a_png_sheet(tmp_path):
+    out = tmp_path / "sheet.png"
+    assert main(["surfaces", str(out), "--clips", "2", "--frames", "5", "--grid", "16", "--columns", "3"]) == 0
+    # 2 rows and 3 columns of 32-pixel tiles with 4-pixel gutters.
+    assert png_size(out) == (3 * 36 + 4, 2 * 36 + 4)
+    assert [p.name for p in tmp_path.iterdir()] == ["sheet.png"]
+
+
+def test_surfaces_refuses_bad_sizes_and_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "sheet.png"
+    assert main(["surfaces", str(out), "--grid", "1"]) == 2
+    assert "grid" in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())
+
+
+def test_unwritable_destination_is_a_clear_error(tmp_path, capsys):
+    out = tmp_path / "missing-dir" / "sheet.png"
+    assert main(["surfaces", str(out), "--clips", "1", "--frames", "2", "--grid", "8"]) == 2
+    assert "cannot write" in capsys.readouterr().err
