@@ -3,7 +3,9 @@
 //! One module per stage, usable from Rust without Python; `python` (behind the
 //! `python` cargo feature) is the only place pyo3 appears.
 
+pub mod bvh;
 pub mod error;
+pub mod geometry;
 pub mod image_io;
 pub mod mesh;
 pub mod params;

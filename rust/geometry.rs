@@ -1,0 +1,129 @@
+//! The camera and the one point-in-triangle test that both the rasteriser and
+//! the ray caster use, so their depths agree exactly at pixel centres.
+//!
+//! Frames: world x right, y up, z toward the camera. The camera is
+//! orthographic and looks down −z; its image plane is z = `camera_z`, so the
+//! depth of a point is `camera_z − z`. Pixel (row i, column j) of an H×W image
+//! of window (xmin, ymin, xmax, ymax) has its centre at
+//! `x = xmin + (j + ½)(xmax − xmin)/W`, `y = ymax − (i + ½)(ymax − ymin)/H`
+//! (row 0 at the top). Subsample (a, b) of an s×s supersampling grid sits at
+//! offsets `((b + ½)/s, (a + ½)/s)` inside the pixel.
+
+use crate::error::{InvalidArgument, Result};
+
+/// Default camera plane: the undeformed patch (z = 0) is 2 units in front of it.
+pub const CAMERA_Z: f32 = 2.0;
+/// Largest image side accepted.
+pub const MAX_SIZE: usize = 8192;
+
+/// An orthographic view: image size and the world window it covers.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct View {
+    pub height: usize,
+    pub width: usize,
+    /// (xmin, ymin, xmax, ymax) in world units.
+    pub window: [f32; 4],
+    pub camera_z: f32,
+}
+
+impl View {
+    pub fn new(height: usize, width: usize, window: [f32; 4], camera_z: f32) -> Result<Self> {
+        if height == 0 || width == 0 || height > MAX_SIZE || width > MAX_SIZE {
+            return Err(InvalidArgument::new("size", format!("expected (H, W) with 1 <= H, W <= {MAX_SIZE}, got ({height}, {width})")));
+        }
+        let [x0, y0, x1, y1] = window;
+        if !window.iter().all(|v| v.is_finite()) || !(x1 > x0 && y1 > y0) {
+            return Err(InvalidArgument::new("window", format!("expected finite (xmin, ymin, xmax, ymax) with xmin < xmax and ymin < ymax, got {window:?}")));
+        }
+        if !camera_z.is_finite() {
+            return Err(InvalidArgument::new("camera_z", format!("expected a finite number, got {camera_z}")));
+        }
+        Ok(Self { height, width, window, camera_z })
+    }
+
+    /// World (x, y) of a point at fractional pixel coordinates (row `r`, column `c`),
+    /// where (i + ½, j + ½) is the centre of pixel (i, j).
+    #[inline]
+    pub fn world(&self, r: f32, c: f32) -> (f32, f32) {
+        let [x0, y0, x1, y1] = self.window;
+        (x0 + c * (x1 - x0) / self.width as f32, y1 - r * (y1 - y0) / self.height as f32)
+    }
+
+    /// Fractional pixel coordinates (row, column) of world (x, y); inverse of `world`.
+    #[inline]
+    pub fn pixel(&self, x: f32, y: f32) -> (f32, f32) {
+        let [x0, y0, x1, y1] = self.window;
+        ((y1 - y) * self.height as f32 / (y1 - y0), (x - x0) * self.width as f32 / (x1 - x0))
+    }
+}
+
+#[inline]
+fn edge(a: [f32; 3], b: [f32; 3], px: f32, py: f32) -> f32 {
+    (b[0] - a[0]) * (py - a[1]) - (b[1] - a[1]) * (px - a[0])
+}
+
+/// Where the vertical line through (px, py) meets triangle (a, b, c), if it
+/// does: `(z, [λa, λb, λc])` with barycentric weights. Either winding counts
+/// (no culling); triangles whose xy-projection has zero area are never hit;
+/// points on an edge count as inside.
+#[inline]
+pub fn vertical_hit(a: [f32; 3], b: [f32; 3], c: [f32; 3], px: f32, py: f32) -> Option<(f32, [f32; 3])> {
+    let area = edge(a, b, c[0], c[1]);
+    if area == 0.0 || !area.is_finite() {
+        return None;
+    }
+    let (w0, w1, w2) = (edge(b, c, px, py), edge(c, a, px, py), edge(a, b, px, py));
+    let inside = if area > 0.0 { w0 >= 0.0 && w1 >= 0.0 && w2 >= 0.0 } else { w0 <= 0.0 && w1 <= 0.0 && w2 <= 0.0 };
+    if !inside {
+        return None;
+    }
+    let inv = 1.0 / area;
+    let l = [w0 * inv, w1 * inv, w2 * inv];
+    Some((l[0] * a[2] + l[1] * b[2] + l[2] * c[2], l))
+}
+
+/// Validate a mesh: vertices (V, 3) finite, triangles (F, 3) indexing into them.
+pub fn check_mesh(vertices: &[[f32; 3]], triangles: &[[u32; 3]]) -> Result<()> {
+    if vertices.is_empty() {
+        return Err(InvalidArgument::new("vertices", "expected at least one vertex, got an empty array"));
+    }
+    if triangles.is_empty() {
+        return Err(InvalidArgument::new("triangles", "expected at least one triangle, got an empty array"));
+    }
+    if let Some(i) = vertices.iter().position(|v| !v.iter().all(|c| c.is_finite())) {
+        return Err(InvalidArgument::new("vertices", format!("expected finite coordinates, vertex {i} is {:?}", vertices[i])));
+    }
+    let n = vertices.len() as u32;
+    if let Some(i) = triangles.iter().position(|t| t.iter().any(|&k| k >= n)) {
+        return Err(InvalidArgument::new("triangles", format!("index out of range: triangle {i} is {:?} but there are {n} vertices", triangles[i])));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn world_and_pixel_are_inverse_and_row_zero_is_at_the_top() {
+        let v = View::new(4, 8, [-1.0, -0.5, 1.0, 0.5], CAMERA_Z).unwrap();
+        let (x, y) = v.world(0.5, 0.5);
+        assert!((x + 0.875).abs() < 1e-6 && (y - 0.375).abs() < 1e-6);
+        let (r, c) = v.pixel(x, y);
+        assert!((r - 0.5).abs() < 1e-6 && (c - 0.5).abs() < 1e-6);
+        assert_eq!(View::new(0, 4, [0.0, 0.0, 1.0, 1.0], 0.0).unwrap_err().name, "size");
+        assert_eq!(View::new(4, 4, [0.0, 0.0, 0.0, 1.0], 0.0).unwrap_err().name, "window");
+    }
+
+    #[test]
+    fn vertical_hit_interpolates_a_plane_for_either_winding() {
+        let (a, b, c) = ([0.0, 0.0, 1.0], [1.0, 0.0, 2.0], [0.0, 1.0, 3.0]);
+        for (p, q, r) in [(a, b, c), (a, c, b)] {
+            let (z, l) = vertical_hit(p, q, r, 0.25, 0.25).unwrap();
+            assert!((z - (1.0 + 0.25 + 0.5)).abs() < 1e-6);
+            assert!((l.iter().sum::<f32>() - 1.0).abs() < 1e-6);
+        }
+        assert!(vertical_hit(a, b, c, 0.6, 0.6).is_none());
+        assert!(vertical_hit(a, b, [2.0, 0.0, 0.0], 0.5, 0.0).is_none(), "zero-area projection");
+    }
+}
