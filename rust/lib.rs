@@ -9,6 +9,7 @@ pub mod geometry;
 pub mod image_io;
 pub mod mesh;
 pub mod params;
+pub mod raster;
 pub mod rng;
 pub mod synthesis;
 
