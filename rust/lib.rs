@@ -12,6 +12,7 @@ pub mod params;
 pub mod raster;
 pub mod rng;
 pub mod synthesis;
+pub mod textures;
 
 #[cfg(feature = "python")]
 mod python;
