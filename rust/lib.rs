@@ -5,6 +5,7 @@
 
 pub mod bvh;
 pub mod error;
+pub mod generate;
 pub mod geometry;
 pub mod image_io;
 pub mod mesh;

@@ -1,0 +1,404 @@
+//! Training clips `(f_render, f_depth)`: a rendered grayscale video of a
+//! synthesised deforming surface and its ray-cast depth video.
+//!
+//! Clip `i` of a run is a pure function of (config, seed, i, texture folder):
+//! attempt `a` draws everything from `hash(seed, i, a)`; the first attempt
+//! whose view window lies inside the surface at every pixel subsample of every
+//! frame is kept, and `a` is reported as the clip's redraw count. Clips are
+//! independent, so the bytes do not depend on the thread count or batch split.
+//!
+//! Per clip: surface (`synthesis`), texture (`textures`), then per frame the
+//! grid BVH is refitted (topology built once per worker) and cast for depth
+//! (`bvh`), the frame is rendered (`raster`), Gaussian noise of the drawn
+//! standard deviation is added and the intensity is clamped to [0, 1] and
+//! quantised to u8. Depth is `camera_z − z` at pixel centres (`geometry`).
+//! Shapes: video (n, T, H, W) u8, depth (n, T, H, W) f32; H = W = `size`.
+
+use rayon::prelude::*;
+
+use crate::bvh::Bvh;
+use crate::error::{in_range, size_in, InvalidArgument, Result};
+use crate::geometry::{View, CAMERA_Z};
+use crate::mesh::grid_triangles;
+use crate::params::{Range, SurfaceConfig, SurfaceParams};
+use crate::raster::{Frame, Light, LightKind, Material, Rasterizer, Scene, Texture};
+use crate::rng::{hash, SplitMix64};
+use crate::synthesis::{clip_len, Synthesizer};
+use crate::textures::{procedural, TextureBank, TextureFamily, FAMILIES};
+
+pub const MAX_CLIP_SIZE: usize = 1024;
+
+/// Every range a clip is drawn from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GeneratorConfig {
+    pub frames: usize,
+    /// Image side H = W in pixels.
+    pub size: usize,
+    /// Mesh vertices per side.
+    pub grid: usize,
+    /// Subsamples per pixel side (anti-aliasing).
+    pub supersample: usize,
+    pub surface: SurfaceConfig,
+    /// Side of the square view window, world units (the patch is 2 wide).
+    pub window_width: Range,
+    /// Offset of the window centre from the patch centre, x and y each.
+    pub window_offset: Range,
+    /// Number of lights, inclusive.
+    pub light_count: (usize, usize),
+    /// Elevation of each light direction above the surface plane, radians.
+    pub light_elevation: Range,
+    /// Sum of the lights' intensities (split at random between them).
+    pub light_intensity: Range,
+    /// Probability that a light is a point light rather than directional.
+    pub point_light_probability: f64,
+    /// Distance of a point light from the patch centre.
+    pub point_light_distance: Range,
+    pub ambient: Range,
+    pub diffuse: Range,
+    pub specular: Range,
+    /// Phong exponent, log-uniform.
+    pub shininess: Range,
+    /// Procedural families drawn from uniformly (ignored with a texture folder).
+    pub texture_families: Vec<TextureFamily>,
+    pub texture_size: usize,
+    /// Standard deviation of the additive Gaussian noise, intensity units ([0, 1] = black to white).
+    pub noise_std: Range,
+    /// Attempts after the first before a clip is given up with an error.
+    pub max_redraws: usize,
+}
+
+impl Default for GeneratorConfig {
+    fn default() -> Self {
+        Self {
+            frames: 16,
+            size: 64,
+            grid: 64,
+            supersample: 2,
+            surface: SurfaceConfig::default(),
+            window_width: Range::new(0.8, 1.2),
+            window_offset: Range::new(-0.1, 0.1),
+            light_count: (1, 3),
+            light_elevation: Range::new(0.5, 1.45),
+            light_intensity: Range::new(0.7, 1.1),
+            point_light_probability: 0.3,
+            point_light_distance: Range::new(2.0, 6.0),
+            ambient: Range::new(0.05, 0.3),
+            diffuse: Range::new(0.5, 1.0),
+            specular: Range::new(0.0, 0.5),
+            shininess: Range::new(4.0, 100.0),
+            texture_families: FAMILIES.to_vec(),
+            texture_size: 256,
+            noise_std: Range::new(0.0, 0.03),
+            max_redraws: 200,
+        }
+    }
+}
+
+fn check_range(name: &str, r: Range, lo: f64, hi: f64) -> Result<()> {
+    in_range(&format!("{name}[0]"), r.lo, lo, hi)?;
+    in_range(&format!("{name}[1]"), r.hi, lo, hi)?;
+    if r.lo > r.hi {
+        return Err(InvalidArgument::new(name, format!("expected lo <= hi, got ({}, {})", r.lo, r.hi)));
+    }
+    Ok(())
+}
+
+impl GeneratorConfig {
+    pub fn validate(&self) -> Result<()> {
+        size_in("config.frames", self.frames as i64, 1, 4096)?;
+        size_in("config.size", self.size as i64, 1, MAX_CLIP_SIZE as i64)?;
+        size_in("config.grid", self.grid as i64, 2, 2048)?;
+        size_in("config.supersample", self.supersample as i64, 1, crate::raster::MAX_SUPERSAMPLE as i64)?;
+        size_in("config.texture_size", self.texture_size as i64, 2, 4096)?;
+        self.surface.validate()?;
+        check_range("config.window_width", self.window_width, 1e-3, 2.0)?;
+        check_range("config.window_offset", self.window_offset, -1.0, 1.0)?;
+        let (lo, hi) = self.light_count;
+        if !(1..=16).contains(&lo) || !(lo..=16).contains(&hi) {
+            return Err(InvalidArgument::new("config.light_count", format!("expected 1 <= lo <= hi <= 16, got ({lo}, {hi})")));
+        }
+        check_range("config.light_elevation", self.light_elevation, 0.0, std::f64::consts::FRAC_PI_2)?;
+        check_range("config.light_intensity", self.light_intensity, 0.0, 100.0)?;
+        in_range("config.point_light_probability", self.point_light_probability, 0.0, 1.0)?;
+        check_range("config.point_light_distance", self.point_light_distance, 0.1, 1000.0)?;
+        check_range("config.ambient", self.ambient, 0.0, 10.0)?;
+        check_range("config.diffuse", self.diffuse, 0.0, 10.0)?;
+        check_range("config.specular", self.specular, 0.0, 10.0)?;
+        check_range("config.shininess", self.shininess, 1e-3, 10_000.0)?;
+        check_range("config.noise_std", self.noise_std, 0.0, 1.0)?;
+        if self.texture_families.is_empty() {
+            return Err(InvalidArgument::new("config.texture_families", "expected at least one family"));
+        }
+        size_in("config.max_redraws", self.max_redraws as i64, 0, 1_000_000)?;
+        Ok(())
+    }
+
+    pub fn frame_len(&self) -> usize {
+        self.size * self.size
+    }
+
+    pub fn clip_pixels(&self) -> usize {
+        self.frames * self.frame_len()
+    }
+}
+
+/// Which texture a clip wears.
+#[derive(Clone, Debug, PartialEq)]
+pub enum TextureChoice {
+    Procedural { family: TextureFamily, seed: u64 },
+    /// Crop of image `index` of the texture folder at (top, left).
+    Image { index: usize, top: usize, left: usize },
+}
+
+/// Everything that was drawn for one clip.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ClipParams {
+    pub surface: SurfaceParams,
+    pub window: [f32; 4],
+    pub lights: Vec<Light>,
+    pub material: Material,
+    pub texture: TextureChoice,
+    pub noise_std: f64,
+    pub noise_seed: u64,
+    /// Attempts rejected before this one because the window showed background.
+    pub redraws: usize,
+}
+
+fn draw_clip(config: &GeneratorConfig, bank: Option<&TextureBank>, rng: &mut SplitMix64) -> Result<ClipParams> {
+    let surface = config.surface.sample(rng.next_u64())?;
+    let width = rng.uniform(config.window_width.lo, config.window_width.hi);
+    let (cx, cy) = (rng.uniform(config.window_offset.lo, config.window_offset.hi), rng.uniform(config.window_offset.lo, config.window_offset.hi));
+    let half = width / 2.0;
+    let window = [(cx - half) as f32, (cy - half) as f32, (cx + half) as f32, (cy + half) as f32];
+    let (lo, hi) = config.light_count;
+    let count = lo + (rng.next_u64() % (hi - lo + 1) as u64) as usize;
+    let total = rng.uniform(config.light_intensity.lo, config.light_intensity.hi);
+    let shares: Vec<f64> = (0..count).map(|_| 0.2 + rng.unit()).collect();
+    let share_sum: f64 = shares.iter().sum();
+    let lights = shares
+        .iter()
+        .map(|share| {
+            let azimuth = rng.uniform(0.0, std::f64::consts::TAU);
+            let elevation = rng.uniform(config.light_elevation.lo, config.light_elevation.hi);
+            let dir = [elevation.cos() * azimuth.cos(), elevation.cos() * azimuth.sin(), elevation.sin()];
+            let point = rng.unit() < config.point_light_probability;
+            let distance = rng.uniform(config.point_light_distance.lo, config.point_light_distance.hi);
+            let (kind, scale) = if point { (LightKind::Point, distance) } else { (LightKind::Directional, 1.0) };
+            Light { kind, vector: dir.map(|v| (v * scale) as f32), intensity: (total * share / share_sum) as f32 }
+        })
+        .collect();
+    let material = Material {
+        ambient: rng.uniform(config.ambient.lo, config.ambient.hi) as f32,
+        diffuse: rng.uniform(config.diffuse.lo, config.diffuse.hi) as f32,
+        specular: rng.uniform(config.specular.lo, config.specular.hi) as f32,
+        shininess: rng.log_uniform(config.shininess.lo, config.shininess.hi) as f32,
+    };
+    let texture = match bank {
+        Some(bank) => {
+            let index = (rng.next_u64() % bank.images.len() as u64) as usize;
+            let image = &bank.images[index];
+            let (crop_h, crop_w) = (config.texture_size.min(image.height), config.texture_size.min(image.width));
+            let top = (rng.next_u64() % (image.height - crop_h + 1) as u64) as usize;
+            let left = (rng.next_u64() % (image.width - crop_w + 1) as u64) as usize;
+            TextureChoice::Image { index, top, left }
+        }
+        None => {
+            let family = config.texture_families[(rng.next_u64() % config.texture_families.len() as u64) as usize];
+            TextureChoice::Procedural { family, seed: rng.next_u64() }
+        }
+    };
+    let noise_std = rng.uniform(config.noise_std.lo, config.noise_std.hi);
+    Ok(ClipParams { surface, window, lights, material, texture, noise_std, noise_seed: rng.next_u64(), redraws: 0 })
+}
+
+/// Standard normal from 64 random bits (Box–Muller, one of the pair).
+#[inline]
+fn gaussian(bits: u64) -> f64 {
+    let u1 = ((bits >> 32) as f64 + 0.5) / 4_294_967_296.0;
+    let u2 = (bits & 0xffff_ffff) as f64 / 4_294_967_296.0;
+    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+}
+
+/// Add N(0, std²) noise (a pure function of seed, frame, pixel), clamp to [0, 1], quantise.
+pub fn noisy_u8(image: &[f32], std: f64, seed: u64, frame: usize, out: &mut [u8]) {
+    for (k, (o, &v)) in out.iter_mut().zip(image).enumerate() {
+        let noise = if std > 0.0 { std * gaussian(hash(seed, &[frame as u64, k as u64])) } else { 0.0 };
+        *o = ((v as f64 + noise).clamp(0.0, 1.0) * 255.0).round() as u8;
+    }
+}
+
+/// Per-thread state: everything one clip needs, reused across clips.
+pub struct ClipWorker {
+    synth: Synthesizer,
+    bvh: Bvh,
+    triangles: Vec<[u32; 3]>,
+    uv: Vec<[f32; 2]>,
+    positions: Vec<[f32; 3]>,
+    texture: Texture,
+    rasterizer: Rasterizer,
+    frame: Frame,
+}
+
+impl ClipWorker {
+    pub fn new(config: &GeneratorConfig) -> Self {
+        let grid = config.grid;
+        let triangles = grid_triangles(grid as i64).expect("validated grid").chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        // Texture coordinates = undeformed position: u = (x + 1)/2, v = (1 − y)/2 (texture row 0 at the top).
+        let step = 1.0 / (grid - 1) as f32;
+        let uv = (0..grid * grid).map(|i| [(i % grid) as f32 * step, 1.0 - (i / grid) as f32 * step]).collect();
+        Self {
+            synth: Synthesizer::new(grid),
+            bvh: Bvh::for_grid(grid),
+            triangles,
+            uv,
+            positions: vec![[0.0; 3]; clip_len(config.frames, grid) / 3],
+            texture: Texture::default(),
+            rasterizer: Rasterizer::default(),
+            frame: Frame::default(),
+        }
+    }
+
+    /// Generate clip `index` into `video` / `depth` (T·H·W each).
+    pub fn clip(&mut self, config: &GeneratorConfig, bank: Option<&TextureBank>, seed: u64, index: u64, video: &mut [u8], depth: &mut [f32]) -> Result<ClipParams> {
+        for attempt in 0..=config.max_redraws {
+            let mut rng = SplitMix64::new(hash(seed, &[index, attempt as u64]));
+            let mut params = draw_clip(config, bank, &mut rng)?;
+            if self.try_clip(config, bank, &params, video, depth)? {
+                params.redraws = attempt;
+                return Ok(params);
+            }
+        }
+        Err(InvalidArgument::new(
+            "config",
+            format!("clip {index}: the view window showed background in {} attempts; shrink window_width or the motion ranges", config.max_redraws + 1),
+        ))
+    }
+
+    /// Render one drawn clip; false if the window shows background anywhere.
+    fn try_clip(&mut self, config: &GeneratorConfig, bank: Option<&TextureBank>, p: &ClipParams, video: &mut [u8], depth: &mut [f32]) -> Result<bool> {
+        let (frames, grid) = (config.frames, config.grid);
+        self.synth.synthesize_into(&p.surface, frames, self.positions.as_flattened_mut())?;
+        let view = View::new(config.size, config.size, p.window, CAMERA_Z)?;
+        let vertex_count = grid * grid;
+        // Depth first: it is cheaper than rendering and finds most rejections.
+        let frame_len = config.frame_len();
+        for f in 0..frames {
+            let vertices = &self.positions[f * vertex_count..(f + 1) * vertex_count];
+            self.bvh.refit(vertices, &self.triangles);
+            let out = &mut depth[f * frame_len..(f + 1) * frame_len];
+            self.bvh.depth_into(vertices, &self.triangles, &view, out);
+            if out.iter().any(|d| d.is_nan()) {
+                return Ok(false);
+            }
+        }
+        match &p.texture {
+            TextureChoice::Procedural { family, seed } => procedural(*family, *seed, config.texture_size, &mut self.texture),
+            TextureChoice::Image { index, top, left } => {
+                let bank = bank.expect("image texture without a bank");
+                let image = &bank.images[*index];
+                bank.crop(*index, *top, *left, config.texture_size.min(image.height).min(image.width), &mut self.texture)
+            }
+        }
+        let scene = Scene { view, supersample: config.supersample, lights: &p.lights, material: p.material, texture: &self.texture };
+        for f in 0..frames {
+            let vertices = &self.positions[f * vertex_count..(f + 1) * vertex_count];
+            self.rasterizer.render_into(vertices, &self.triangles, &self.uv, &scene, &mut self.frame, false);
+            if self.frame.coverage.iter().any(|&c| c < 1.0) {
+                return Ok(false);
+            }
+            noisy_u8(&self.frame.image, p.noise_std, p.noise_seed, f, &mut video[f * frame_len..(f + 1) * frame_len]);
+        }
+        Ok(true)
+    }
+}
+
+/// Clips `start .. start + n` into `video` (n·T·H·W u8) and `depth` (same, f32),
+/// in parallel over clips.
+pub fn generate_clips(config: &GeneratorConfig, bank: Option<&TextureBank>, seed: u64, start: u64, n: usize, video: &mut [u8], depth: &mut [f32]) -> Result<Vec<ClipParams>> {
+    config.validate()?;
+    let len = config.clip_pixels();
+    if video.len() != n * len || depth.len() != n * len {
+        return Err(InvalidArgument::new("out", format!("expected {} values per output, got {} and {}", n * len, video.len(), depth.len())));
+    }
+    if n == 0 {
+        return Ok(Vec::new());
+    }
+    video
+        .par_chunks_mut(len)
+        .zip(depth.par_chunks_mut(len))
+        .enumerate()
+        .map_init(|| ClipWorker::new(config), |worker, (i, (v, d))| worker.clip(config, bank, seed, start + i as u64, v, d))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn small() -> GeneratorConfig {
+        GeneratorConfig { frames: 4, size: 24, grid: 24, texture_size: 64, ..GeneratorConfig::default() }
+    }
+
+    fn run(config: &GeneratorConfig, seed: u64, start: u64, n: usize) -> (Vec<u8>, Vec<f32>, Vec<ClipParams>) {
+        let len = config.clip_pixels();
+        let (mut video, mut depth) = (vec![0u8; n * len], vec![0f32; n * len]);
+        let params = generate_clips(config, None, seed, start, n, &mut video, &mut depth).unwrap();
+        (video, depth, params)
+    }
+
+    #[test]
+    fn clips_have_no_background_and_depend_only_on_their_index() {
+        let config = small();
+        let (video, depth, params) = run(&config, 3, 0, 6);
+        assert!(depth.iter().all(|d| d.is_finite()));
+        assert!(video.iter().any(|&v| v > 0));
+        // Clip 4 alone (start = 4) equals clip 4 of the batch.
+        let (v4, d4, p4) = run(&config, 3, 4, 1);
+        let len = config.clip_pixels();
+        assert_eq!(&video[4 * len..5 * len], &v4[..]);
+        assert!(depth[4 * len..5 * len].iter().zip(&d4).all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert_eq!(params[4], p4[0]);
+    }
+
+    #[test]
+    fn a_window_too_large_is_redrawn_and_counted_or_refused() {
+        let mut config = small();
+        config.window_width = Range::new(1.7, 1.7);
+        config.max_redraws = 2000;
+        let (_, depth, params) = run(&config, 1, 0, 2);
+        assert!(depth.iter().all(|d| d.is_finite()));
+        assert!(params.iter().map(|p| p.redraws).sum::<usize>() > 0);
+        config.window_width = Range::new(2.0, 2.0);
+        config.max_redraws = 3;
+        let len = config.clip_pixels();
+        let err = generate_clips(&config, None, 0, 0, 1, &mut vec![0; len], &mut vec![0.0; len]).unwrap_err();
+        assert_eq!(err.name, "config");
+    }
+
+    #[test]
+    fn noise_has_the_drawn_standard_deviation() {
+        let image = vec![0.5f32; 200 * 200];
+        let mut out = vec![0u8; image.len()];
+        for std in [0.01, 0.05] {
+            noisy_u8(&image, std, 9, 2, &mut out);
+            let vals: Vec<f64> = out.iter().map(|&v| v as f64 / 255.0 - 0.5).collect();
+            let mean = vals.iter().sum::<f64>() / vals.len() as f64;
+            let var = vals.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / vals.len() as f64;
+            // Quantisation adds a uniform error of variance (1/255)²/12.
+            let expected = std * std + 1.0 / (12.0 * 255.0 * 255.0);
+            assert!((var / expected - 1.0).abs() < 0.05, "std {std}: var {var} vs {expected}");
+            assert!(mean.abs() < 3.0 * std / 200.0 + 0.002);
+        }
+    }
+
+    #[test]
+    fn bad_config_is_named() {
+        let mut config = small();
+        config.size = 0;
+        let err = generate_clips(&config, None, 0, 0, 1, &mut [], &mut []).unwrap_err();
+        assert_eq!(err.name, "config.size");
+        let mut config = small();
+        config.light_count = (3, 2);
+        assert_eq!(config.validate().unwrap_err().name, "config.light_count");
+    }
+}
