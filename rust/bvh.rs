@@ -17,6 +17,11 @@
 //! Rays are orthographic, straight down −z from the camera plane: a ray hits
 //! the highest triangle (largest z) over its (x, y), found by traversing
 //! nearer boxes first and pruning boxes entirely below the best hit so far.
+//! `depth_into` casts the rays of a tile of 8×8 pixels as one packet (for an
+//! orthographic camera a packet is bounded by an xy box) and tests each leaf
+//! triangle only against the tile's pixel centres inside its bounds; the
+//! coverage test runs in pixel space (`View::pixel_vertex`), like the
+//! rasteriser's.
 
 use rayon::prelude::*;
 
@@ -203,20 +208,100 @@ impl Bvh {
     /// Depth image `camera_z − z` of the first hit at each pixel centre, NaN on a
     /// miss, into `depth` (H·W, row-major).
     pub fn depth_into(&self, vertices: &[[f32; 3]], triangles: &[[u32; 3]], view: &View, depth: &mut [f32]) {
-        for (i, row) in depth.chunks_exact_mut(view.width).enumerate() {
-            self.depth_row(vertices, triangles, view, i, row);
+        self.depth_band(vertices, triangles, view, 0, depth);
+    }
+
+    /// Depth of the pixel rows `row0 ..` that `band` (whole rows) holds.
+    fn depth_band(&self, vertices: &[[f32; 3]], triangles: &[[u32; 3]], view: &View, row0: usize, band: &mut [f32]) {
+        let width = view.width;
+        let rows = band.len() / width;
+        band.fill(f32::NEG_INFINITY);
+        for r in (0..rows).step_by(TILE) {
+            for c in (0..width).step_by(TILE) {
+                let tile = Tile { row0, rows: r..(r + TILE).min(rows), cols: c..(c + TILE).min(width) };
+                self.cast_tile(vertices, triangles, view, &tile, band);
+            }
+        }
+        for d in band.iter_mut() {
+            *d = if *d == f32::NEG_INFINITY { f32::NAN } else { view.camera_z - *d };
         }
     }
 
-    fn depth_row(&self, vertices: &[[f32; 3]], triangles: &[[u32; 3]], view: &View, i: usize, row: &mut [f32]) {
-        for (j, d) in row.iter_mut().enumerate() {
-            let (x, y) = view.world(i as f32 + 0.5, j as f32 + 0.5);
-            *d = match self.cast_down(vertices, triangles, x, y, view.camera_z) {
-                Some(hit) => view.camera_z - hit.z,
-                None => f32::NAN,
-            };
+    /// Cast the rays of one tile of pixel centres as a packet: one traversal
+    /// bounded by the tile's xy box; each triangle of a visited leaf is tested
+    /// only against the tile's pixels inside its xy bounds. `band` holds the
+    /// best z so far per pixel (−∞: no hit).
+    fn cast_tile(&self, vertices: &[[f32; 3]], triangles: &[[u32; 3]], view: &View, tile: &Tile, band: &mut [f32]) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let width = view.width;
+        let centre = |r: usize, c: usize| view.world((tile.row0 + r) as f32 + 0.5, c as f32 + 0.5);
+        let (xa, ya) = centre(tile.rows.start, tile.cols.start);
+        let (xb, yb) = centre(tile.rows.end - 1, tile.cols.end - 1);
+        let (x_lo, x_hi, y_lo, y_hi) = (xa.min(xb), xa.max(xb), ya.min(yb), ya.max(yb));
+        // Lowest best hit over the tile: boxes entirely below it cannot matter.
+        let mut floor_z = f32::NEG_INFINITY;
+        let mut stack = [0u32; 64];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let index = stack[top] as usize;
+            let node = &self.nodes[index];
+            if node.hi[0] < x_lo || node.lo[0] > x_hi || node.hi[1] < y_lo || node.lo[1] > y_hi || node.hi[2] < floor_z || node.lo[2] > view.camera_z {
+                continue;
+            }
+            if node.count == 0 {
+                let (l, r) = (index + 1, node.first as usize);
+                let (near, far) = if self.nodes[l].hi[2] >= self.nodes[r].hi[2] { (l, r) } else { (r, l) };
+                stack[top] = far as u32;
+                stack[top + 1] = near as u32;
+                top += 2;
+                continue;
+            }
+            let mut updated = false;
+            for &t in &self.order[node.first as usize..(node.first + node.count) as usize] {
+                let [a, b, c] = triangles[t as usize].map(|k| view.pixel_vertex(vertices[k as usize], 1.0));
+                // Pixel rows/columns whose centres can lie in the triangle's bounds;
+                // a small margin absorbs rounding, vertical_hit decides exactly.
+                let (c0, c1) = (a[0].min(b[0]).min(c[0]), a[0].max(b[0]).max(c[0]));
+                let (r0, r1) = (a[1].min(b[1]).min(c[1]), a[1].max(b[1]).max(c[1]));
+                let span = |lo: f32, hi: f32, range: &std::ops::Range<usize>, offset: usize| {
+                    let first = ((lo - 0.5 - MARGIN).ceil().max(0.0) as usize).max(range.start + offset);
+                    let last = ((hi - 0.5 + MARGIN).floor().max(-1.0) as isize).min((range.end + offset) as isize - 1);
+                    (first, last)
+                };
+                let (row_first, row_last) = span(r0, r1, &tile.rows, tile.row0);
+                let (col_first, col_last) = span(c0, c1, &tile.cols, 0);
+                for row in row_first as isize..=row_last {
+                    for col in col_first as isize..=col_last {
+                        let (row, col) = (row as usize, col as usize);
+                        if let Some((z, _)) = vertical_hit(a, b, c, col as f32 + 0.5, row as f32 + 0.5) {
+                            let best = &mut band[(row - tile.row0) * width + col];
+                            if z > *best && z <= view.camera_z {
+                                *best = z;
+                                updated = true;
+                            }
+                        }
+                    }
+                }
+            }
+            if updated {
+                floor_z = tile.rows.clone().flat_map(|r| tile.cols.clone().map(move |c| (r, c))).map(|(r, c)| band[r * width + c]).fold(f32::INFINITY, f32::min);
+            }
         }
     }
+}
+
+/// Rays are cast in tiles of TILE × TILE pixels.
+pub const TILE: usize = 8;
+/// Slack, in pixels, of a triangle's pixel bounds.
+const MARGIN: f32 = 1e-3;
+
+struct Tile {
+    row0: usize,
+    rows: std::ops::Range<usize>,
+    cols: std::ops::Range<usize>,
 }
 
 /// The reference answer: test every triangle.
@@ -239,9 +324,9 @@ pub fn raycast_depth(vertices: &[[f32; 3]], triangles: &[[u32; 3]], view: &View)
     let bvh = Bvh::build(vertices, triangles);
     let mut depth = vec![0.0; view.height * view.width];
     depth
-        .par_chunks_mut(view.width)
+        .par_chunks_mut(TILE * view.width)
         .enumerate()
-        .for_each(|(i, row)| bvh.depth_row(vertices, triangles, view, i, row));
+        .for_each(|(k, band)| bvh.depth_band(vertices, triangles, view, k * TILE, band));
     Ok(depth)
 }
 
@@ -303,6 +388,27 @@ mod tests {
                 let fast = bvh.cast_down(&vertices, &triangles, x, y, CAMERA_Z);
                 let slow = brute_force_hit(&vertices, &triangles, x, y, CAMERA_Z);
                 prop_assert!(same_hit(fast, slow));
+            }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(32))]
+        #[test]
+        fn packet_depth_equals_brute_force_per_pixel(seed in 0u64..1000, grid in 2usize..40, h in 1usize..30, w in 1usize..30) {
+            let params = SurfaceConfig::default().sample(seed).unwrap();
+            let vertices = as_vertices(&synthesize(&params, 1, grid).unwrap());
+            let triangles = as_triangles(&grid_triangles(grid as i64).unwrap());
+            let view = View::new(h, w, [-1.1, -0.9, 0.8, 1.05], CAMERA_Z).unwrap();
+            let depth = raycast_depth(&vertices, &triangles, &view).unwrap();
+            let pixel_space: Vec<[f32; 3]> = vertices.iter().map(|&v| view.pixel_vertex(v, 1.0)).collect();
+            for i in 0..h {
+                for j in 0..w {
+                    let hit = brute_force_hit(&pixel_space, &triangles, j as f32 + 0.5, i as f32 + 0.5, CAMERA_Z);
+                    let expected = hit.map_or(f32::NAN, |hit| CAMERA_Z - hit.z);
+                    let got = depth[i * w + j];
+                    prop_assert!(got == expected || (got.is_nan() && expected.is_nan()), "({i},{j}): {got} vs {expected}");
+                }
             }
         }
     }

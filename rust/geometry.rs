@@ -1,6 +1,8 @@
 //! The camera and the one point-in-triangle test that both the rasteriser and
 //! the ray caster use, so their depths agree exactly at pixel centres.
 //!
+//! Coverage is decided in pixel space (`View::pixel_vertex`).
+//!
 //! Frames: world x right, y up, z toward the camera. The camera is
 //! orthographic and looks down −z; its image plane is z = `camera_z`, so the
 //! depth of a point is `camera_z − z`. Pixel (row i, column j) of an H×W image
@@ -47,6 +49,16 @@ impl View {
     pub fn world(&self, r: f32, c: f32) -> (f32, f32) {
         let [x0, y0, x1, y1] = self.window;
         (x0 + c * (x1 - x0) / self.width as f32, y1 - r * (y1 - y0) / self.height as f32)
+    }
+
+    /// A vertex in pixel space `[column, row, z]`, pixel coordinates times
+    /// `scale` (the supersampling factor). Rasteriser and ray caster both test
+    /// coverage in this space, at sample centres (k + ½) — the same arithmetic,
+    /// so their depths agree.
+    #[inline]
+    pub fn pixel_vertex(&self, v: [f32; 3], scale: f32) -> [f32; 3] {
+        let (r, c) = self.pixel(v[0], v[1]);
+        [c * scale, r * scale, v[2]]
     }
 
     /// Fractional pixel coordinates (row, column) of world (x, y); inverse of `world`.

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{InvalidArgument, Result};
 use crate::raster::Texture;
-use crate::rng::{hash, unit_f64, SplitMix64};
+use crate::rng::{hash, mix64, unit_f64, SplitMix64};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TextureFamily {
@@ -161,10 +161,16 @@ pub fn procedural(family: TextureFamily, seed: u64, size: usize, texture: &mut T
             let radius = rng.uniform(0.2, 0.6) as f32;
             let walls = rng.unit() < 0.4;
             let cell_seed = rng.next_u64();
+            // Feature point offset and tone of every cell (periodic).
+            let features: Vec<(f32, f32, f32)> = (0..cells * cells)
+                .map(|k| {
+                    let h = hash(cell_seed, &[(k % cells) as u64, (k / cells) as u64]);
+                    (unit_f64(h) as f32, unit_f64(h.rotate_left(32)) as f32, unit_f64(mix64(h)) as f32)
+                })
+                .collect();
             let point = |i: i64, j: i64| {
-                let (ii, jj) = (i.rem_euclid(cells as i64) as u64, j.rem_euclid(cells as i64) as u64);
-                let h = hash(cell_seed, &[ii, jj]);
-                (i as f32 + unit_f64(h) as f32, j as f32 + unit_f64(h.rotate_left(32)) as f32, unit_f64(hash(cell_seed, &[jj, ii, 1])) as f32)
+                let (ox, oy, tone) = features[j.rem_euclid(cells as i64) as usize * cells + i.rem_euclid(cells as i64) as usize];
+                (i as f32 + ox, j as f32 + oy, tone)
             };
             for (k, v) in data.iter_mut().enumerate() {
                 let (x, y) = (coords(k) * cells as f32, coords(k / size) * cells as f32);
