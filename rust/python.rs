@@ -4,17 +4,50 @@
 //! as C-contiguous numpy arrays. Every core `InvalidArgument` becomes a
 //! `ValueError("name: message")`; heavy work runs with the GIL released.
 
-use std::path::PathBuf;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray3, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
+use rayon::ThreadPool;
 
+use crate::bvh;
 use crate::error::InvalidArgument;
+use crate::generate::{self, ClipParams, GeneratorConfig, TextureChoice};
+use crate::geometry::View;
 use crate::params::{Range, SurfaceConfig, SurfaceParams};
+use crate::raster::{self, Light, LightKind, Material, Scene, Texture};
 use crate::synthesis::{self, check_sizes, clip_len};
+use crate::textures::{self, TextureBank, TextureFamily};
 use crate::{image_io, mesh};
+
+/// The rayon pool of this process. A forked child (a DataLoader worker)
+/// inherits the parent's pool without its threads, so a new pool is made
+/// whenever the process id changes; the stale one is leaked, never joined.
+fn pool() -> PyResult<Arc<ThreadPool>> {
+    static POOL: Mutex<Option<(u32, Arc<ThreadPool>)>> = Mutex::new(None);
+    let pid = std::process::id();
+    let mut guard = POOL.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((owner, pool)) = guard.as_ref() {
+        if *owner == pid {
+            return Ok(pool.clone());
+        }
+    }
+    let pool = Arc::new(rayon::ThreadPoolBuilder::new().build().map_err(|e| PyRuntimeError::new_err(format!("cannot start threads: {e}")))?);
+    if let Some(stale) = guard.replace((pid, pool.clone())) {
+        std::mem::forget(stale);
+    }
+    Ok(pool)
+}
+
+/// Run `f` without the GIL on this process's pool.
+fn parallel<T: Send>(py: Python<'_>, f: impl FnOnce() -> T + Send) -> PyResult<T> {
+    let pool = pool()?;
+    Ok(py.detach(|| pool.install(f)))
+}
 
 fn value_error(e: InvalidArgument) -> PyErr {
     PyValueError::new_err(e.to_string())
@@ -134,7 +167,7 @@ fn synthesize_surface<'py>(py: Python<'py>, params: &Bound<'py, PyDict>, frames:
     let (frames, grid) = check_sizes(frames, grid).map_err(value_error)?;
     let params = params_from_dict(params, "params")?;
     params.validate().map_err(value_error)?;
-    let data = py.detach(|| synthesis::synthesize(&params, frames, grid)).map_err(value_error)?;
+    let data = parallel(py, || synthesis::synthesize(&params, frames, grid))?.map_err(value_error)?;
     Ok(PyArray1::from_vec(py, data).reshape([frames, grid, grid, 3])?.into_any())
 }
 
@@ -155,12 +188,11 @@ fn synthesize_surfaces<'py>(py: Python<'py>, params: &Bound<'py, PyList>, frames
         .checked_mul(clip_len(frames, grid))
         .filter(|&l| l <= MAX_VALUES)
         .ok_or_else(|| PyValueError::new_err(format!("params: {n} clips of {frames}×{grid}×{grid} exceed {MAX_VALUES} values per call")))?;
-    let data = py
-        .detach(|| {
-            let mut out = vec![0.0f32; len];
-            synthesis::synthesize_batch(&params, frames, grid, &mut out).map(|_| out)
-        })
-        .map_err(value_error)?;
+    let data = parallel(py, || {
+        let mut out = vec![0.0f32; len];
+        synthesis::synthesize_batch(&params, frames, grid, &mut out).map(|_| out)
+    })?
+    .map_err(value_error)?;
     Ok(PyArray1::from_vec(py, data).reshape([n, frames, grid, grid, 3])?.into_any())
 }
 
@@ -186,6 +218,285 @@ fn write_png(py: Python<'_>, path: PathBuf, image: PyReadonlyArray3<'_, u8>) -> 
     py.detach(|| image_io::write_png_rgb(&path, pixels, shape[0], shape[1])).map_err(value_error)
 }
 
+// ------------------------------------------------------------------ rendering
+
+fn vec3_rows<'a>(name: &str, a: &'a PyReadonlyArray2<'_, f32>) -> PyResult<&'a [[f32; 3]]> {
+    rows::<f32, 3>(name, a)
+}
+
+fn rows<'a, T: numpy::Element, const N: usize>(name: &str, a: &'a PyReadonlyArray2<'_, T>) -> PyResult<&'a [[T; N]]> {
+    let shape = a.shape();
+    if shape[1] != N {
+        return Err(PyValueError::new_err(format!("{name}: expected shape (n, {N}), got {shape:?}")));
+    }
+    let flat = a.as_slice().map_err(|_| PyValueError::new_err(format!("{name}: expected a C-contiguous array")))?;
+    Ok(flat.as_chunks::<N>().0)
+}
+
+fn view_from(size: (i64, i64), window: [f32; 4], camera_z: f32) -> PyResult<View> {
+    let (h, w) = size;
+    if h < 1 || w < 1 {
+        return Err(PyValueError::new_err(format!("size: expected (H, W) >= 1, got ({h}, {w})")));
+    }
+    View::new(h as usize, w as usize, window, camera_z).map_err(value_error)
+}
+
+fn light_from_dict(d: &Bound<'_, PyAny>, i: usize) -> PyResult<Light> {
+    let owner = format!("lights[{i}]");
+    let d = d.cast::<PyDict>().map_err(|_| PyTypeError::new_err(format!("{owner}: expected a dict")))?;
+    let kind: String = field(d, &owner, "kind")?;
+    let kind = match kind.as_str() {
+        "directional" => LightKind::Directional,
+        "point" => LightKind::Point,
+        other => return Err(PyValueError::new_err(format!("{owner}.kind: expected 'directional' or 'point', got {other:?}"))),
+    };
+    Ok(Light { kind, vector: field(d, &owner, "vector")?, intensity: field(d, &owner, "intensity")? })
+}
+
+fn light_to_dict<'py>(py: Python<'py>, l: &Light) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("kind", if l.kind == LightKind::Point { "point" } else { "directional" })?;
+    d.set_item("vector", l.vector)?;
+    d.set_item("intensity", l.intensity)?;
+    Ok(d)
+}
+
+fn material_from_dict(d: &Bound<'_, PyDict>) -> PyResult<Material> {
+    Ok(Material {
+        ambient: field(d, "material", "ambient")?,
+        diffuse: field(d, "material", "diffuse")?,
+        specular: field(d, "material", "specular")?,
+        shininess: field(d, "material", "shininess")?,
+    })
+}
+
+fn material_to_dict<'py>(py: Python<'py>, m: &Material) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("ambient", m.ambient)?;
+    d.set_item("diffuse", m.diffuse)?;
+    d.set_item("specular", m.specular)?;
+    d.set_item("shininess", m.shininess)?;
+    Ok(d)
+}
+
+fn array2<'py, T: numpy::Element>(py: Python<'py>, data: Vec<T>, rows: usize, cols: usize) -> PyResult<Bound<'py, PyAny>> {
+    Ok(PyArray1::from_vec(py, data).reshape([rows, cols])?.into_any())
+}
+
+/// Render a mesh: (image (H, W), coverage (H, W), depth (H·s, W·s)) float32.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn render<'py>(
+    py: Python<'py>,
+    vertices: PyReadonlyArray2<'py, f32>,
+    triangles: PyReadonlyArray2<'py, u32>,
+    uv: PyReadonlyArray2<'py, f32>,
+    texture: PyReadonlyArray2<'py, f32>,
+    size: (i64, i64),
+    window: [f32; 4],
+    lights: &Bound<'py, PyList>,
+    material: &Bound<'py, PyDict>,
+    supersample: i64,
+    camera_z: f32,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let view = view_from(size, window, camera_z)?;
+    let (v, t, uvs) = (vec3_rows("vertices", &vertices)?, rows::<u32, 3>("triangles", &triangles)?, rows::<f32, 2>("uv", &uv)?);
+    let lights = lights.iter().enumerate().map(|(i, d)| light_from_dict(&d, i)).collect::<PyResult<Vec<_>>>()?;
+    let material = material_from_dict(material)?;
+    let tex_shape = texture.shape().to_vec();
+    let texture = Texture {
+        height: tex_shape[0],
+        width: tex_shape[1],
+        data: texture.as_slice().map_err(|_| PyValueError::new_err("texture: expected a C-contiguous array"))?.to_vec(),
+    };
+    if !(1..=raster::MAX_SUPERSAMPLE as i64).contains(&supersample) {
+        return Err(PyValueError::new_err(format!("supersample: expected 1..={}, got {supersample}", raster::MAX_SUPERSAMPLE)));
+    }
+    let s = supersample as usize;
+    let scene = Scene { view, supersample: s, lights: &lights, material, texture: &texture };
+    let frame = parallel(py, || raster::render(v, t, uvs, &scene))?.map_err(value_error)?;
+    let (h, w) = (view.height, view.width);
+    Ok((array2(py, frame.image, h, w)?, array2(py, frame.coverage, h, w)?, array2(py, frame.depth, h * s, w * s)?))
+}
+
+/// Ray-cast depth (H, W) float32 of any mesh; NaN where a ray misses.
+#[pyfunction]
+fn raycast_depth<'py>(
+    py: Python<'py>,
+    vertices: PyReadonlyArray2<'py, f32>,
+    triangles: PyReadonlyArray2<'py, u32>,
+    size: (i64, i64),
+    window: [f32; 4],
+    camera_z: f32,
+) -> PyResult<Bound<'py, PyAny>> {
+    let view = view_from(size, window, camera_z)?;
+    let (v, t) = (vec3_rows("vertices", &vertices)?, rows::<u32, 3>("triangles", &triangles)?);
+    let depth = parallel(py, || bvh::raycast_depth(v, t, &view))?.map_err(value_error)?;
+    array2(py, depth, view.height, view.width)
+}
+
+/// A procedural texture (size, size) float32 in [0, 1].
+#[pyfunction]
+fn procedural_texture<'py>(py: Python<'py>, family: &str, seed: u64, size: i64) -> PyResult<Bound<'py, PyAny>> {
+    let family = TextureFamily::from_name(family).map_err(|e| PyValueError::new_err(format!("family: {}", e.message)))?;
+    let size = crate::error::size_in("size", size, 2, 4096).map_err(value_error)?;
+    let mut texture = Texture::default();
+    py.detach(|| textures::procedural(family, seed, size, &mut texture));
+    array2(py, texture.data, size, size)
+}
+
+/// Names of the procedural texture families.
+#[pyfunction]
+fn texture_families() -> Vec<&'static str> {
+    textures::FAMILIES.iter().map(|f| f.name()).collect()
+}
+
+// ------------------------------------------------------------------ generation
+
+fn generator_config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<GeneratorConfig> {
+    let range = |key: &str| -> PyResult<Range> {
+        let (lo, hi): (f64, f64) = field(d, "config", key)?;
+        Ok(Range::new(lo, hi))
+    };
+    let size = |key: &str| -> PyResult<usize> {
+        let v: i64 = field(d, "config", key)?;
+        usize::try_from(v).map_err(|_| PyValueError::new_err(format!("config.{key}: expected a non-negative integer, got {v}")))
+    };
+    let surface: Bound<'_, PyDict> = field(d, "config", "surface")?;
+    let families: Vec<String> = field(d, "config", "texture_families")?;
+    let light_count: (i64, i64) = field(d, "config", "light_count")?;
+    let config = GeneratorConfig {
+        frames: size("frames")?,
+        size: size("size")?,
+        grid: size("grid")?,
+        supersample: size("supersample")?,
+        surface: config_from_dict(&surface)?,
+        window_width: range("window_width")?,
+        window_offset: range("window_offset")?,
+        light_count: (light_count.0.max(0) as usize, light_count.1.max(0) as usize),
+        light_elevation: range("light_elevation")?,
+        light_intensity: range("light_intensity")?,
+        point_light_probability: field(d, "config", "point_light_probability")?,
+        point_light_distance: range("point_light_distance")?,
+        ambient: range("ambient")?,
+        diffuse: range("diffuse")?,
+        specular: range("specular")?,
+        shininess: range("shininess")?,
+        texture_families: families.iter().map(|f| TextureFamily::from_name(f)).collect::<Result<_, _>>().map_err(|e| PyValueError::new_err(format!("config.{e}")))?,
+        texture_size: size("texture_size")?,
+        noise_std: range("noise_std")?,
+        max_redraws: size("max_redraws")?,
+    };
+    config.validate().map_err(value_error)?;
+    Ok(config)
+}
+
+/// The default `GeneratorConfig` as a dict (without `textures`).
+#[pyfunction]
+fn default_generator_config(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    let c = GeneratorConfig::default();
+    let d = PyDict::new(py);
+    d.set_item("frames", c.frames)?;
+    d.set_item("size", c.size)?;
+    d.set_item("grid", c.grid)?;
+    d.set_item("supersample", c.supersample)?;
+    d.set_item("surface", config_to_dict(py, &c.surface)?)?;
+    for (key, r) in [
+        ("window_width", c.window_width),
+        ("window_offset", c.window_offset),
+        ("light_elevation", c.light_elevation),
+        ("light_intensity", c.light_intensity),
+        ("point_light_distance", c.point_light_distance),
+        ("ambient", c.ambient),
+        ("diffuse", c.diffuse),
+        ("specular", c.specular),
+        ("shininess", c.shininess),
+        ("noise_std", c.noise_std),
+    ] {
+        d.set_item(key, (r.lo, r.hi))?;
+    }
+    d.set_item("light_count", c.light_count)?;
+    d.set_item("point_light_probability", c.point_light_probability)?;
+    d.set_item("texture_families", c.texture_families.iter().map(|f| f.name()).collect::<Vec<_>>())?;
+    d.set_item("texture_size", c.texture_size)?;
+    d.set_item("max_redraws", c.max_redraws)?;
+    Ok(d)
+}
+
+/// Validate a generator config dict; raises ValueError naming the field.
+#[pyfunction]
+fn validate_generator_config(config: &Bound<'_, PyDict>) -> PyResult<()> {
+    generator_config_from_dict(config).map(|_| ())
+}
+
+/// Decoded texture folders, by (folder, crop size): loading DTD once per process.
+fn texture_bank(dir: &Path, crop: usize) -> PyResult<Arc<TextureBank>> {
+    static BANKS: Mutex<Option<HashMap<(PathBuf, usize), Arc<TextureBank>>>> = Mutex::new(None);
+    let key = (dir.to_path_buf(), crop);
+    if let Some(bank) = BANKS.lock().unwrap_or_else(|e| e.into_inner()).get_or_insert_with(HashMap::new).get(&key) {
+        return Ok(bank.clone());
+    }
+    let bank = Arc::new(TextureBank::load_dir(dir, crop).map_err(value_error)?);
+    BANKS.lock().unwrap_or_else(|e| e.into_inner()).get_or_insert_with(HashMap::new).insert(key, bank.clone());
+    Ok(bank)
+}
+
+fn clip_to_dict<'py>(py: Python<'py>, p: &ClipParams, bank: Option<&TextureBank>) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("surface", params_to_dict(py, &p.surface)?)?;
+    d.set_item("window", p.window)?;
+    d.set_item("lights", p.lights.iter().map(|l| light_to_dict(py, l)).collect::<PyResult<Vec<_>>>()?)?;
+    d.set_item("material", material_to_dict(py, &p.material)?)?;
+    let texture = PyDict::new(py);
+    match &p.texture {
+        TextureChoice::Procedural { family, seed } => {
+            texture.set_item("family", family.name())?;
+            texture.set_item("seed", *seed)?;
+        }
+        TextureChoice::Image { index, top, left } => {
+            let path = bank.map(|b| b.paths[*index].display().to_string());
+            texture.set_item("image", path)?;
+            texture.set_item("top", *top)?;
+            texture.set_item("left", *left)?;
+        }
+    }
+    d.set_item("texture", texture)?;
+    d.set_item("noise_std", p.noise_std)?;
+    d.set_item("noise_seed", p.noise_seed)?;
+    d.set_item("redraws", p.redraws)?;
+    Ok(d)
+}
+
+/// Clips `start .. start + n`: (video u8 (n, T, H, W), depth f32 (n, T, H, W), params list).
+#[pyfunction]
+#[pyo3(signature = (n, seed, start, config, textures=None))]
+fn generate_clips<'py>(
+    py: Python<'py>,
+    n: i64,
+    seed: u64,
+    start: u64,
+    config: &Bound<'py, PyDict>,
+    textures: Option<PathBuf>,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyList>)> {
+    let config = generator_config_from_dict(config)?;
+    let n = crate::error::size_in("n", n, 0, 1 << 24).map_err(value_error)?;
+    let len = n
+        .checked_mul(config.clip_pixels())
+        .filter(|&l| l <= MAX_VALUES)
+        .ok_or_else(|| PyValueError::new_err(format!("n: {n} clips exceed {MAX_VALUES} pixels per call; generate in smaller batches")))?;
+    let bank = textures.as_deref().map(|dir| texture_bank(dir, config.texture_size)).transpose()?;
+    let (video, depth, params) = parallel(py, || {
+        let (mut video, mut depth) = (vec![0u8; len], vec![0f32; len]);
+        generate::generate_clips(&config, bank.as_deref(), seed, start, n, &mut video, &mut depth).map(|p| (video, depth, p))
+    })?
+    .map_err(value_error)?;
+    let (t, s) = (config.frames, config.size);
+    let video = PyArray1::from_vec(py, video).reshape([n, t, s, s])?.into_any();
+    let depth = PyArray1::from_vec(py, depth).reshape([n, t, s, s])?.into_any();
+    let params = PyList::new(py, params.iter().map(|p| clip_to_dict(py, p, bank.as_deref())).collect::<PyResult<Vec<_>>>()?)?;
+    Ok((video, depth, params))
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(default_surface_config, m)?)?;
@@ -196,6 +507,14 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(synthesize_surfaces, m)?)?;
     m.add_function(wrap_pyfunction!(grid_triangles, m)?)?;
     m.add_function(wrap_pyfunction!(write_png, m)?)?;
+    m.add_function(wrap_pyfunction!(render, m)?)?;
+    m.add_function(wrap_pyfunction!(raycast_depth, m)?)?;
+    m.add_function(wrap_pyfunction!(procedural_texture, m)?)?;
+    m.add_function(wrap_pyfunction!(texture_families, m)?)?;
+    m.add_function(wrap_pyfunction!(default_generator_config, m)?)?;
+    m.add_function(wrap_pyfunction!(validate_generator_config, m)?)?;
+    m.add_function(wrap_pyfunction!(generate_clips, m)?)?;
+    m.add("CAMERA_Z", crate::geometry::CAMERA_Z)?;
     m.add("FFT_PERIOD", synthesis::PERIOD)?;
     m.add("W_RADIUS", synthesis::W_RADIUS)?;
     m.add("SPECTRUM_CUTOFF", synthesis::SPECTRUM_CUTOFF)?;

@@ -6,6 +6,8 @@ package is its typed Python face.
 
 __version__ = "0.1.0"
 
+from .generate import Clips, GeneratorConfig, generate_clips
+from .render import CAMERA_Z, TEXTURE_FAMILIES, Light, Material, Render, procedural_texture, raycast_depth, render
 from .surface import (
     SurfaceConfig,
     SurfaceParams,
@@ -16,6 +18,17 @@ from .surface import (
 )
 
 __all__ = [
+    "CAMERA_Z",
+    "TEXTURE_FAMILIES",
+    "Clips",
+    "GeneratorConfig",
+    "Light",
+    "Material",
+    "Render",
+    "generate_clips",
+    "procedural_texture",
+    "raycast_depth",
+    "render",
     "SurfaceConfig",
     "SurfaceParams",
     "grid_triangles",

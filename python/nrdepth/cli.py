@@ -23,6 +23,49 @@ def _surfaces(args: argparse.Namespace) -> int:
     return 0
 
 
+def _shard(text: str) -> tuple:
+    try:
+        i, n = (int(v) for v in text.split("/"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected i/N, got {text!r}") from None
+    return i, n
+
+
+def _generator_config(args: argparse.Namespace):
+    from .generate import GeneratorConfig
+
+    return GeneratorConfig(frames=args.frames, size=args.size, grid=args.grid, textures=args.textures)
+
+
+def _generate(args: argparse.Namespace) -> int:
+    from .dataset import write_dataset
+
+    start = time.perf_counter()
+    manifest = write_dataset(
+        args.out, args.clips, seed=args.seed, config=_generator_config(args), shard_size=args.shard_size,
+        shard=args.shard, progress=not args.quiet,
+    )
+    print(f"dataset {args.out}: manifest {manifest} ({time.perf_counter() - start:.1f} s)")
+    return 0
+
+
+def _preview(args: argparse.Namespace) -> int:
+    from .preview import preview_sheet, save_png
+
+    save_png(args.out, preview_sheet(seed=args.seed, clips=args.clips, config=_generator_config(args)))
+    print(f"wrote {args.out}: {args.clips} sample clips (frames | depth | mesh) and the parameter sweep "
+          "(low values | more constraint | non-identity Σ | more flexibility | more folding)")
+    return 0
+
+
+def _add_generator_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--seed", type=int, default=0, help="run seed: clip i is a pure function of (config, seed, i)")
+    p.add_argument("--textures", default=None, help="folder of PNG/JPEG images to crop textures from (default: procedural)")
+    p.add_argument("--frames", type=int, default=16, help="frames per clip")
+    p.add_argument("--size", type=int, default=64, help="image side in pixels")
+    p.add_argument("--grid", type=int, default=64, help="mesh vertices per side")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="nrdepth", description=__doc__)
     parser.add_argument("--version", action="version", version=f"nrdepth {__version__}")
@@ -36,6 +79,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--grid", type=int, default=64, help="mesh vertices per side")
     p.add_argument("--columns", type=int, default=4, help="frames shown per clip")
     p.set_defaults(run=_surfaces)
+
+    p = sub.add_parser("generate", help="write a sharded HDF5 dataset of training clips (resumable)")
+    p.add_argument("out", help="dataset folder")
+    p.add_argument("--clips", type=int, default=153600, help="number of clips (the paper used 153600)")
+    p.add_argument("--shard-size", type=int, default=1024, help="clips per shard file")
+    p.add_argument("--shard", type=_shard, default=(0, 1), help="write only shards k with k mod N = i (i/N)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_generator_options(p)
+    p.set_defaults(run=_generate)
+
+    p = sub.add_parser("preview", help="picture of sample clips and of the surface parameter sweep")
+    p.add_argument("out", nargs="?", default="preview.png", help="output PNG (default: preview.png)")
+    p.add_argument("--clips", type=int, default=3, help="sample clips (rows)")
+    _add_generator_options(p)
+    p.set_defaults(run=_preview)
     return parser
 
 

@@ -1,0 +1,141 @@
+"""Training clips: rendered videos of deforming surfaces and their depth videos.
+
+Clip ``i`` is a pure function of ``(config, seed, i)`` (and the texture folder,
+if one is given): the same bytes whatever the thread count, batch split or
+``start``. A draw whose view window would show background in any frame is
+redrawn deterministically; ``params[k]["redraws"]`` counts the rejected draws.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import asdict, dataclass, field, fields, replace
+from typing import Any, Dict, List, NamedTuple, Optional, Tuple
+
+import numpy as np
+
+from . import _core
+from .surface import SurfaceConfig, _check_int, _check_seed, _float_tuple
+
+__all__ = ["GeneratorConfig", "Clips", "generate_clips"]
+
+_DEFAULT = _core.default_generator_config()
+Interval = Tuple[float, float]
+
+_RANGES = (
+    "window_width",
+    "window_offset",
+    "light_elevation",
+    "light_intensity",
+    "point_light_distance",
+    "ambient",
+    "diffuse",
+    "specular",
+    "shininess",
+    "noise_std",
+)
+_INTS = ("frames", "size", "grid", "supersample", "texture_size", "max_redraws")
+
+
+@dataclass(frozen=True)
+class GeneratorConfig:
+    """Everything a clip is drawn from. Units: world lengths in half-widths of
+    the undeformed patch (the patch is [-1, 1]²), angles in radians, intensity
+    in [0, 1] = black to white. (lo, hi) ranges are drawn uniformly, shininess
+    log-uniformly. Construction validates every field and names a bad one."""
+
+    frames: int = _DEFAULT["frames"]
+    size: int = _DEFAULT["size"]
+    """Image side H = W in pixels (up to 1024)."""
+    grid: int = _DEFAULT["grid"]
+    """Mesh vertices per side."""
+    supersample: int = _DEFAULT["supersample"]
+    """Subsamples per pixel side (anti-aliasing)."""
+    surface: SurfaceConfig = field(default_factory=SurfaceConfig)
+    window_width: Interval = _DEFAULT["window_width"]
+    """Side of the square view window in world units."""
+    window_offset: Interval = _DEFAULT["window_offset"]
+    """Offset of the window centre from the patch centre (x and y each)."""
+    light_count: Tuple[int, int] = _DEFAULT["light_count"]
+    light_elevation: Interval = _DEFAULT["light_elevation"]
+    """Elevation of a light above the surface plane."""
+    light_intensity: Interval = _DEFAULT["light_intensity"]
+    """Sum of the lights' intensities."""
+    point_light_probability: float = _DEFAULT["point_light_probability"]
+    point_light_distance: Interval = _DEFAULT["point_light_distance"]
+    ambient: Interval = _DEFAULT["ambient"]
+    diffuse: Interval = _DEFAULT["diffuse"]
+    specular: Interval = _DEFAULT["specular"]
+    shininess: Interval = _DEFAULT["shininess"]
+    texture_families: Tuple[str, ...] = tuple(_DEFAULT["texture_families"])
+    texture_size: int = _DEFAULT["texture_size"]
+    noise_std: Interval = _DEFAULT["noise_std"]
+    """Standard deviation of the additive Gaussian noise."""
+    max_redraws: int = _DEFAULT["max_redraws"]
+    textures: Optional[str] = None
+    """A folder of PNG/JPEG images to crop textures from instead of the procedural families."""
+
+    def __post_init__(self) -> None:
+        for name in _INTS:
+            object.__setattr__(self, name, _check_int(f"config.{name}", getattr(self, name)))
+        for name in _RANGES:
+            object.__setattr__(self, name, _float_tuple(f"config.{name}", getattr(self, name), 2))
+        lo, hi = _float_tuple("config.light_count", self.light_count, 2)
+        if lo != int(lo) or hi != int(hi):
+            raise ValueError(f"config.light_count: expected two integers, got {self.light_count}")
+        object.__setattr__(self, "light_count", (int(lo), int(hi)))
+        if not isinstance(self.surface, SurfaceConfig):
+            raise TypeError(f"config.surface: expected a SurfaceConfig, got {type(self.surface).__name__}")
+        if isinstance(self.texture_families, str):
+            raise TypeError("config.texture_families: expected a sequence of family names, got a str")
+        object.__setattr__(self, "texture_families", tuple(self.texture_families))
+        if self.textures is not None:
+            path = os.fspath(self.textures)
+            if not os.path.isdir(path):
+                raise ValueError(f"config.textures: not a folder: {path}")
+            object.__setattr__(self, "textures", path)
+        _core.validate_generator_config(self._core_dict())
+
+    def _core_dict(self) -> Dict[str, Any]:
+        d = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("surface", "textures")}
+        d["surface"] = self.surface.as_dict()
+        d["texture_families"] = list(self.texture_families)
+        return d
+
+    def as_dict(self) -> Dict[str, Any]:
+        """JSON-serialisable dict of every field."""
+        d = asdict(self)
+        d["surface"] = self.surface.as_dict()
+        return d
+
+    @classmethod
+    def from_dict(cls, d: Dict[str, Any]) -> "GeneratorConfig":
+        d = dict(d)
+        surface = SurfaceConfig(**d.pop("surface", {}))
+        return cls(surface=surface, **d)
+
+    def replace(self, **changes: Any) -> "GeneratorConfig":
+        return replace(self, **changes)
+
+
+class Clips(NamedTuple):
+    video: np.ndarray
+    """uint8 (n, T, H, W) rendered grayscale frames."""
+    depth: np.ndarray
+    """float32 (n, T, H, W) depth ``camera_z − z`` at pixel centres (never NaN)."""
+    params: List[Dict[str, Any]]
+    """Per clip: surface, window, lights, material, texture, noise_std, noise_seed, redraws."""
+
+
+def generate_clips(n: int, seed: int = 0, config: Optional[GeneratorConfig] = None, start: int = 0) -> Clips:
+    """Generate clips ``start .. start + n`` of the run ``(config, seed)``, in
+    parallel (Rust threads, GIL released). Safe in forked DataLoader workers."""
+    config = GeneratorConfig() if config is None else config
+    if not isinstance(config, GeneratorConfig):
+        raise TypeError(f"config: expected a GeneratorConfig or None, got {type(config).__name__}")
+    n = _check_int("n", n)
+    if n < 0:
+        raise ValueError(f"n: expected a non-negative number of clips, got {n}")
+    start = _check_seed("start", start)
+    video, depth, params = _core.generate_clips(n, _check_seed("seed", seed), start, config._core_dict(), config.textures)
+    return Clips(video, depth, params)
