@@ -429,10 +429,12 @@ fn validate_generator_config(config: &Bound<'_, PyDict>) -> PyResult<()> {
     generator_config_from_dict(config).map(|_| ())
 }
 
-/// Decoded texture folders, by (folder, crop size): loading DTD once per process.
+/// Decoded texture folders, by (folder, its modification time, crop size):
+/// a folder such as DTD is decoded once per process, again if files change.
 fn texture_bank(dir: &Path, crop: usize) -> PyResult<Arc<TextureBank>> {
-    static BANKS: Mutex<Option<HashMap<(PathBuf, usize), Arc<TextureBank>>>> = Mutex::new(None);
-    let key = (dir.to_path_buf(), crop);
+    type Key = (PathBuf, Option<std::time::SystemTime>, usize);
+    static BANKS: Mutex<Option<HashMap<Key, Arc<TextureBank>>>> = Mutex::new(None);
+    let key = (dir.to_path_buf(), std::fs::metadata(dir).and_then(|m| m.modified()).ok(), crop);
     if let Some(bank) = BANKS.lock().unwrap_or_else(|e| e.into_inner()).get_or_insert_with(HashMap::new).get(&key) {
         return Ok(bank.clone());
     }

@@ -1,0 +1,204 @@
+"""Clip generation and datasets: no background, the drawn noise, bit-identical
+reproducibility (threads, batch split, fork, interrupted and resumed runs)."""
+
+import hashlib
+import json
+import multiprocessing
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+import nrdepth
+from nrdepth import GeneratorConfig
+from nrdepth.dataset import ClipStore, write_dataset
+
+SMALL = GeneratorConfig(frames=4, size=24, grid=24, texture_size=64)
+
+
+def test_clips_have_the_documented_shapes_and_no_background():
+    clips = nrdepth.generate_clips(6, seed=1, config=SMALL)
+    assert clips.video.shape == clips.depth.shape == (6, 4, 24, 24)
+    assert clips.video.dtype == np.uint8 and clips.depth.dtype == np.float32
+    assert np.isfinite(clips.depth).all()
+    assert len(clips.params) == 6 and all(p["redraws"] >= 0 for p in clips.params)
+    # The depth really is the surface's: near the camera plane minus a small relief.
+    assert (np.abs(clips.depth - nrdepth.CAMERA_Z) < 1.0).all()
+    assert clips.video.std() > 5
+
+
+def test_a_too_large_window_is_redrawn_and_counted():
+    config = SMALL.replace(window_width=(1.7, 1.7), max_redraws=5000)
+    clips = nrdepth.generate_clips(3, seed=2, config=config)
+    assert np.isfinite(clips.depth).all()
+    assert sum(p["redraws"] for p in clips.params) > 0
+    with pytest.raises(ValueError, match="background"):
+        nrdepth.generate_clips(1, seed=2, config=SMALL.replace(window_width=(2.0, 2.0), max_redraws=2))
+
+
+def test_noise_has_the_drawn_variance():
+    # Only noise_std changes between the two configs: every other draw is the same.
+    clean = nrdepth.generate_clips(4, seed=3, config=SMALL.replace(noise_std=(0.0, 0.0)))
+    noisy = nrdepth.generate_clips(4, seed=3, config=SMALL.replace(noise_std=(0.04, 0.04)))
+    np.testing.assert_array_equal(clean.depth, noisy.depth)
+    diff = noisy.video.astype(float) - clean.video.astype(float)
+    unclipped = (clean.video > 40) & (clean.video < 215)
+    sigma = diff[unclipped].std() / 255.0
+    assert sigma == pytest.approx(0.04, rel=0.08)
+    assert all(p["noise_std"] == 0.04 for p in noisy.params)
+
+
+def test_clip_i_depends_only_on_config_seed_and_i():
+    whole = nrdepth.generate_clips(6, seed=4, config=SMALL)
+    part = nrdepth.generate_clips(3, seed=4, config=SMALL, start=2)
+    assert whole.video[2:5].tobytes() == part.video.tobytes()
+    assert whole.depth[2:5].tobytes() == part.depth.tobytes()
+    assert whole.params[2:5] == part.params
+    other = nrdepth.generate_clips(1, seed=5, config=SMALL)
+    assert other.video.tobytes() != whole.video[:1].tobytes()
+
+
+_DIGEST = """
+import hashlib, nrdepth
+c = nrdepth.generate_clips(8, seed=7, config=nrdepth.GeneratorConfig(frames=4, size=32, grid=32, texture_size=64))
+print(hashlib.sha256(c.video.tobytes() + c.depth.tobytes()).hexdigest())
+"""
+
+
+def test_same_bytes_with_one_and_two_threads():
+    digests = set()
+    for threads in ("1", "2"):
+        env = dict(os.environ, RAYON_NUM_THREADS=threads)
+        digests.add(subprocess.run([sys.executable, "-c", _DIGEST], env=env, capture_output=True, text=True, check=True).stdout)
+    assert len(digests) == 1
+
+
+def _child(queue):
+    clips = nrdepth.generate_clips(4, seed=9, config=SMALL)
+    queue.put(hashlib.sha256(clips.video.tobytes()).hexdigest())
+
+
+def test_generation_works_in_a_forked_child_after_the_parent_used_threads():
+    parent = nrdepth.generate_clips(4, seed=9, config=SMALL)  # starts the parent's thread pool
+    ctx = multiprocessing.get_context("fork")
+    queue = ctx.Queue()
+    child = ctx.Process(target=_child, args=(queue,))
+    child.start()
+    child.join(timeout=60)
+    alive = child.is_alive()
+    if alive:
+        child.kill()
+    assert not alive, "generation hung in a forked child"
+    assert queue.get(timeout=5) == hashlib.sha256(parent.video.tobytes()).hexdigest()
+
+
+def test_textures_from_a_folder(tmp_path):
+    from nrdepth.preview import save_png
+
+    for k in range(2):
+        rng = np.random.default_rng(k)
+        save_png(tmp_path / f"t{k}.png", rng.integers(0, 256, (40, 50, 3), dtype=np.uint8))
+    (tmp_path / "notes.txt").write_text("not an image")
+    config = SMALL.replace(textures=str(tmp_path))
+    clips = nrdepth.generate_clips(3, seed=1, config=config)
+    assert all(p["texture"]["image"].endswith(".png") for p in clips.params)
+    (tmp_path / "broken.png").write_bytes(b"\x89PNG not really")
+    with pytest.raises(ValueError, match="textures: cannot read image .*broken.png"):
+        nrdepth.generate_clips(1, config=SMALL.replace(textures=str(tmp_path)))
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(ValueError, match="textures: no PNG or JPEG"):
+        nrdepth.generate_clips(1, config=SMALL.replace(textures=str(empty)))
+
+
+@pytest.mark.parametrize(
+    "changes, name",
+    [
+        ({"size": 0}, "config.size"),
+        ({"frames": -1}, "config.frames"),
+        ({"supersample": 9}, "config.supersample"),
+        ({"window_width": (0.5, float("nan"))}, "config.window_width"),
+        ({"light_count": (3, 1)}, "config.light_count"),
+        ({"texture_families": ("velvet",)}, "config.texture_families"),
+        ({"textures": "/no/such/folder"}, "config.textures"),
+    ],
+)
+def test_bad_config_is_named(changes, name):
+    with pytest.raises(ValueError) as info:
+        SMALL.replace(**changes)
+    assert str(info.value).startswith(name), str(info.value)
+
+
+def test_bad_generate_arguments():
+    with pytest.raises(ValueError, match="^n:"):
+        nrdepth.generate_clips(-1)
+    with pytest.raises(TypeError, match="^config:"):
+        nrdepth.generate_clips(1, config={"frames": 4})
+
+
+# ------------------------------------------------------------------ datasets
+
+
+def shard_contents(root):
+    out = {}
+    for path in sorted(Path(root).glob("shard-*.h5")):
+        with h5py.File(path, "r") as f:
+            out[path.name] = (f["video"][:].tobytes(), f["depth"][:].tobytes(), list(f["params"].asstr()[:]))
+    return out
+
+
+def test_dataset_split_and_random_access_match_the_generator(tmp_path):
+    write_dataset(tmp_path, 20, seed=6, config=SMALL, shard_size=7, progress=False)
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert manifest["split"] == {"train": [0, 16], "validation": [16, 18], "test": [18, 20]}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["manifest.json", "shard-00000.h5", "shard-00001.h5", "shard-00002.h5"]
+    test = ClipStore(tmp_path, "test")
+    assert len(test) == 2 and len(ClipStore(tmp_path, "train")) == 16
+    video, depth, params = test[1]
+    ref = nrdepth.generate_clips(1, seed=6, config=SMALL, start=19)
+    np.testing.assert_array_equal(video, ref.video[0])
+    np.testing.assert_array_equal(depth, ref.depth[0])
+    assert params == json.loads(json.dumps(ref.params[0]))
+    assert test.config == SMALL
+    with pytest.raises(IndexError):
+        test[2]
+
+
+def test_sharded_writers_and_a_killed_then_resumed_run_give_the_same_bytes(tmp_path):
+    args = ["--clips", "48", "--shard-size", "8", "--seed", "3", "--frames", "4", "--size", "32", "--grid", "32", "--quiet"]
+    reference = tmp_path / "reference"
+    subprocess.run([sys.executable, "-m", "nrdepth", "generate", str(reference), *args], check=True, capture_output=True)
+
+    # Two writers, each taking half of the shards.
+    split = tmp_path / "split"
+    for i in range(2):
+        write_dataset(split, 48, seed=3, config=GeneratorConfig(frames=4, size=32, grid=32), shard_size=8, shard=(i, 2), progress=False)
+    assert shard_contents(split) == shard_contents(reference)
+
+    # A run killed once its first shard is complete, then resumed.
+    resumed = tmp_path / "resumed"
+    proc = subprocess.Popen([sys.executable, "-m", "nrdepth", "generate", str(resumed), *args], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 60
+    while not (resumed / "shard-00000.h5").exists() and time.time() < deadline:
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    finished_before_kill = len(list(resumed.glob("shard-*.h5")))
+    assert finished_before_kill < 6, "the run finished before it could be interrupted"
+    subprocess.run([sys.executable, "-m", "nrdepth", "generate", str(resumed), *args], check=True, capture_output=True)
+    assert not list(resumed.glob("*.partial"))
+    assert shard_contents(resumed) == shard_contents(reference)
+    for name in shard_contents(reference):
+        assert (resumed / name).read_bytes() == (reference / name).read_bytes()
+
+
+def test_a_folder_of_another_run_is_refused(tmp_path):
+    write_dataset(tmp_path, 4, seed=1, config=SMALL, shard_size=4, progress=False)
+    with pytest.raises(ValueError, match="different dataset"):
+        write_dataset(tmp_path, 4, seed=2, config=SMALL, shard_size=4, progress=False)
