@@ -9,7 +9,7 @@ use nrdepth::bvh::Bvh;
 use nrdepth::generate::{generate_clips, ClipWorker, GeneratorConfig};
 use nrdepth::geometry::{View, CAMERA_Z};
 use nrdepth::mesh::grid_triangles;
-use nrdepth::raster::{Frame, Light, LightKind, Material, Rasterizer, Scene, Texture};
+use nrdepth::raster::{Frame, Light, LightKind, Material, Rasterizer, Scene, Shading, Texture};
 use nrdepth::textures::{procedural, TextureFamily};
 use nrdepth::{synthesize, SurfaceConfig};
 
@@ -55,34 +55,38 @@ fn bench(c: &mut Criterion) {
         Light { kind: LightKind::Point, vector: [2.0, -1.0, 3.0], intensity: 0.4 },
     ];
     let material = Material { ambient: 0.1, diffuse: 0.8, specular: 0.3, shininess: 20.0 };
-    let scene = Scene { view, supersample: 2, lights: &lights, material, texture: &texture };
     let mut rasterizer = Rasterizer::default();
     let mut frame = Frame::default();
-    g.bench_function("raster_64x64_ss2_8k_tris_2_lights", |b| {
-        b.iter(|| rasterizer.render_into(&vertices, &triangles, &uv, &scene, &mut frame, false))
-    });
+    for shading in [Shading::Phong, Shading::Gouraud] {
+        let scene = Scene { view, supersample: 2, lights: &lights, material, texture: &texture, shading };
+        g.bench_function(format!("raster_64x64_ss2_8k_tris_2_lights_{}", shading.name()), |b| {
+            b.iter(|| rasterizer.render_into(&vertices, &triangles, &uv, &scene, &mut frame, false))
+        });
+    }
     let mut tex = Texture::default();
     g.bench_function("texture_fractal_256", |b| b.iter(|| procedural(TextureFamily::Fractal, 5, 256, &mut tex)));
     g.bench_function("texture_cells_256", |b| b.iter(|| procedural(TextureFamily::Cells, 5, 256, &mut tex)));
 
-    let config = GeneratorConfig::default();
-    let len = config.clip_pixels();
-    let (mut video, mut clip_depth) = (vec![0u8; len], vec![0f32; len]);
-    let mut worker = ClipWorker::new(&config);
-    let mut index = 0;
-    g.throughput(Throughput::Elements(1));
-    g.bench_function("clip_16x64x64_one_thread", |b| {
-        b.iter(|| {
-            index += 1;
-            worker.clip(&config, None, 0, index, &mut video, &mut clip_depth).unwrap()
-        })
-    });
-    let n = 32;
-    let (mut video, mut clip_depth) = (vec![0u8; n * len], vec![0f32; n * len]);
-    g.throughput(Throughput::Elements(n as u64));
-    g.bench_function(format!("clips_32_{}_threads", rayon::current_num_threads()), |b| {
-        b.iter(|| generate_clips(&config, None, 0, 0, n, &mut video, &mut clip_depth).unwrap())
-    });
+    for shading in [Shading::Phong, Shading::Gouraud] {
+        let config = GeneratorConfig { shading, ..GeneratorConfig::default() };
+        let len = config.clip_pixels();
+        let (mut video, mut clip_depth) = (vec![0u8; len], vec![0f32; len]);
+        let mut worker = ClipWorker::new(&config);
+        let mut index = 0;
+        g.throughput(Throughput::Elements(1));
+        g.bench_function(format!("clip_16x64x64_one_thread_{}", shading.name()), |b| {
+            b.iter(|| {
+                index += 1;
+                worker.clip(&config, None, 0, index, &mut video, &mut clip_depth).unwrap()
+            })
+        });
+        let n = 32;
+        let (mut video, mut clip_depth) = (vec![0u8; n * len], vec![0f32; n * len]);
+        g.throughput(Throughput::Elements(n as u64));
+        g.bench_function(format!("clips_32_{}_threads_{}", rayon::current_num_threads(), shading.name()), |b| {
+            b.iter(|| generate_clips(&config, None, 0, 0, n, &mut video, &mut clip_depth).unwrap())
+        });
+    }
     g.finish();
 }
 

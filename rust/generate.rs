@@ -21,7 +21,7 @@ use crate::error::{in_range, size_in, InvalidArgument, Result};
 use crate::geometry::{View, CAMERA_Z};
 use crate::mesh::grid_triangles;
 use crate::params::{Range, SurfaceConfig, SurfaceParams};
-use crate::raster::{Frame, Light, LightKind, Material, Rasterizer, Scene, Texture};
+use crate::raster::{Shading, Frame, Light, LightKind, Material, Rasterizer, Scene, Texture};
 use crate::rng::{hash, SplitMix64};
 use crate::synthesis::{clip_len, Synthesizer};
 use crate::textures::{procedural, TextureBank, TextureFamily, FAMILIES};
@@ -58,6 +58,8 @@ pub struct GeneratorConfig {
     pub specular: Range,
     /// Phong exponent, log-uniform.
     pub shininess: Range,
+    /// Where the Phong model is evaluated (per subsample or per vertex).
+    pub shading: Shading,
     /// Procedural families drawn from uniformly (ignored with a texture folder).
     pub texture_families: Vec<TextureFamily>,
     pub texture_size: usize,
@@ -86,6 +88,7 @@ impl Default for GeneratorConfig {
             diffuse: Range::new(0.5, 1.0),
             specular: Range::new(0.0, 0.5),
             shininess: Range::new(4.0, 100.0),
+            shading: Shading::Phong,
             texture_families: FAMILIES.to_vec(),
             texture_size: 256,
             noise_std: Range::new(0.0, 0.03),
@@ -299,7 +302,7 @@ impl ClipWorker {
                 bank.crop(*index, *top, *left, config.texture_size.min(image.height).min(image.width), &mut self.texture)
             }
         }
-        let scene = Scene { view, supersample: config.supersample, lights: &p.lights, material: p.material, texture: &self.texture };
+        let scene = Scene { view, supersample: config.supersample, lights: &p.lights, material: p.material, texture: &self.texture, shading: config.shading };
         for f in 0..frames {
             let vertices = &self.positions[f * vertex_count..(f + 1) * vertex_count];
             self.rasterizer.render_into(vertices, &self.triangles, &self.uv, &scene, &mut self.frame, false);

@@ -19,7 +19,7 @@ use crate::error::InvalidArgument;
 use crate::generate::{self, ClipParams, GeneratorConfig, TextureChoice};
 use crate::geometry::View;
 use crate::params::{Range, SurfaceConfig, SurfaceParams};
-use crate::raster::{self, Light, LightKind, Material, Scene, Texture};
+use crate::raster::{self, Light, LightKind, Material, Scene, Shading, Texture};
 use crate::synthesis::{self, check_sizes, clip_len};
 use crate::textures::{self, TextureBank, TextureFamily};
 use crate::{image_io, mesh};
@@ -298,7 +298,9 @@ fn render<'py>(
     material: &Bound<'py, PyDict>,
     supersample: i64,
     camera_z: f32,
+    shading: &str,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let shading = Shading::from_name(shading).map_err(value_error)?;
     let view = view_from(size, window, camera_z)?;
     let (v, t, uvs) = (vec3_rows("vertices", &vertices)?, rows::<u32, 3>("triangles", &triangles)?, rows::<f32, 2>("uv", &uv)?);
     let lights = lights.iter().enumerate().map(|(i, d)| light_from_dict(&d, i)).collect::<PyResult<Vec<_>>>()?;
@@ -313,7 +315,7 @@ fn render<'py>(
         return Err(PyValueError::new_err(format!("supersample: expected 1..={}, got {supersample}", raster::MAX_SUPERSAMPLE)));
     }
     let s = supersample as usize;
-    let scene = Scene { view, supersample: s, lights: &lights, material, texture: &texture };
+    let scene = Scene { view, supersample: s, lights: &lights, material, texture: &texture, shading };
     let frame = parallel(py, || raster::render(v, t, uvs, &scene))?.map_err(value_error)?;
     let (h, w) = (view.height, view.width);
     Ok((array2(py, frame.image, h, w)?, array2(py, frame.coverage, h, w)?, array2(py, frame.depth, h * s, w * s)?))
@@ -382,6 +384,10 @@ fn generator_config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<GeneratorConfig
         diffuse: range("diffuse")?,
         specular: range("specular")?,
         shininess: range("shininess")?,
+        shading: {
+            let name: String = field(d, "config", "shading")?;
+            Shading::from_name(&name).map_err(|e| PyValueError::new_err(format!("config.{e}")))?
+        },
         texture_families: families.iter().map(|f| TextureFamily::from_name(f)).collect::<Result<_, _>>().map_err(|e| PyValueError::new_err(format!("config.{e}")))?,
         texture_size: size("texture_size")?,
         noise_std: range("noise_std")?,
@@ -417,6 +423,7 @@ fn default_generator_config(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     }
     d.set_item("light_count", c.light_count)?;
     d.set_item("point_light_probability", c.point_light_probability)?;
+    d.set_item("shading", c.shading.name())?;
     d.set_item("texture_families", c.texture_families.iter().map(|f| f.name()).collect::<Vec<_>>())?;
     d.set_item("texture_size", c.texture_size)?;
     d.set_item("max_redraws", c.max_redraws)?;

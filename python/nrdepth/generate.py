@@ -67,6 +67,8 @@ class GeneratorConfig:
     diffuse: Interval = _DEFAULT["diffuse"]
     specular: Interval = _DEFAULT["specular"]
     shininess: Interval = _DEFAULT["shininess"]
+    shading: str = _DEFAULT["shading"]
+    """"phong" (per subsample) or "gouraud" (per vertex, faster)."""
     texture_families: Tuple[str, ...] = tuple(_DEFAULT["texture_families"])
     texture_size: int = _DEFAULT["texture_size"]
     noise_std: Interval = _DEFAULT["noise_std"]

@@ -119,13 +119,16 @@ def render(
     material: Optional[Material] = None,
     supersample: int = 2,
     camera_z: float = CAMERA_Z,
+    shading: str = "phong",
 ) -> Render:
     """Render a textured mesh with Phong reflectance and s×s supersampling.
 
     ``vertices`` (V, 3) float, ``triangles`` (F, 3) int, ``uv`` (V, 2) float,
     ``texture`` (h, w) float albedo in [0, 1], ``size`` (H, W), ``window``
     (xmin, ymin, xmax, ymax). Lighting is two-sided; normals are smooth
-    (area-weighted per vertex). Default: one light along +z, ``Material()``.
+    (area-weighted per vertex). ``shading="phong"`` evaluates the model at
+    every subsample, ``"gouraud"`` at the vertices (faster, blurs highlights
+    smaller than a triangle). Default: one light along +z, ``Material()``.
     """
     lights = [Light()] if lights is None else list(lights)
     for i, light in enumerate(lights):
@@ -146,8 +149,13 @@ def render(
             {k: float(v) for k, v in asdict(material).items()},
             _check_int("supersample", supersample),
             _float_tuple("camera_z", (camera_z,), 1)[0],
+            shading if isinstance(shading, str) else _type_error("shading", "a str", shading),
         )
     )
+
+
+def _type_error(name: str, expected: str, value: Any) -> Any:
+    raise TypeError(f"{name}: expected {expected}, got {type(value).__name__}")
 
 
 def raycast_depth(
