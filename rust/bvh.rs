@@ -25,7 +25,7 @@
 
 use rayon::prelude::*;
 
-use crate::geometry::{check_mesh, vertical_hit, View};
+use crate::geometry::{check_mesh, vertical_hit, TriangleSetup, View};
 use crate::error::Result;
 
 pub const LEAF_SIZE: usize = 4;
@@ -273,10 +273,14 @@ impl Bvh {
                 };
                 let (row_first, row_last) = span(r0, r1, &tile.rows, tile.row0);
                 let (col_first, col_last) = span(c0, c1, &tile.cols, 0);
+                if row_first as isize > row_last || col_first as isize > col_last {
+                    continue;
+                }
+                let Some(setup) = TriangleSetup::new(a, b, c) else { continue };
                 for row in row_first as isize..=row_last {
                     for col in col_first as isize..=col_last {
                         let (row, col) = (row as usize, col as usize);
-                        if let Some((z, _)) = vertical_hit(a, b, c, col as f32 + 0.5, row as f32 + 0.5) {
+                        if let Some((z, _)) = setup.hit(col as f32 + 0.5, row as f32 + 0.5) {
                             let best = &mut band[(row - tile.row0) * width + col];
                             if z > *best && z <= view.camera_z {
                                 *best = z;

@@ -69,9 +69,48 @@ impl View {
     }
 }
 
-#[inline]
-fn edge(a: [f32; 3], b: [f32; 3], px: f32, py: f32) -> f32 {
-    (b[0] - a[0]) * (py - a[1]) - (b[1] - a[1]) * (px - a[0])
+/// A triangle prepared for many vertical-line tests: the per-triangle part of
+/// `vertical_hit` computed once. `hit` performs exactly the arithmetic of
+/// `vertical_hit`, so results are bit-identical.
+#[derive(Clone, Copy, Debug)]
+pub struct TriangleSetup {
+    a: [f32; 3],
+    b: [f32; 3],
+    c: [f32; 3],
+    ca: [f32; 2],
+    ab: [f32; 2],
+    bc: [f32; 2],
+    positive: bool,
+    inv_area: f32,
+}
+
+impl TriangleSetup {
+    /// None when the xy-projection has zero (or non-finite) area: never hit.
+    #[inline]
+    pub fn new(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> Option<Self> {
+        let ab = [b[0] - a[0], b[1] - a[1]];
+        let area = ab[0] * (c[1] - a[1]) - ab[1] * (c[0] - a[0]);
+        if area == 0.0 || !area.is_finite() {
+            return None;
+        }
+        Some(Self { a, b, c, ca: [a[0] - c[0], a[1] - c[1]], ab, bc: [c[0] - b[0], c[1] - b[1]], positive: area > 0.0, inv_area: 1.0 / area })
+    }
+
+    /// `(z, [λa, λb, λc])` where the vertical line through (px, py) meets the
+    /// triangle, if it does; points on an edge count as inside.
+    #[inline]
+    pub fn hit(&self, px: f32, py: f32) -> Option<(f32, [f32; 3])> {
+        let (a, b, c) = (self.a, self.b, self.c);
+        let w0 = self.bc[0] * (py - b[1]) - self.bc[1] * (px - b[0]);
+        let w1 = self.ca[0] * (py - c[1]) - self.ca[1] * (px - c[0]);
+        let w2 = self.ab[0] * (py - a[1]) - self.ab[1] * (px - a[0]);
+        let inside = if self.positive { w0 >= 0.0 && w1 >= 0.0 && w2 >= 0.0 } else { w0 <= 0.0 && w1 <= 0.0 && w2 <= 0.0 };
+        if !inside {
+            return None;
+        }
+        let l = [w0 * self.inv_area, w1 * self.inv_area, w2 * self.inv_area];
+        Some((l[0] * a[2] + l[1] * b[2] + l[2] * c[2], l))
+    }
 }
 
 /// Where the vertical line through (px, py) meets triangle (a, b, c), if it
@@ -80,18 +119,7 @@ fn edge(a: [f32; 3], b: [f32; 3], px: f32, py: f32) -> f32 {
 /// points on an edge count as inside.
 #[inline]
 pub fn vertical_hit(a: [f32; 3], b: [f32; 3], c: [f32; 3], px: f32, py: f32) -> Option<(f32, [f32; 3])> {
-    let area = edge(a, b, c[0], c[1]);
-    if area == 0.0 || !area.is_finite() {
-        return None;
-    }
-    let (w0, w1, w2) = (edge(b, c, px, py), edge(c, a, px, py), edge(a, b, px, py));
-    let inside = if area > 0.0 { w0 >= 0.0 && w1 >= 0.0 && w2 >= 0.0 } else { w0 <= 0.0 && w1 <= 0.0 && w2 <= 0.0 };
-    if !inside {
-        return None;
-    }
-    let inv = 1.0 / area;
-    let l = [w0 * inv, w1 * inv, w2 * inv];
-    Some((l[0] * a[2] + l[1] * b[2] + l[2] * c[2], l))
+    TriangleSetup::new(a, b, c)?.hit(px, py)
 }
 
 /// Validate a mesh: vertices (V, 3) finite, triangles (F, 3) indexing into them.

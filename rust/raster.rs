@@ -24,7 +24,7 @@
 use rayon::prelude::*;
 
 use crate::error::{InvalidArgument, Result};
-use crate::geometry::{check_mesh, vertical_hit, View};
+use crate::geometry::{check_mesh, TriangleSetup, View};
 
 /// Largest supersampling factor per axis.
 pub const MAX_SUPERSAMPLE: usize = 8;
@@ -254,9 +254,10 @@ fn visibility_band(screen: &[[f32; 3]], triangles: &[[u32; 3]], view: &View, s: 
             continue;
         }
         let (r_lo, r_hi, c_lo, c_hi) = (r_lo as usize, r_hi as usize, c_lo as usize, c_hi as usize);
+        let Some(setup) = TriangleSetup::new(a, b, c) else { continue };
         for r in r_lo..=r_hi {
             for col in c_lo..=c_hi {
-                if let Some((z, w)) = vertical_hit(a, b, c, col as f32 + 0.5, r as f32 + 0.5) {
+                if let Some((z, w)) = setup.hit(col as f32 + 0.5, r as f32 + 0.5) {
                     let i = (r - row0) * cols + col;
                     if z > zbuf[i] && z <= view.camera_z {
                         zbuf[i] = z;
