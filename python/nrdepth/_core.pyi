@@ -21,3 +21,33 @@ def synthesize_surface(params: Dict[str, object], frames: int, grid: int) -> npt
 def synthesize_surfaces(params: List[Dict[str, object]], frames: int, grid: int) -> npt.NDArray[np.float32]: ...
 def grid_triangles(grid: int) -> npt.NDArray[np.uint32]: ...
 def write_png(path: str | os.PathLike[str], image: npt.NDArray[np.uint8]) -> None: ...
+
+CAMERA_Z: float
+
+def render(
+    vertices: npt.NDArray[np.float32],
+    triangles: npt.NDArray[np.uint32],
+    uv: npt.NDArray[np.float32],
+    texture: npt.NDArray[np.float32],
+    size: Tuple[int, int],
+    window: Tuple[float, float, float, float],
+    lights: List[Dict[str, object]],
+    material: Dict[str, float],
+    supersample: int,
+    camera_z: float,
+    shading: str,
+) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.float32], npt.NDArray[np.float32]]: ...
+def raycast_depth(
+    vertices: npt.NDArray[np.float32],
+    triangles: npt.NDArray[np.uint32],
+    size: Tuple[int, int],
+    window: Tuple[float, float, float, float],
+    camera_z: float,
+) -> npt.NDArray[np.float32]: ...
+def procedural_texture(family: str, seed: int, size: int) -> npt.NDArray[np.float32]: ...
+def texture_families() -> List[str]: ...
+def default_generator_config() -> Dict[str, object]: ...
+def validate_generator_config(config: Dict[str, object]) -> None: ...
+def generate_clips(
+    n: int, seed: int, start: int, config: Dict[str, object], textures: str | None = None
+) -> Tuple[npt.NDArray[np.uint8], npt.NDArray[np.float32], List[Dict[str, object]]]: ...
