@@ -33,6 +33,15 @@ def test_clips_have_the_documented_shapes_and_no_background():
     assert clips.video.std() > 5
 
 
+def test_gouraud_clips_share_everything_but_the_shading():
+    phong = nrdepth.generate_clips(2, seed=8, config=SMALL)
+    gouraud = nrdepth.generate_clips(2, seed=8, config=SMALL.replace(shading="gouraud"))
+    np.testing.assert_array_equal(phong.depth, gouraud.depth)
+    assert phong.params == gouraud.params
+    difference = np.abs(phong.video.astype(int) - gouraud.video.astype(int))
+    assert 0 < difference.mean() < 3
+
+
 def test_a_too_large_window_is_redrawn_and_counted():
     config = SMALL.replace(window_width=(1.7, 1.7), max_redraws=5000)
     clips = nrdepth.generate_clips(3, seed=2, config=config)
@@ -126,6 +135,7 @@ def test_textures_from_a_folder(tmp_path):
         ({"window_width": (0.5, float("nan"))}, "config.window_width"),
         ({"light_count": (3, 1)}, "config.light_count"),
         ({"texture_families": ("velvet",)}, "config.texture_families"),
+        ({"shading": "flat"}, "config.shading"),
         ({"textures": "/no/such/folder"}, "config.textures"),
     ],
 )
