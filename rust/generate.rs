@@ -214,19 +214,29 @@ fn draw_clip(config: &GeneratorConfig, bank: Option<&TextureBank>, rng: &mut Spl
     Ok(ClipParams { surface, window, lights, material, texture, noise_std, noise_seed: rng.next_u64(), redraws: 0 })
 }
 
-/// Standard normal from 64 random bits (Box–Muller, one of the pair).
+/// A pair of independent standard normals from 64 random bits (Box–Muller).
 #[inline]
-fn gaussian(bits: u64) -> f64 {
+fn gaussian_pair(bits: u64) -> (f64, f64) {
     let u1 = ((bits >> 32) as f64 + 0.5) / 4_294_967_296.0;
     let u2 = (bits & 0xffff_ffff) as f64 / 4_294_967_296.0;
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    let radius = (-2.0 * u1.ln()).sqrt();
+    let (sin, cos) = (std::f64::consts::TAU * u2).sin_cos();
+    (radius * cos, radius * sin)
 }
 
 /// Add N(0, std²) noise (a pure function of seed, frame, pixel), clamp to [0, 1], quantise.
 pub fn noisy_u8(image: &[f32], std: f64, seed: u64, frame: usize, out: &mut [u8]) {
-    for (k, (o, &v)) in out.iter_mut().zip(image).enumerate() {
-        let noise = if std > 0.0 { std * gaussian(hash(seed, &[frame as u64, k as u64])) } else { 0.0 };
-        *o = ((v as f64 + noise).clamp(0.0, 1.0) * 255.0).round() as u8;
+    let quantise = |v: f64| (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+    if std == 0.0 {
+        out.iter_mut().zip(image).for_each(|(o, &v)| *o = quantise(v as f64));
+        return;
+    }
+    // Pixels 2k and 2k + 1 take the two normals of one Box–Muller pair.
+    for (k, (o, v)) in out.chunks_mut(2).zip(image.chunks(2)).enumerate() {
+        let (n0, n1) = gaussian_pair(hash(seed, &[frame as u64, k as u64]));
+        for (i, (o, &v)) in o.iter_mut().zip(v).enumerate() {
+            *o = quantise(v as f64 + std * if i == 0 { n0 } else { n1 });
+        }
     }
 }
 
@@ -391,6 +401,9 @@ mod tests {
             let expected = std * std + 1.0 / (12.0 * 255.0 * 255.0);
             assert!((var / expected - 1.0).abs() < 0.05, "std {std}: var {var} vs {expected}");
             assert!(mean.abs() < 3.0 * std / 200.0 + 0.002);
+            // The two normals of a Box–Muller pair, on neighbouring pixels, are uncorrelated.
+            let pairs = vals.chunks_exact(2).map(|p| (p[0] - mean) * (p[1] - mean)).sum::<f64>() / (vals.len() / 2) as f64;
+            assert!((pairs / var).abs() < 0.03, "neighbour correlation {}", pairs / var);
         }
     }
 

@@ -179,7 +179,7 @@ pub fn procedural(family: TextureFamily, seed: u64, size: usize, texture: &mut T
                 for dj in -1..=1 {
                     for di in -1..=1 {
                         let (px, py, t) = point(ci + di, cj + dj);
-                        let d = ((px - x).powi(2) + (py - y).powi(2)).sqrt();
+                        let d = (px - x).powi(2) + (py - y).powi(2);
                         if d < d1 {
                             d2 = d1;
                             d1 = d;
@@ -189,6 +189,7 @@ pub fn procedural(family: TextureFamily, seed: u64, size: usize, texture: &mut T
                         }
                     }
                 }
+                let (d1, d2) = (d1.sqrt(), d2.sqrt());
                 *v = if walls { smoothstep(0.0, 0.15, d2 - d1) * (0.5 + 0.5 * tone) } else { smoothstep(radius, radius * 0.7, d1) * (0.4 + 0.6 * tone) };
             }
         }
