@@ -344,6 +344,7 @@ fn shade_band(
     let per_pixel = 1.0 / (s * s) as f32;
     let lights = prepared_lights(scene.lights);
     let min_rdv = specular_cutoff(&scene.material);
+    let point_lights = lights.iter().any(|l| l.kind == LightKind::Point);
     for (pi, (img_row, cov_row)) in image.chunks_exact_mut(width).zip(coverage.chunks_exact_mut(width)).enumerate() {
         for (pj, (out, cov)) in img_row.iter_mut().zip(cov_row.iter_mut()).enumerate() {
             let (mut sum, mut hits) = (0.0f32, 0u32);
@@ -365,7 +366,11 @@ fn shade_band(
                     let (u, v) = (w0 * uv[i0][0] + w1 * uv[i1][0] + w2 * uv[i2][0], w0 * uv[i0][1] + w1 * uv[i1][1] + w2 * uv[i2][1]);
                     let albedo = scene.texture.sample(u, v);
                     let (diffuse, specular) = match scene.shading {
-                        Shading::Phong => lighting(facing_camera(normalize(lerp(normals))), lerp(vertices), &lights, &scene.material, min_rdv),
+                        Shading::Phong => {
+                            // The surface point matters only to point lights.
+                            let p = if point_lights { lerp(vertices) } else { [0.0; 3] };
+                            lighting(facing_camera(normalize(lerp(normals))), p, &lights, &scene.material, min_rdv)
+                        }
                         Shading::Gouraud => (
                             w0 * lit[i0][0] + w1 * lit[i1][0] + w2 * lit[i2][0],
                             w0 * lit[i0][1] + w1 * lit[i1][1] + w2 * lit[i2][1],
