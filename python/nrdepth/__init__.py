@@ -7,6 +7,7 @@ package is its typed Python face.
 __version__ = "0.1.0"
 
 from .generate import Clips, GeneratorConfig, generate_clips
+from .metrics import flat_baseline, mae_sn
 from .render import CAMERA_Z, TEXTURE_FAMILIES, Light, Material, Render, procedural_texture, raycast_depth, render
 from .surface import (
     SurfaceConfig,
@@ -25,7 +26,9 @@ __all__ = [
     "Light",
     "Material",
     "Render",
+    "flat_baseline",
     "generate_clips",
+    "mae_sn",
     "procedural_texture",
     "raycast_depth",
     "render",

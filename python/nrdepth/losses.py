@@ -1,0 +1,126 @@
+"""Losses on depth videos, pure functions of ``(pred, target)``.
+
+Both tensors are (B, T, H, W) (a channel axis of size 1 is accepted and
+dropped). Derivatives are central differences on each frame (interior pixels
+only, so no padding enters them): ``z_x, z_y`` first, ``z_xx, z_xy, z_yy``
+second. With ``H = ∇²z`` and ``‖H‖_F = sqrt(z_xx² + 2 z_xy² + z_yy²)``:
+
+- ``gbr``: ℓ_GBR = MSE(ι_pred, ι_gt), ``ι = (z_xx, √2 z_xy, z_yy)/‖H‖_F``, the
+  paper's complete invariant under GBR ``z ↦ αx + βy + λz + τ`` (λ > 0).
+- ``tr_sc``: ℓ_tr+sc = MSE(η_pred, η_gt), ``η = (z_x, z_y, z_xx, √2 z_xy, z_yy)/‖H‖_F``,
+  invariant under z-stretch and z-translation only.
+- ``aligned`` (ours): per frame, the closed-form least-squares GBR (α, β, λ, τ)
+  mapping pred onto target is solved inside the graph (differentiable), and the
+  loss is the MSE of the aligned prediction divided by the target frame's
+  variance: the squared counterpart of MAE-SN, optimised directly, using the
+  depth itself rather than its second derivatives (less noise-sensitive).
+
+The invariant losses average over pixels where the target's invariant is
+defined: ``‖H_gt‖_F`` above ``MASK_RATIO`` × that frame's mean (flat and
+planar regions are excluded; a frame with no such pixel contributes nothing).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable, Dict
+
+import torch
+
+__all__ = ["gbr_loss", "tr_sc_loss", "aligned_loss", "LOSSES", "get_loss", "derivatives"]
+
+MASK_RATIO = 1e-2
+_EPS = 1e-12
+
+
+def _frames(name: str, z: torch.Tensor) -> torch.Tensor:
+    if not isinstance(z, torch.Tensor):
+        raise TypeError(f"{name}: expected a torch.Tensor, got {type(z).__name__}")
+    if z.dim() == 5 and z.shape[1] == 1:
+        z = z[:, 0]
+    if z.dim() != 4 or z.shape[-1] < 3 or z.shape[-2] < 3:
+        raise ValueError(f"{name}: expected (B, T, H, W) or (B, 1, T, H, W) with H, W >= 3, got {tuple(z.shape)}")
+    return z
+
+
+def derivatives(z: torch.Tensor) -> Dict[str, torch.Tensor]:
+    """Central differences of every frame of z (B, T, H, W) on the interior
+    (B, T, H − 2, W − 2): keys x, y, xx, xy, yy (pixel units)."""
+    c = z[..., 1:-1, 1:-1]
+    right, left = z[..., 1:-1, 2:], z[..., 1:-1, :-2]
+    down, up = z[..., 2:, 1:-1], z[..., :-2, 1:-1]
+    return {
+        "x": (right - left) / 2,
+        "y": (down - up) / 2,
+        "xx": right - 2 * c + left,
+        "yy": down - 2 * c + up,
+        "xy": (z[..., 2:, 2:] - z[..., 2:, :-2] - z[..., :-2, 2:] + z[..., :-2, :-2]) / 4,
+    }
+
+
+def _invariant(z: torch.Tensor, with_gradient: bool):
+    d = derivatives(z)
+    hessian = [d["xx"], math.sqrt(2.0) * d["xy"], d["yy"]]
+    norm = torch.sqrt(sum(h * h for h in hessian) + _EPS)
+    parts = ([d["x"], d["y"]] if with_gradient else []) + hessian
+    return torch.stack([p / norm for p in parts], dim=-1), norm
+
+
+def _masked_mse(pred: torch.Tensor, target: torch.Tensor, with_gradient: bool) -> torch.Tensor:
+    pred, target = _frames("pred", pred), _frames("target", target)
+    if pred.shape != target.shape:
+        raise ValueError(f"pred: expected the shape of target {tuple(target.shape)}, got {tuple(pred.shape)}")
+    inv_pred, _ = _invariant(pred, with_gradient)
+    with torch.no_grad():
+        inv_target, norm = _invariant(target, with_gradient)
+        frame_mean = norm.mean(dim=(-2, -1), keepdim=True)
+        mask = (norm > MASK_RATIO * frame_mean).to(pred.dtype)
+    squared = ((inv_pred - inv_target) ** 2).sum(-1)
+    return (squared * mask).sum() / mask.sum().clamp_min(1.0) / inv_pred.shape[-1]
+
+
+def gbr_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """ℓ_GBR: MSE of the normalised Hessians (complete GBR invariant)."""
+    return _masked_mse(pred, target, with_gradient=False)
+
+
+def tr_sc_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """ℓ_tr+sc: MSE of (∇z, ∇²z)/‖∇²z‖_F (invariant to z-stretch and z-translation)."""
+    return _masked_mse(pred, target, with_gradient=True)
+
+
+def aligned_loss(pred: torch.Tensor, target: torch.Tensor, ridge: float = 1e-6) -> torch.Tensor:
+    """Ours: MSE after the per-frame least-squares GBR alignment of pred onto
+    target, divided by the target frame's variance; differentiable in pred."""
+    pred, target = _frames("pred", pred), _frames("target", target)
+    if pred.shape != target.shape:
+        raise ValueError(f"pred: expected the shape of target {tuple(target.shape)}, got {tuple(pred.shape)}")
+    b, t, h, w = pred.shape
+    ys, xs = torch.meshgrid(torch.linspace(-1, 1, h, dtype=pred.dtype, device=pred.device), torch.linspace(-1, 1, w, dtype=pred.dtype, device=pred.device), indexing="ij")
+    p = pred.reshape(b * t, h * w)
+    g = target.reshape(b * t, h * w)
+    # Standardise the prediction so the ridge term is scale-free.
+    p = (p - p.mean(1, keepdim=True)) / (p.std(1, keepdim=True) + 1e-8)
+    ones = torch.ones_like(p)
+    design = torch.stack([xs.reshape(-1).expand_as(p), ys.reshape(-1).expand_as(p), p, ones], dim=-1)  # (N, P, 4)
+    normal = design.transpose(1, 2) @ design + ridge * h * w * torch.eye(4, dtype=pred.dtype, device=pred.device)
+    coeffs = torch.linalg.solve(normal, design.transpose(1, 2) @ g.unsqueeze(-1))
+    aligned = (design @ coeffs).squeeze(-1)
+    variance = g.var(1, unbiased=False).clamp_min(1e-12)
+    return (((aligned - g) ** 2).mean(1) / variance).mean()
+
+
+LOSSES: Dict[str, Callable[[torch.Tensor, torch.Tensor], torch.Tensor]] = {
+    "gbr": gbr_loss,
+    "tr_sc": tr_sc_loss,
+    "aligned": aligned_loss,
+}
+
+
+def get_loss(name: str) -> Callable[[torch.Tensor, torch.Tensor], torch.Tensor]:
+    """The loss called ``name``: one of ``LOSSES``."""
+    try:
+        return LOSSES[name]
+    except KeyError:
+        raise ValueError(f"loss: expected one of {sorted(LOSSES)}, got {name!r}") from None
+

@@ -1,0 +1,70 @@
+"""MAE-SN, the paper's error measure of a depth video, and its flat baseline.
+
+For each frame t, least squares fits (α, β, λ, τ) so that
+``α x + β y + λ z_pred + τ ≈ z_gt`` over the frame's pixels (x, y: column and
+row index; λ is not constrained in sign), then
+
+    MAE-SN = (1/T) Σ_t mean|aligned_t − gt_t| / std(gt_t).
+
+``align="first"`` fits on frame 0 only and applies that alignment to every
+frame (it measures temporal consistency). The *flat baseline* is the score of
+a constant prediction, i.e. of the best plane ``α x + β y + τ``: a prediction
+is useful only below it. Pure numpy, float64.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+
+__all__ = ["mae_sn", "flat_baseline", "gbr_fit"]
+
+Align = Literal["frame", "first"]
+
+
+def _check(name: str, a: np.ndarray) -> np.ndarray:
+    a = np.asarray(a)
+    if a.dtype.kind not in "fiu":
+        raise TypeError(f"{name}: expected a numeric array, got dtype {a.dtype}")
+    if a.ndim != 3 or min(a.shape) < 1:
+        raise ValueError(f"{name}: expected a depth video (T, H, W), got shape {a.shape}")
+    if not np.isfinite(a).all():
+        raise ValueError(f"{name}: expected finite values (found NaN or inf)")
+    return a.astype(np.float64)
+
+
+def _design(frame: np.ndarray) -> np.ndarray:
+    h, w = frame.shape
+    y, x = np.mgrid[0:h, 0:w]
+    return np.column_stack([x.ravel(), y.ravel(), frame.ravel(), np.ones(h * w)])
+
+
+def gbr_fit(pred: np.ndarray, gt: np.ndarray) -> np.ndarray:
+    """Least-squares (α, β, λ, τ) mapping one predicted frame (H, W) onto the
+    ground truth; minimum-norm when the prediction is flat."""
+    coeffs, *_ = np.linalg.lstsq(_design(pred), gt.ravel(), rcond=None)
+    return coeffs
+
+
+def mae_sn(pred: np.ndarray, gt: np.ndarray, align: Align = "frame") -> float:
+    """MAE-SN of a predicted depth video against the ground truth, both (T, H, W)."""
+    pred, gt = _check("pred", pred), _check("gt", gt)
+    if pred.shape != gt.shape:
+        raise ValueError(f"pred: expected the shape of gt {gt.shape}, got {pred.shape}")
+    if align not in ("frame", "first"):
+        raise ValueError(f"align: expected 'frame' or 'first', got {align!r}")
+    first = gbr_fit(pred[0], gt[0])
+    scores = []
+    for p, g in zip(pred, gt):
+        coeffs = first if align == "first" else gbr_fit(p, g)
+        aligned = (_design(p) @ coeffs).reshape(g.shape)
+        scale = g.std()
+        scores.append(np.abs(aligned - g).mean() / scale if scale > 0 else 0.0)
+    return float(np.mean(scores))
+
+
+def flat_baseline(gt: np.ndarray, align: Align = "frame") -> float:
+    """MAE-SN of a flat (constant) prediction: the trivial baseline."""
+    gt = _check("gt", gt)
+    return mae_sn(np.zeros_like(gt), gt, align)

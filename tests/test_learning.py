@@ -1,0 +1,154 @@
+"""Invariant losses, MAE-SN and the 3D U-Net."""
+
+import numpy as np
+import pytest
+import torch
+
+import nrdepth
+from nrdepth.losses import aligned_loss, gbr_loss, get_loss, tr_sc_loss
+from nrdepth.metrics import flat_baseline, mae_sn
+from nrdepth.model import UNet3D, count_parameters
+
+
+def smooth_depth(seed, shape=(2, 4, 24, 24)):
+    """Random smooth depth videos (float64) with curvature everywhere."""
+    g = torch.Generator().manual_seed(seed)
+    b, t, h, w = shape
+    y, x = torch.meshgrid(torch.linspace(-1, 1, h, dtype=torch.float64), torch.linspace(-1, 1, w, dtype=torch.float64), indexing="ij")
+    z = torch.zeros(shape, dtype=torch.float64)
+    for _ in range(4):
+        k = torch.randn(4, generator=g, dtype=torch.float64) * 2
+        z += torch.sin(k[0] * x + k[1] * y + k[2] + k[3] * torch.arange(t, dtype=torch.float64).view(1, t, 1, 1) / t)
+    return z + 0.3 * (x**2 + 0.5 * y**2)
+
+
+def gbr(z, alpha, beta, lam, tau):
+    h, w = z.shape[-2:]
+    y, x = torch.meshgrid(torch.arange(h, dtype=z.dtype), torch.arange(w, dtype=z.dtype), indexing="ij")
+    return alpha * x + beta * y + lam * z + tau
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_gbr_loss_is_zero_for_any_gbr_transform(seed):
+    z = smooth_depth(seed)
+    rng = np.random.default_rng(seed)
+    alpha, beta, tau = rng.normal(size=3) * 3
+    lam = rng.uniform(0.05, 20)
+    assert gbr_loss(gbr(z, alpha, beta, lam, tau), z).item() < 1e-12
+    assert gbr_loss(smooth_depth(seed + 100), z).item() > 1e-3
+
+
+def test_tr_sc_loss_is_invariant_to_stretch_and_shift_but_not_shear():
+    z = smooth_depth(1)
+    assert tr_sc_loss(gbr(z, 0, 0, 7.5, -3.0), z).item() < 1e-12
+    assert tr_sc_loss(gbr(z, 0.05, 0, 1.0, 0.0), z).item() > 1e-4
+    assert tr_sc_loss(gbr(z, 0, -0.05, 1.0, 0.0), z).item() > 1e-4
+
+
+def test_aligned_loss_is_zero_for_gbr_transforms_and_positive_otherwise():
+    z = smooth_depth(2)
+    assert aligned_loss(gbr(z, 1.5, -0.7, 3.0, 2.0), z).item() < 1e-8
+    assert aligned_loss(gbr(z, 1.5, -0.7, -3.0, 2.0), z).item() < 1e-8  # λ < 0 is aligned too
+    assert aligned_loss(smooth_depth(3), z).item() > 1e-2
+
+
+def test_masks_exclude_flat_and_planar_regions():
+    z = smooth_depth(4)
+    planar = z.clone()
+    planar[..., :12] = gbr(torch.zeros_like(z), 0.3, 0.1, 1.0, 0.0)[..., :12]
+    # A prediction that is wrong only where the target is planar costs nothing.
+    pred = planar.clone()
+    pred[..., :10] += torch.randn_like(pred[..., :10])
+    assert gbr_loss(pred, planar).item() < 1e-12
+    assert tr_sc_loss(pred, planar).item() < 1e-12
+
+
+@pytest.mark.parametrize("name", ["gbr", "tr_sc", "aligned"])
+def test_losses_have_finite_gradients_on_flat_input(name):
+    loss_fn = get_loss(name)
+    pred = torch.zeros(2, 4, 16, 16, requires_grad=True)
+    for target in (torch.zeros(2, 4, 16, 16), smooth_depth(5, (2, 4, 16, 16)).float()):
+        loss = loss_fn(pred, target)
+        (grad,) = torch.autograd.grad(loss, pred)
+        assert torch.isfinite(loss) and torch.isfinite(grad).all()
+
+
+def test_loss_inputs_are_checked():
+    with pytest.raises(ValueError, match="^loss:"):
+        get_loss("l1")
+    with pytest.raises(ValueError, match="^pred:"):
+        gbr_loss(torch.zeros(1, 2, 8, 8), torch.zeros(1, 2, 8, 9))
+    with pytest.raises(ValueError, match="^target:"):
+        aligned_loss(torch.zeros(1, 2, 8, 8), torch.zeros(2, 8, 8))
+
+
+# ------------------------------------------------------------------ MAE-SN
+
+
+def test_mae_sn_is_zero_for_any_gbr_transform_of_the_truth():
+    gt = smooth_depth(6, (1, 5, 20, 22))[0].numpy()
+    transformed = gbr(torch.from_numpy(gt), -2.0, 0.5, 4.0, 1.0).numpy()
+    assert mae_sn(transformed, gt) < 1e-10
+    assert mae_sn(transformed, gt, align="first") < 1e-10
+
+
+def test_mae_sn_equals_a_direct_computation():
+    rng = np.random.default_rng(0)
+    pred, gt = rng.normal(size=(3, 6, 7)), rng.normal(size=(3, 6, 7)).cumsum(axis=2)
+    scores = []
+    for p, g in zip(pred, gt):
+        y, x = np.mgrid[0:6, 0:7]
+        a = np.column_stack([x.ravel(), y.ravel(), p.ravel(), np.ones(42)])
+        coeffs = np.linalg.solve(a.T @ a, a.T @ g.ravel())
+        scores.append(np.abs(a @ coeffs - g.ravel()).mean() / g.std())
+    assert mae_sn(pred, gt) == pytest.approx(np.mean(scores), rel=1e-10)
+
+
+def test_first_frame_alignment_differs_when_the_transform_changes_over_time():
+    gt = smooth_depth(7, (1, 4, 16, 16))[0]
+    pred = torch.stack([gbr(gt[t], 0.1 * t, 0.0, 1.0 + t, 0.0) for t in range(4)]).numpy()
+    assert mae_sn(pred, gt.numpy(), "frame") < 1e-10
+    assert mae_sn(pred, gt.numpy(), "first") > 0.1
+
+
+def test_flat_baseline_is_the_score_of_a_constant_and_beaten_by_the_truth():
+    gt = smooth_depth(8, (1, 3, 16, 16))[0].numpy()
+    assert flat_baseline(gt) == pytest.approx(mae_sn(np.full_like(gt, 3.0), gt))
+    assert flat_baseline(gt) > 0.1
+    with pytest.raises(ValueError, match="^align:"):
+        mae_sn(gt, gt, align="last")
+    with pytest.raises(ValueError, match="^pred:"):
+        mae_sn(gt[:, :4], gt)
+    with pytest.raises(ValueError, match="^gt:"):
+        mae_sn(gt, np.where(gt > 0, np.nan, gt))
+
+
+# ------------------------------------------------------------------ network
+
+
+def test_unet_shapes_and_parameter_count():
+    model = UNet3D()
+    out = model(torch.zeros(1, 1, 16, 64, 64))
+    assert out.shape == (1, 1, 16, 32, 32)
+    assert count_parameters(model) == 3_042_849
+    with pytest.raises(ValueError, match="^video:"):
+        model(torch.zeros(1, 1, 15, 64, 64))
+
+
+def test_a_small_unet_overfits_a_few_generated_clips():
+    torch.manual_seed(0)
+    config = nrdepth.GeneratorConfig(frames=4, size=32, grid=32, texture_size=64)
+    clips = nrdepth.generate_clips(2, seed=0, config=config)
+    video = torch.from_numpy(clips.video).float().div(255).unsqueeze(1)
+    depth = torch.from_numpy(clips.depth).unsqueeze(1)
+    target = torch.nn.functional.avg_pool3d(depth, (1, 2, 2))[:, 0]
+    model = UNet3D(base=4)
+    optimiser = torch.optim.Adam(model.parameters(), lr=3e-3)
+    losses = []
+    for _ in range(200):
+        optimiser.zero_grad()
+        loss = aligned_loss(model(video)[:, 0], target)
+        loss.backward()
+        optimiser.step()
+        losses.append(loss.item())
+    assert np.mean(losses[-10:]) < 0.1 * np.mean(losses[:10]), (losses[:3], losses[-3:])
