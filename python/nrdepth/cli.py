@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from typing import Optional, Sequence
@@ -58,6 +59,20 @@ def _preview(args: argparse.Namespace) -> int:
     return 0
 
 
+def _train(args: argparse.Namespace) -> int:
+    from .train import TrainConfig, train
+
+    config = TrainConfig(
+        loss=args.loss, base=args.base, batch_size=args.batch_size, steps_per_epoch=args.steps, epochs=args.epochs,
+        lr=args.lr, seed=args.seed, data=args.data, generator=_generator_config(args),
+        validation_clips=args.validation_clips, workers=args.workers, device=args.device, compile=args.compile,
+    )
+    summary = train(args.out, config, progress=not args.quiet, max_epochs=args.max_epochs)
+    if summary:
+        print(json.dumps(summary, indent=2))
+    return 0
+
+
 def _add_generator_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="run seed: clip i is a pure function of (config, seed, i)")
     p.add_argument("--textures", default=None, help="folder of PNG/JPEG images to crop textures from (default: procedural)")
@@ -88,6 +103,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     _add_generator_options(p)
     p.set_defaults(run=_generate)
+
+    p = sub.add_parser("train", help="train the depth network (online generation or a dataset); resumes in OUT")
+    p.add_argument("out", help="run folder: config, checkpoints, weights, metrics")
+    p.add_argument("--loss", default="gbr", help="gbr | tr_sc | aligned")
+    p.add_argument("--epochs", type=int, default=20)
+    p.add_argument("--steps", type=int, default=500, help="steps per epoch")
+    p.add_argument("--max-epochs", type=int, default=None, help="epochs to run in this call (resume later)")
+    p.add_argument("--batch-size", type=int, default=8)
+    p.add_argument("--lr", type=float, default=1e-3)
+    p.add_argument("--base", type=int, default=16, help="width of the first network stage")
+    p.add_argument("--data", default=None, help="dataset folder; default: fresh clips every step")
+    p.add_argument("--validation-clips", type=int, default=64)
+    p.add_argument("--workers", type=int, default=2, help="DataLoader worker processes")
+    p.add_argument("--device", default="auto", help="auto | cpu | cuda | cuda:N")
+    p.add_argument("--compile", action="store_true", help="torch.compile the network")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_generator_options(p)
+    p.set_defaults(run=_train)
 
     p = sub.add_parser("preview", help="picture of sample clips and of the surface parameter sweep")
     p.add_argument("out", nargs="?", default="preview.png", help="output PNG (default: preview.png)")

@@ -1,0 +1,79 @@
+"""Training: exact resume, weights round trip, data-parallel ranks in sync."""
+
+import csv
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import torch
+
+import nrdepth
+from nrdepth.train import TrainConfig, load_model, predict_depth, train
+
+TINY = dict(
+    base=2, batch_size=2, steps_per_epoch=3, epochs=2, lr=3e-3, validation_clips=2, workers=0, device="cpu",
+    generator=nrdepth.GeneratorConfig(frames=4, size=16, grid=16, texture_size=32),
+)
+
+
+def rows(folder):
+    with open(folder / "metrics.csv") as f:
+        return list(csv.DictReader(f))
+
+
+def test_resuming_from_a_checkpoint_takes_the_same_steps_as_not_stopping(tmp_path):
+    config = TrainConfig(loss="aligned", **TINY)
+    train(tmp_path / "straight", config, progress=False)
+    train(tmp_path / "resumed", config, progress=False, max_epochs=1)
+    assert len(rows(tmp_path / "resumed")) == 1
+    train(tmp_path / "resumed", config, progress=False)
+    a, b = rows(tmp_path / "straight"), rows(tmp_path / "resumed")
+    assert len(a) == len(b) == 2
+    for key in ("first_step_loss", "last_step_loss", "train_loss", "val_mae_sn_frame"):
+        assert a[1][key] == b[1][key], key
+    weights = [torch.load(tmp_path / d / "last.pt", weights_only=False)["model"] for d in ("straight", "resumed")]
+    assert all(torch.equal(weights[0][k], weights[1][k]) for k in weights[0])
+
+
+def test_weights_round_trip_through_safetensors(tmp_path):
+    config = TrainConfig(loss="gbr", **{**TINY, "epochs": 1})
+    summary = train(tmp_path, config, progress=False)
+    assert summary["val_mae_sn_flat_frame"] > 0 and np.isfinite(summary["val_mae_sn_frame"])
+    model = load_model(tmp_path / "model.safetensors")
+    state = torch.load(tmp_path / "best.pt", weights_only=False)["model"]
+    assert all(torch.equal(model.state_dict()[k], state[k]) for k in state)
+    clips = nrdepth.generate_clips(1, seed=3, config=TINY["generator"])
+    assert predict_depth(model, clips.video).shape == (1, 4, 8, 8)
+    with pytest.raises(ValueError, match="^path:"):
+        load_model(tmp_path / "missing.safetensors")
+
+
+def test_a_folder_with_another_config_is_refused(tmp_path):
+    train(tmp_path, TrainConfig(loss="gbr", **{**TINY, "epochs": 1}), progress=False)
+    with pytest.raises(ValueError, match="^out:"):
+        train(tmp_path, TrainConfig(loss="tr_sc", **{**TINY, "epochs": 1}), progress=False)
+
+
+@pytest.mark.parametrize(
+    "changes, name",
+    [({"loss": "l2"}, "loss"), ({"batch_size": 0}, "batch_size"), ({"lr": -1.0}, "lr"), ({"device": "tpu"}, "device")],
+)
+def test_bad_train_config_is_named(changes, name):
+    with pytest.raises(ValueError) as info:
+        TrainConfig(**{**TINY, **changes})
+    assert str(info.value).startswith(name)
+
+
+def test_two_process_torchrun_on_the_cpu_keeps_ranks_in_sync(tmp_path):
+    args = [
+        "--nproc_per_node", "2", "--standalone", "-m", "nrdepth", "train", str(tmp_path), "--loss", "aligned",
+        "--epochs", "1", "--steps", "2", "--batch-size", "2", "--base", "2", "--validation-clips", "2",
+        "--workers", "0", "--device", "cpu", "--frames", "4", "--size", "16", "--grid", "16", "--quiet",
+    ]
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    result = subprocess.run([sys.executable, "-m", "torch.distributed.run", *args], capture_output=True, text=True, env=env, timeout=300)
+    assert result.returncode == 0, result.stderr[-2000:]
+    (row,) = rows(tmp_path)
+    assert row["ranks_in_sync"] == "True"
