@@ -77,3 +77,16 @@ def test_two_process_torchrun_on_the_cpu_keeps_ranks_in_sync(tmp_path):
     assert result.returncode == 0, result.stderr[-2000:]
     (row,) = rows(tmp_path)
     assert row["ranks_in_sync"] == "True"
+
+
+def test_evaluate_writes_per_clip_scores_and_a_summary(tmp_path):
+    from nrdepth.cli import main
+
+    train(tmp_path / "run", TrainConfig(loss="aligned", **{**TINY, "epochs": 1}), progress=False)
+    args = ["evaluate", str(tmp_path / "run"), "-o", str(tmp_path / "eval"), "--clips", "3", "--frames", "4", "--size", "16", "--grid", "16", "--device", "cpu"]
+    assert main(args) == 0
+    with open(tmp_path / "eval" / "per_clip.csv") as f:
+        per_clip = list(csv.DictReader(f))
+    assert len(per_clip) == 3
+    summary = __import__("json").loads((tmp_path / "eval" / "summary.json").read_text())
+    assert summary["mae_sn_frame"]["mean"] == pytest.approx(np.mean([float(r["mae_sn_frame"]) for r in per_clip]))

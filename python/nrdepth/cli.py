@@ -73,6 +73,14 @@ def _train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _evaluate(args: argparse.Namespace) -> int:
+    from .evaluate import evaluate, format_summary
+
+    summary = evaluate(args.model, args.data, args.out, clips=args.clips, config=_generator_config(args), device=args.device)
+    print(format_summary(summary))
+    return 0
+
+
 def _add_generator_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="run seed: clip i is a pure function of (config, seed, i)")
     p.add_argument("--textures", default=None, help="folder of PNG/JPEG images to crop textures from (default: procedural)")
@@ -121,6 +129,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     _add_generator_options(p)
     p.set_defaults(run=_train)
+
+    p = sub.add_parser("evaluate", help="held-out MAE-SN of a model beside the flat baseline")
+    p.add_argument("model", help="model.safetensors or a run folder")
+    p.add_argument("data", nargs="?", default=None, help="dataset folder (its test split); default: fresh held-out clips")
+    p.add_argument("-o", "--out", default=None, help="folder for per_clip.csv and summary.json")
+    p.add_argument("--clips", type=int, default=256, help="clips to score")
+    p.add_argument("--device", default="auto")
+    _add_generator_options(p)
+    p.set_defaults(run=_evaluate)
 
     p = sub.add_parser("preview", help="picture of sample clips and of the surface parameter sweep")
     p.add_argument("out", nargs="?", default="preview.png", help="output PNG (default: preview.png)")
