@@ -12,6 +12,7 @@ pub mod mesh;
 pub mod params;
 pub mod raster;
 pub mod rng;
+pub mod stitch;
 pub mod synthesis;
 pub mod textures;
 

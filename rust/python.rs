@@ -506,6 +506,52 @@ fn generate_clips<'py>(
     Ok((video, depth, params))
 }
 
+// ------------------------------------------------------------------ stitching
+
+/// Padding, padded shape and patch origins of a video shape.
+#[pyfunction]
+fn patch_layout(shape: (i64, i64, i64), patch: (i64, i64, i64)) -> PyResult<(Vec<usize>, Vec<usize>, Vec<[usize; 3]>)> {
+    let dims = |name: &str, v: (i64, i64, i64)| -> PyResult<[usize; 3]> {
+        let a = [v.0, v.1, v.2];
+        if a.iter().any(|&x| !(1..=1 << 20).contains(&x)) {
+            return Err(PyValueError::new_err(format!("{name}: expected three sizes in [1, 2**20], got {a:?}")));
+        }
+        Ok(a.map(|x| x as usize))
+    };
+    let layout = crate::stitch::Layout::new(dims("shape", shape)?, dims("patch", patch)?).map_err(value_error)?;
+    Ok((layout.pad.to_vec(), layout.padded.to_vec(), layout.origins()))
+}
+
+/// Align patches (N, Lt, Ls, Ls) to the coarse depth (T, H, W) and overlap-add.
+#[pyfunction]
+fn stitch<'py>(
+    py: Python<'py>,
+    patches: numpy::PyReadonlyArray4<'py, f32>,
+    origins: PyReadonlyArray2<'py, i64>,
+    coarse: PyReadonlyArray3<'py, f32>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let ps = patches.shape().to_vec();
+    let cs = coarse.shape().to_vec();
+    let layout = crate::stitch::Layout::new([cs[0], cs[1], cs[2]], [ps[1], ps[2], ps[3]]).map_err(value_error)?;
+    let origins: Vec<[usize; 3]> = rows::<i64, 3>("origins", &origins)?
+        .iter()
+        .map(|o| {
+            if o.iter().any(|&v| v < 0) {
+                Err(PyValueError::new_err(format!("origins: expected non-negative (t, y, x), got {o:?}")))
+            } else {
+                Ok(o.map(|v| v as usize))
+            }
+        })
+        .collect::<PyResult<_>>()?;
+    if origins.len() != ps[0] {
+        return Err(PyValueError::new_err(format!("origins: expected one row per patch ({}), got {}", ps[0], origins.len())));
+    }
+    let p = patches.as_slice().map_err(|_| PyValueError::new_err("patches: expected a C-contiguous array"))?;
+    let c = coarse.as_slice().map_err(|_| PyValueError::new_err("coarse: expected a C-contiguous array"))?;
+    let video = parallel(py, || crate::stitch::stitch(p, &origins, c, &layout))?.map_err(value_error)?;
+    Ok(PyArray1::from_vec(py, video).reshape([cs[0], cs[1], cs[2]])?.into_any())
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(default_surface_config, m)?)?;
@@ -523,6 +569,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(default_generator_config, m)?)?;
     m.add_function(wrap_pyfunction!(validate_generator_config, m)?)?;
     m.add_function(wrap_pyfunction!(generate_clips, m)?)?;
+    m.add_function(wrap_pyfunction!(patch_layout, m)?)?;
+    m.add_function(wrap_pyfunction!(stitch, m)?)?;
     m.add("CAMERA_Z", crate::geometry::CAMERA_Z)?;
     m.add("FFT_PERIOD", synthesis::PERIOD)?;
     m.add("W_RADIUS", synthesis::W_RADIUS)?;

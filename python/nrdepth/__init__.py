@@ -8,6 +8,7 @@ __version__ = "0.1.0"
 
 from .generate import Clips, GeneratorConfig, generate_clips
 from .metrics import flat_baseline, mae_sn
+from .stitch import PatchLayout, patch_layout, reconstruct, stitch
 from .render import CAMERA_Z, TEXTURE_FAMILIES, Light, Material, Render, procedural_texture, raycast_depth, render
 from .surface import (
     SurfaceConfig,
@@ -29,6 +30,10 @@ __all__ = [
     "flat_baseline",
     "generate_clips",
     "mae_sn",
+    "PatchLayout",
+    "patch_layout",
+    "reconstruct",
+    "stitch",
     "procedural_texture",
     "raycast_depth",
     "render",

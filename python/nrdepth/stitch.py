@@ -1,0 +1,138 @@
+"""Depth video of a video of any size from patch predictions (paper section
+"Reconstruction of a depth map from local patches"), by constant overlap-add.
+
+The video is cut into (16, 64, 64) patches at a hop of half a patch on every
+axis, over the video padded by half a patch in front (symmetric padding);
+each patch's predicted depth is aligned frame by frame to a coarse depth (the
+network's prediction for the whole video resized to the patch size, in
+16-frame windows) by least-squares GBR, weighted by separable triangle
+windows and added up. The windows sum to exactly one over the video, so
+stitching needs no normalisation. The alignment and overlap-add run in Rust.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, NamedTuple, Optional, Tuple, Union
+
+import numpy as np
+
+from . import _core
+
+__all__ = ["PatchLayout", "patch_layout", "stitch", "reconstruct"]
+
+PATCH = (16, 64, 64)
+
+
+class PatchLayout(NamedTuple):
+    shape: Tuple[int, int, int]
+    """The video's (T, H, W)."""
+    patch: Tuple[int, int, int]
+    pad: Tuple[int, int, int]
+    """Front padding per axis (half a patch)."""
+    padded: Tuple[int, int, int]
+    """Padded shape, a whole number of hops per axis."""
+    origins: np.ndarray
+    """int64 (N, 3): (t, y, x) of every patch in padded coordinates."""
+
+
+def patch_layout(shape: Tuple[int, int, int], patch: Tuple[int, int, int] = PATCH) -> PatchLayout:
+    """Padding and patch origins for a (T, H, W) video."""
+    shape = tuple(int(v) for v in shape)  # type: ignore[assignment]
+    patch = tuple(int(v) for v in patch)  # type: ignore[assignment]
+    if len(shape) != 3 or len(patch) != 3:
+        raise ValueError(f"shape: expected (T, H, W) and patch (Lt, Ls, Ls), got {shape} and {patch}")
+    pad, padded, origins = _core.patch_layout(shape, patch)
+    return PatchLayout(shape, patch, tuple(pad), tuple(padded), np.asarray(origins, dtype=np.int64).reshape(-1, 3))  # type: ignore[arg-type]
+
+
+def stitch(patches: np.ndarray, coarse: np.ndarray, layout: PatchLayout) -> np.ndarray:
+    """Align each patch depth (N, Lt, Ls, Ls) to ``coarse`` (T, H, W) by
+    per-frame least-squares GBR and overlap-add with triangle windows:
+    float32 (T, H, W)."""
+    patches = np.asarray(patches)
+    coarse = np.asarray(coarse)
+    for name, a, ndim in (("patches", patches, 4), ("coarse", coarse, 3)):
+        if a.dtype.kind != "f":
+            raise TypeError(f"{name}: expected a floating-point array, got dtype {a.dtype}")
+        if a.ndim != ndim:
+            raise ValueError(f"{name}: expected {ndim} dimensions, got shape {a.shape}")
+    if tuple(coarse.shape) != tuple(layout.shape):
+        raise ValueError(f"coarse: expected the layout's shape {layout.shape}, got {coarse.shape}")
+    if tuple(patches.shape[1:]) != tuple(layout.patch):
+        raise ValueError(f"patches: expected patches of {layout.patch}, got {patches.shape[1:]}")
+    if not np.isfinite(coarse).all():
+        raise ValueError("coarse: expected finite values")
+    return _core.stitch(
+        np.ascontiguousarray(patches, dtype=np.float32),
+        np.ascontiguousarray(layout.origins, dtype=np.int64),
+        np.ascontiguousarray(coarse, dtype=np.float32),
+    )
+
+
+def _resize(frames: np.ndarray, size: Tuple[int, int]) -> np.ndarray:
+    """Bilinear resize of (T, H, W) float frames to (T, *size) (area-averaged when shrinking)."""
+    import torch
+
+    x = torch.from_numpy(np.ascontiguousarray(frames, dtype=np.float32)).unsqueeze(1)
+    shrink = size[0] < frames.shape[1] or size[1] < frames.shape[2]
+    mode = "area" if shrink else "bilinear"
+    y = torch.nn.functional.interpolate(x, size=size, mode=mode, **({} if shrink else {"align_corners": False}))
+    return y[:, 0].numpy()
+
+
+def reconstruct(
+    video: np.ndarray,
+    model: Union[str, "torch.nn.Module"],  # noqa: F821
+    batch_size: int = 8,
+    device: str = "auto",
+    progress: Optional[Callable[[int, int], None]] = None,
+) -> np.ndarray:
+    """Depth video float32 (T, H, W) of a grayscale video (T, H, W) (uint8, or
+    float in [0, 1]) with a trained model (a module or a ``model.safetensors``
+    path). Videos smaller than a patch are padded."""
+    import torch
+
+    from .train import load_model, resolve_device
+
+    video = np.asarray(video)
+    if video.ndim != 3 or min(video.shape) < 1:
+        raise ValueError(f"video: expected a grayscale video (T, H, W), got shape {video.shape}")
+    if video.dtype == np.uint8:
+        frames = video.astype(np.float32) / 255.0
+    elif video.dtype.kind == "f":
+        frames = video.astype(np.float32)
+    else:
+        raise TypeError(f"video: expected uint8 or float frames, got dtype {video.dtype}")
+    if not np.isfinite(frames).all():
+        raise ValueError("video: expected finite values")
+    dev = resolve_device(device)
+    net = load_model(model, device=str(dev)) if not isinstance(model, torch.nn.Module) else model.to(dev).eval()
+    lt, ls, _ = PATCH
+    t, h, w = frames.shape
+
+    def run(batch: np.ndarray) -> np.ndarray:
+        out = []
+        with torch.no_grad():
+            for i in range(0, len(batch), batch_size):
+                x = torch.from_numpy(np.ascontiguousarray(batch[i : i + batch_size])).unsqueeze(1).to(dev)
+                out.append(net(x)[:, 0].float().cpu().numpy())
+        return np.concatenate(out)
+
+    # Coarse pass: the whole video at patch size, in 16-frame windows.
+    windows = -(-t // lt)
+    small = np.pad(_resize(frames, (ls, ls)), ((0, windows * lt - t), (0, 0), (0, 0)), mode="symmetric")
+    coarse = run(small.reshape(windows, lt, ls, ls)).reshape(windows * lt, ls // 2, ls // 2)[:t]
+    coarse = _resize(coarse, (h, w))
+
+    # Fine pass: overlapping patches of the padded video.
+    layout = patch_layout((t, h, w))
+    back = [layout.padded[a] - layout.shape[a] - layout.pad[a] for a in range(3)]
+    padded = np.pad(frames, [(layout.pad[a], back[a]) for a in range(3)], mode="symmetric")
+    patches = np.stack([padded[o[0] : o[0] + lt, o[1] : o[1] + ls, o[2] : o[2] + ls] for o in layout.origins])
+    depth = []
+    for i in range(0, len(patches), 8 * batch_size):
+        half = run(patches[i : i + 8 * batch_size])
+        depth.append(np.stack([_resize(p, (ls, ls)) for p in half]))
+        if progress is not None:
+            progress(min(i + 8 * batch_size, len(patches)), len(patches))
+    return stitch(np.concatenate(depth), coarse, layout)

@@ -1,0 +1,79 @@
+"""COLA stitching: windows sum to one; GBR-distorted true patches stitch back
+to the truth; any size works; reconstruct runs end to end."""
+
+import numpy as np
+import pytest
+import torch
+
+import nrdepth
+import nrdepth.model
+from nrdepth.stitch import PATCH
+
+
+def smooth_video(shape, seed=0):
+    rng = np.random.default_rng(seed)
+    t, h, w = shape
+    tt, yy, xx = np.meshgrid(np.arange(t) / 16, np.arange(h) / 64, np.arange(w) / 64, indexing="ij")
+    z = np.zeros(shape)
+    for _ in range(5):
+        k = rng.normal(size=4) * 3
+        z += np.sin(k[0] * xx + k[1] * yy + k[2] * tt + k[3])
+    return z.astype(np.float32)
+
+
+def cut(video, layout):
+    back = [layout.padded[a] - layout.shape[a] - layout.pad[a] for a in range(3)]
+    padded = np.pad(video, [(layout.pad[a], back[a]) for a in range(3)], mode="symmetric")
+    lt, ly, lx = layout.patch
+    return np.stack([padded[t : t + lt, y : y + ly, x : x + lx] for t, y, x in layout.origins])
+
+
+@pytest.mark.parametrize("shape", [(16, 64, 64), (24, 100, 70), (9, 33, 130), (3, 20, 20)])
+def test_gbr_distorted_true_patches_stitch_back_to_the_truth(shape):
+    truth = smooth_video(shape, seed=sum(shape))
+    layout = nrdepth.patch_layout(shape)
+    patches = cut(truth, layout)
+    rng = np.random.default_rng(1)
+    ly, lx = PATCH[1:]
+    yy, xx = np.mgrid[0:ly, 0:lx]
+    for p in patches:
+        for frame in p:  # a different random GBR per patch and frame
+            # Slopes in depth units per pixel, like the surface's own.
+            a, b, tau = rng.normal(size=3) * (0.05, 0.05, 2.0)
+            frame[:] = a * xx + b * yy + rng.uniform(0.2, 5) * frame + tau
+    out = nrdepth.stitch(patches, truth, layout)
+    assert out.shape == shape and out.dtype == np.float32
+    assert nrdepth.mae_sn(out, truth) < 1e-3
+    np.testing.assert_allclose(out, truth, atol=2e-3)
+
+
+def test_windows_sum_to_one_in_space_and_time():
+    shape = (20, 50, 90)
+    layout = nrdepth.patch_layout(shape)
+    ones = np.ones((len(layout.origins), *PATCH), np.float32)
+    np.testing.assert_allclose(nrdepth.stitch(ones, np.ones(shape, np.float32), layout), 1.0, atol=1e-5)
+
+
+def test_bad_stitch_input_is_named():
+    layout = nrdepth.patch_layout((16, 64, 64))
+    good = np.zeros((len(layout.origins), *PATCH), np.float32)
+    with pytest.raises(ValueError, match="^coarse:"):
+        nrdepth.stitch(good, np.zeros((16, 64, 63), np.float32), layout)
+    with pytest.raises(ValueError, match="^patches:"):
+        nrdepth.stitch(good[:, :8], np.zeros((16, 64, 64), np.float32), layout)
+    with pytest.raises(TypeError, match="^patches:"):
+        nrdepth.stitch(good.astype(int), np.zeros((16, 64, 64), np.float32), layout)
+    with pytest.raises(ValueError, match="^shape:"):
+        nrdepth.patch_layout((0, 64, 64))
+
+
+def test_reconstruct_runs_on_any_size_and_refuses_bad_video():
+    torch.manual_seed(0)
+    model = nrdepth.model.UNet3D(base=2)
+    video = (np.random.default_rng(0).random((10, 40, 72)) * 255).astype(np.uint8)
+    depth = nrdepth.reconstruct(video, model, device="cpu")
+    assert depth.shape == (10, 40, 72) and np.isfinite(depth).all()
+    with pytest.raises(ValueError, match="^video:"):
+        nrdepth.reconstruct(video[0], model, device="cpu")
+    with pytest.raises(TypeError, match="^video:"):
+        nrdepth.reconstruct(video.astype(np.int32), model, device="cpu")
