@@ -34,7 +34,7 @@ impl View {
             return Err(InvalidArgument::new("size", format!("expected (H, W) with 1 <= H, W <= {MAX_SIZE}, got ({height}, {width})")));
         }
         let [x0, y0, x1, y1] = window;
-        if !window.iter().all(|v| v.is_finite()) || !(x1 > x0 && y1 > y0) {
+        if !(window.iter().all(|v| v.is_finite()) && x1 > x0 && y1 > y0) {
             return Err(InvalidArgument::new("window", format!("expected finite (xmin, ymin, xmax, ymax) with xmin < xmax and ymin < ymax, got {window:?}")));
         }
         if !camera_z.is_finite() {

@@ -93,11 +93,22 @@ fn params_to_dict<'py>(py: Python<'py>, p: &SurfaceParams) -> PyResult<Bound<'py
     Ok(d)
 }
 
+/// A `(lo, hi)` range field of a config dict.
+fn range_field(d: &Bound<'_, PyDict>, key: &str) -> PyResult<Range> {
+    let (lo, hi): (f64, f64) = field(d, "config", key)?;
+    Ok(Range::new(lo, hi))
+}
+
+/// Store ranges as `(lo, hi)` tuples.
+fn set_ranges(d: &Bound<'_, PyDict>, ranges: &[(&str, Range)]) -> PyResult<()> {
+    for (key, r) in ranges {
+        d.set_item(*key, (r.lo, r.hi))?;
+    }
+    Ok(())
+}
+
 fn config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<SurfaceConfig> {
-    let range = |key: &str| -> PyResult<Range> {
-        let (lo, hi): (f64, f64) = field(d, "config", key)?;
-        Ok(Range::new(lo, hi))
-    };
+    let range = |key: &str| range_field(d, key);
     Ok(SurfaceConfig {
         intensity: range("intensity")?,
         constraint: range("constraint")?,
@@ -116,7 +127,7 @@ fn config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<SurfaceConfig> {
 
 fn config_to_dict<'py>(py: Python<'py>, c: &SurfaceConfig) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
-    for (key, r) in [
+    set_ranges(&d, &[
         ("intensity", c.intensity),
         ("constraint", c.constraint),
         ("folding", c.folding),
@@ -129,9 +140,7 @@ fn config_to_dict<'py>(py: Python<'py>, c: &SurfaceConfig) -> PyResult<Bound<'py
         ("spin_rate", c.spin_rate),
         ("drift_xy", c.drift_xy),
         ("drift_z", c.drift_z),
-    ] {
-        d.set_item(key, (r.lo, r.hi))?;
-    }
+    ])?;
     Ok(d)
 }
 
@@ -356,10 +365,7 @@ fn texture_families() -> Vec<&'static str> {
 // ------------------------------------------------------------------ generation
 
 fn generator_config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<GeneratorConfig> {
-    let range = |key: &str| -> PyResult<Range> {
-        let (lo, hi): (f64, f64) = field(d, "config", key)?;
-        Ok(Range::new(lo, hi))
-    };
+    let range = |key: &str| range_field(d, key);
     let size = |key: &str| -> PyResult<usize> {
         let v: i64 = field(d, "config", key)?;
         usize::try_from(v).map_err(|_| PyValueError::new_err(format!("config.{key}: expected a non-negative integer, got {v}")))
@@ -407,7 +413,7 @@ fn default_generator_config(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("grid", c.grid)?;
     d.set_item("supersample", c.supersample)?;
     d.set_item("surface", config_to_dict(py, &c.surface)?)?;
-    for (key, r) in [
+    set_ranges(&d, &[
         ("window_width", c.window_width),
         ("window_offset", c.window_offset),
         ("light_elevation", c.light_elevation),
@@ -418,9 +424,7 @@ fn default_generator_config(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
         ("specular", c.specular),
         ("shininess", c.shininess),
         ("noise_std", c.noise_std),
-    ] {
-        d.set_item(key, (r.lo, r.hi))?;
-    }
+    ])?;
     d.set_item("light_count", c.light_count)?;
     d.set_item("point_light_probability", c.point_light_probability)?;
     d.set_item("shading", c.shading.name())?;

@@ -137,6 +137,8 @@ def render(
     material = Material() if material is None else material
     if not isinstance(material, Material):
         raise TypeError(f"material: expected a Material, got {type(material).__name__}")
+    if not isinstance(shading, str):
+        raise TypeError(f"shading: expected 'phong' or 'gouraud', got {type(shading).__name__}")
     return Render(
         *_core.render(
             _float_array("vertices", vertices, 3),
@@ -149,13 +151,9 @@ def render(
             {k: float(v) for k, v in asdict(material).items()},
             _check_int("supersample", supersample),
             _float_tuple("camera_z", (camera_z,), 1)[0],
-            shading if isinstance(shading, str) else _type_error("shading", "a str", shading),
+            shading,
         )
     )
-
-
-def _type_error(name: str, expected: str, value: Any) -> Any:
-    raise TypeError(f"{name}: expected {expected}, got {type(value).__name__}")
 
 
 def raycast_depth(

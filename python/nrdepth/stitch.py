@@ -131,8 +131,8 @@ def reconstruct(
     patches = np.stack([padded[o[0] : o[0] + lt, o[1] : o[1] + ls, o[2] : o[2] + ls] for o in layout.origins])
     depth = []
     for i in range(0, len(patches), 8 * batch_size):
-        half = run(patches[i : i + 8 * batch_size])
-        depth.append(np.stack([_resize(p, (ls, ls)) for p in half]))
+        half = run(patches[i : i + 8 * batch_size])  # (n, Lt, Ls/2, Ls/2)
+        depth.append(_resize(half.reshape(-1, *half.shape[2:]), (ls, ls)).reshape(len(half), lt, ls, ls))
         if progress is not None:
             progress(min(i + 8 * batch_size, len(patches)), len(patches))
     return stitch(np.concatenate(depth), coarse, layout)

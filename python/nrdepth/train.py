@@ -119,11 +119,11 @@ class OnlineBatches(torch.utils.data.Dataset):
 class StoredBatches(torch.utils.data.Dataset):
     """Batch k of the train split: a permutation seeded by (seed, epoch)."""
 
-    def __init__(self, root: str, seed: int, batch_size: int, steps_per_epoch: int) -> None:
+    def __init__(self, root: str, seed: int, batch_size: int) -> None:
         from .dataset import ClipStore
 
         self.store = ClipStore(root, "train")
-        self.seed, self.batch_size, self.steps = seed, batch_size, steps_per_epoch
+        self.seed, self.batch_size = seed, batch_size
         if len(self.store) < batch_size:
             raise ValueError(f"data: the train split has {len(self.store)} clips, fewer than batch_size {batch_size}")
 
@@ -269,7 +269,7 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
         net = torch.compile(net)
     loss_fn = get_loss(config.loss)
     amp = config.amp and device.type == "cuda"
-    data = StoredBatches(config.data, config.seed, config.batch_size, config.steps_per_epoch) if config.data else OnlineBatches(config.generator, config.seed, config.batch_size)
+    data = StoredBatches(config.data, config.seed, config.batch_size) if config.data else OnlineBatches(config.generator, config.seed, config.batch_size)
     video_val, depth_val = validation_set(config) if leader else (None, None)
     depth_val_half = torch.nn.functional.avg_pool2d(torch.from_numpy(depth_val).float(), 2).numpy() if leader else None
 
