@@ -227,6 +227,14 @@ fn write_png(py: Python<'_>, path: PathBuf, image: PyReadonlyArray3<'_, u8>) -> 
     py.detach(|| image_io::write_png_rgb(&path, pixels, shape[0], shape[1])).map_err(value_error)
 }
 
+/// Write a uint16 (H, W) grayscale image as a 16-bit PNG, atomically.
+#[pyfunction]
+fn write_png16(py: Python<'_>, path: PathBuf, image: PyReadonlyArray2<'_, u16>) -> PyResult<()> {
+    let shape = image.shape().to_vec();
+    let pixels = image.as_slice().map_err(|_| PyValueError::new_err("image: expected a C-contiguous array"))?;
+    py.detach(|| image_io::write_png_gray16(&path, pixels, shape[0], shape[1])).map_err(value_error)
+}
+
 // ------------------------------------------------------------------ rendering
 
 fn vec3_rows<'a>(name: &str, a: &'a PyReadonlyArray2<'_, f32>) -> PyResult<&'a [[f32; 3]]> {
@@ -556,6 +564,15 @@ fn stitch<'py>(
     Ok(PyArray1::from_vec(py, video).reshape([cs[0], cs[1], cs[2]])?.into_any())
 }
 
+/// Give every frame of a depth video (T, H, W) frame 0's GBR; returns a new array.
+#[pyfunction]
+fn temporal_align<'py>(py: Python<'py>, depth: PyReadonlyArray3<'py, f32>) -> PyResult<Bound<'py, PyAny>> {
+    let s = depth.shape().to_vec();
+    let mut data = depth.as_slice().map_err(|_| PyValueError::new_err("depth: expected a C-contiguous array"))?.to_vec();
+    parallel(py, || crate::stitch::temporal_align(&mut data, [s[0], s[1], s[2]]))?.map_err(value_error)?;
+    Ok(PyArray1::from_vec(py, data).reshape([s[0], s[1], s[2]])?.into_any())
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(default_surface_config, m)?)?;
@@ -566,6 +583,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(synthesize_surfaces, m)?)?;
     m.add_function(wrap_pyfunction!(grid_triangles, m)?)?;
     m.add_function(wrap_pyfunction!(write_png, m)?)?;
+    m.add_function(wrap_pyfunction!(write_png16, m)?)?;
     m.add_function(wrap_pyfunction!(render, m)?)?;
     m.add_function(wrap_pyfunction!(raycast_depth, m)?)?;
     m.add_function(wrap_pyfunction!(procedural_texture, m)?)?;
@@ -575,6 +593,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(generate_clips, m)?)?;
     m.add_function(wrap_pyfunction!(patch_layout, m)?)?;
     m.add_function(wrap_pyfunction!(stitch, m)?)?;
+    m.add_function(wrap_pyfunction!(temporal_align, m)?)?;
     m.add("CAMERA_Z", crate::geometry::CAMERA_Z)?;
     m.add("FFT_PERIOD", synthesis::PERIOD)?;
     m.add("W_RADIUS", synthesis::W_RADIUS)?;

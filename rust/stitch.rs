@@ -15,6 +15,23 @@
 //! patch gets the minimum-norm fit). Shapes: patches (N, Lt, Ls, Ls),
 //! origins (N, 3) as (t, y, x) in padded coordinates, coarse and output
 //! (T, H, W), all row-major f32.
+//!
+//! Temporal alignment (beyond the paper): each stitched frame is right only
+//! up to its own GBR, so a video flickers in tilt and relief amplitude.
+//! `temporal_align` writes frame t as `plane_0 + Λ_t · r_t`, where `r_t` is the
+//! frame minus its least-squares plane (`α x + β y + τ`), `plane_0` is frame
+//! 0's plane, and `Λ_0 = 1`, `Λ_t = s_t Λ_{t−1} ‖r_{t−1}‖ / ‖r_t‖` with `s_t` the
+//! sign of `⟨r_t, r_{t−1}⟩`. Every frame thus keeps frame 0's GBR: its plane,
+//! its relief norm, and a sign consistent with its predecessor. It equals
+//! chaining, frame by frame, the GBR that best maps a frame onto the aligned
+//! previous one, with λ from the reduced-major-axis fit (`‖q‖/‖p‖`) rather than
+//! least squares, whose regression dilution would shrink the relief by the
+//! frames' correlation at every step of a long video. Flat frames (relief norm
+//! ≤ 1e-9 of the largest) become `plane_0` and are skipped in the chain. The
+//! price: true changes of tilt and relief amplitude over time are given up,
+//! but a network trained with per-frame GBR-invariant losses does not predict
+//! them anyway. The result is invariant to any per-frame GBR of the input, up
+//! to one global GBR (tested).
 
 use nalgebra::{Matrix4, Vector4};
 use rayon::prelude::*;
@@ -169,6 +186,70 @@ pub fn stitch(patches: &[f32], origins: &[[usize; 3]], coarse: &[f32], layout: &
     Ok(video)
 }
 
+/// Least-squares plane `α x + β y + τ` of one frame (H·W values, row-major).
+fn plane_fit(frame: &[f32], width: usize) -> [f64; 3] {
+    let mut ata = nalgebra::Matrix3::<f64>::zeros();
+    let mut atb = nalgebra::Vector3::<f64>::zeros();
+    for (i, &v) in frame.iter().enumerate() {
+        let row = nalgebra::Vector3::new((i % width) as f64, (i / width) as f64, 1.0);
+        ata += row * row.transpose();
+        atb += row * v as f64;
+    }
+    let svd = ata.svd(true, true);
+    let eps = 1e-12 * svd.singular_values.max();
+    svd.solve(&atb, eps).map(|x| [x[0], x[1], x[2]]).unwrap_or([0.0; 3])
+}
+
+fn plane_at(c: &[f64; 3], i: usize, width: usize) -> f64 {
+    c[0] * (i % width) as f64 + c[1] * (i / width) as f64 + c[2]
+}
+
+/// ⟨r_a, r_b⟩ of two frames' reliefs (frame minus its plane).
+fn relief_dot(a: &[f32], pa: &[f64; 3], b: &[f32], pb: &[f64; 3], width: usize) -> f64 {
+    a.iter().zip(b).enumerate().map(|(i, (&u, &v))| (u as f64 - plane_at(pa, i, width)) * (v as f64 - plane_at(pb, i, width))).sum()
+}
+
+/// Give every frame of a depth video (T, H, W) frame 0's GBR (see the module
+/// header), in place. Per-frame statistics run in parallel; the chain is a
+/// scalar recurrence.
+pub fn temporal_align(depth: &mut [f32], shape: [usize; 3]) -> Result<()> {
+    let [t, h, w] = shape;
+    let len = h * w;
+    if len == 0 || depth.len() != t * len {
+        return Err(InvalidArgument::new("depth", format!("expected {t}×{h}×{w} values, got {}", depth.len())));
+    }
+    if !depth.iter().all(|v| v.is_finite()) {
+        return Err(InvalidArgument::new("depth", "expected finite values"));
+    }
+    let planes: Vec<[f64; 3]> = depth.par_chunks(len).map(|f| plane_fit(f, w)).collect();
+    let norms: Vec<f64> = depth.par_chunks(len).zip(&planes).map(|(f, p)| relief_dot(f, p, f, p, w).sqrt()).collect();
+    let flat = 1e-9 * norms.iter().cloned().fold(0.0, f64::max);
+    // Λ_t by the recurrence, against the last frame that is not flat.
+    let mut scales = vec![0.0f64; t];
+    let mut reference: Option<usize> = None;
+    for k in 0..t {
+        if norms[k] <= flat {
+            continue;
+        }
+        scales[k] = match reference {
+            None => 1.0,
+            Some(r) => {
+                let (a, b) = (&depth[k * len..(k + 1) * len], &depth[r * len..(r + 1) * len]);
+                let sign = if relief_dot(a, &planes[k], b, &planes[r], w) < 0.0 { -1.0 } else { 1.0 };
+                sign * scales[r] * norms[r] / norms[k]
+            }
+        };
+        reference = Some(k);
+    }
+    let base = planes[0];
+    depth.par_chunks_mut(len).zip(&planes).zip(&scales).for_each(|((frame, plane), &scale)| {
+        for (i, v) in frame.iter_mut().enumerate() {
+            *v = (plane_at(&base, i, w) + scale * (*v as f64 - plane_at(plane, i, w))) as f32;
+        }
+    });
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -204,5 +285,31 @@ mod tests {
         // A flat patch gets the best plane, not NaN.
         let flat = gbr_fit(&vec![0.0; 64], &c, 8);
         assert!(flat.iter().all(|v| v.is_finite()));
+    }
+
+    /// A fixed relief seen through a different GBR in every frame (sign flips
+    /// included) comes back as frame 0 in every frame; frame 0 is unchanged.
+    #[test]
+    fn temporal_align_undoes_per_frame_gbr() {
+        let (t, h, w) = (6, 9, 11);
+        let relief: Vec<f32> = (0..h * w).map(|i| ((i % w) as f32 * 0.7).sin() * ((i / w) as f32 * 0.5).cos()).collect();
+        let gbrs = [(0.0, 0.0, 1.0, 0.0), (0.3, -0.2, 2.0, 1.0), (-0.1, 0.4, -0.5, 3.0), (0.0, 0.1, 0.25, -2.0), (1.0, 1.0, -4.0, 0.5), (0.2, 0.0, 1.5, 0.0)];
+        let mut video: Vec<f32> = gbrs
+            .iter()
+            .flat_map(|&(a, b, l, c)| relief.iter().enumerate().map(move |(i, &v)| a * (i % w) as f32 + b * (i / w) as f32 + l * v + c))
+            .collect();
+        let first = video[..h * w].to_vec();
+        temporal_align(&mut video, [t, h, w]).unwrap();
+        for frame in video.chunks(h * w) {
+            let err = frame.iter().zip(&first).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+            assert!(err < 1e-4, "{err}");
+        }
+        // A flat frame in the middle neither breaks the chain nor yields NaN.
+        video[2 * h * w..3 * h * w].fill(7.0);
+        temporal_align(&mut video, [t, h, w]).unwrap();
+        assert!(video.iter().all(|v| v.is_finite()));
+        let last = &video[5 * h * w..];
+        assert!(last.iter().zip(&first).all(|(a, b)| (a - b).abs() < 1e-4));
+        assert!(temporal_align(&mut video, [t, h, w + 1]).is_err());
     }
 }

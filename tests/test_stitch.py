@@ -77,3 +77,26 @@ def test_reconstruct_runs_on_any_size_and_refuses_bad_video():
         nrdepth.reconstruct(video[0], model, device="cpu")
     with pytest.raises(TypeError, match="^video:"):
         nrdepth.reconstruct(video.astype(np.int32), model, device="cpu")
+
+
+def test_temporal_align_is_invariant_to_per_frame_gbr_up_to_one_global_gbr():
+    truth = nrdepth.generate_clips(1, seed=5).depth[0].astype(np.float64)
+    rng = np.random.default_rng(2)
+    yy, xx = np.mgrid[0 : truth.shape[1], 0 : truth.shape[2]]
+    flicker = np.stack([
+        a * xx + b * yy + lam * frame + tau
+        for frame, (a, b, tau), lam in zip(truth, rng.normal(size=(len(truth), 3)) * (0.01, 0.01, 1.0), rng.uniform(0.3, 3, len(truth)) * rng.choice([-1, 1], len(truth)))
+    ]).astype(np.float32)
+    aligned = nrdepth.temporal_align(flicker)
+    # Each frame moved by a GBR only: the per-frame score is untouched …
+    assert nrdepth.mae_sn(aligned, truth, "frame") < 1e-3
+    # … and the flicker is gone: the result is the truth's own temporal
+    # alignment seen through one GBR, which frame 0's fit maps back everywhere.
+    reference = nrdepth.temporal_align(truth.astype(np.float32))
+    assert nrdepth.mae_sn(aligned, reference, "first") < 1e-3
+    assert nrdepth.mae_sn(flicker, reference, "first") > 1.0
+    np.testing.assert_array_equal(aligned[0], flicker[0])
+    with pytest.raises(ValueError, match="^depth:"):
+        nrdepth.temporal_align(flicker[0])
+    with pytest.raises(ValueError, match="^depth:"):
+        nrdepth.temporal_align(np.full((2, 4, 4), np.nan, np.float32))

@@ -7,8 +7,8 @@ package is its typed Python face.
 __version__ = "0.1.0"
 
 from .generate import Clips, GeneratorConfig, generate_clips
-from .metrics import flat_baseline, mae_sn
-from .stitch import PatchLayout, patch_layout, reconstruct, stitch
+from .metrics import flat_baseline, gbr_align, mae_sn
+from .stitch import PatchLayout, patch_layout, reconstruct, stitch, temporal_align
 from .render import CAMERA_Z, TEXTURE_FAMILIES, Light, Material, Render, procedural_texture, raycast_depth, render
 from .surface import (
     SurfaceConfig,
@@ -29,11 +29,13 @@ __all__ = [
     "Render",
     "flat_baseline",
     "generate_clips",
+    "gbr_align",
     "mae_sn",
     "PatchLayout",
     "patch_layout",
     "reconstruct",
     "stitch",
+    "temporal_align",
     "procedural_texture",
     "raycast_depth",
     "render",

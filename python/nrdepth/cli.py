@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 import time
+from pathlib import Path
 from typing import Optional, Sequence
 
 from . import __version__
@@ -81,6 +82,91 @@ def _evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _roi(text: str) -> tuple:
+    try:
+        x, y, w, h = (int(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected X,Y,W,H in pixels, got {text!r}") from None
+    return x, y, w, h
+
+
+def _frames(text: str) -> slice:
+    try:
+        parts = [int(v) if v else None for v in text.split(":")]
+        if not 2 <= len(parts) <= 3:
+            raise ValueError
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected START:STOP[:STEP] (Python slice), got {text!r}") from None
+    return slice(*parts)
+
+
+def _reconstruct(args: argparse.Namespace) -> int:
+    from .train import load_model, resolve_device
+    from .stitch import reconstruct
+    from .videoio import read_video, save_reconstruction
+
+    # Everything that can be refused is checked before any work or writing.
+    device = resolve_device(args.device)
+    model = load_model(args.model, device=str(device))
+    out = Path(args.out)
+    if out.exists() and not args.overwrite and (out.is_file() or any(out.iterdir())):
+        raise ValueError(f"--out: {out} exists and is not empty (pass --overwrite)")
+    video = read_video(args.input, name="input")
+    frames = video.frames
+    if args.frames is not None:
+        if args.frames.step is not None and args.frames.step <= 0:
+            raise ValueError(f"--frames: expected a positive step, got {args.frames.step}")
+        frames = frames[args.frames]
+        if len(frames) == 0:
+            raise ValueError(f"--frames: selects no frame of the input's {len(video.frames)}")
+    if args.roi is not None:
+        x, y, w, h = args.roi
+        height, width = frames.shape[1:]
+        if w < 1 or h < 1 or x < 0 or y < 0 or x + w > width or y + h > height:
+            raise ValueError(f"--roi: expected X,Y,W,H inside the {width}×{height} frame, got {x},{y},{w},{h}")
+        frames = frames[:, y : y + h, x : x + w]
+    start = time.perf_counter()
+    bar = None
+    if not args.quiet:
+        from tqdm import tqdm
+
+        bar = tqdm(desc="patches", unit="patch")
+
+    def progress(done: int, total: int) -> None:
+        if bar is not None:
+            bar.total = total
+            bar.update(done - bar.n)
+
+    depth = reconstruct(frames, model, batch_size=args.batch_size, device=str(device), progress=progress)
+    if bar is not None:
+        bar.close()
+    seconds = time.perf_counter() - start
+    save_reconstruction(out, frames, depth, fps=video.fps, png16=args.png16, ply=args.ply, overwrite=args.overwrite)
+    t, h, w = depth.shape
+    print(f"wrote {out}: depth of {t} frames of {w}×{h} in {seconds:.1f} s on {device} "
+          f"(depth.npz, depth.mp4, side_by_side.mp4{', png16/' if args.png16 else ''}{', ply/' if args.ply else ''})")
+    return 0
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from .demo import demo_picture, run_demo
+    from .evaluate import TEST_SEED
+    from .preview import save_png
+
+    seed = TEST_SEED if args.seed is None else args.seed
+    result = run_demo(args.model, size=args.size, seed=seed, device=args.device)
+    save_png(args.out, demo_picture(result))
+    m, f = result["mae_sn"], result["flat"]
+    t, h, w = result["video"].shape
+    print(f"demo: a generated {w}×{h}×{t} deforming-surface video (seed {seed}), reconstructed in "
+          f"{result['seconds']['reconstruct']:.1f} s")
+    print(f"{'MAE-SN':26s}{'nrdepth':>10s}{'flat baseline':>16s}")
+    print(f"{'align each frame':26s}{m['frame']:>10.4f}{f['frame']:>16.4f}")
+    print(f"{'alignment from 1st frame':26s}{m['first']:>10.4f}{f['first']:>16.4f}")
+    print(f"wrote {args.out}: frames | ground-truth depth | reconstruction (GBR-aligned per frame)")
+    return 0
+
+
 def _add_generator_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="run seed: clip i is a pure function of (config, seed, i)")
     p.add_argument("--textures", default=None, help="folder of PNG/JPEG images to crop textures from (default: procedural)")
@@ -138,6 +224,28 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--device", default="auto")
     _add_generator_options(p)
     p.set_defaults(run=_evaluate)
+
+    p = sub.add_parser("reconstruct", help="depth video of a video file, an image folder or a .npy/.npz array")
+    p.add_argument("input", help="video file (mp4, avi, gif, …), folder of images, or .npy/.npz (T, H, W[, 3])")
+    p.add_argument("-o", "--out", required=True, help="output folder: depth.npz, depth.mp4, side_by_side.mp4 [, png16/, ply/]")
+    p.add_argument("--model", default=None, help="model.safetensors or run folder (default: the shipped model)")
+    p.add_argument("--roi", type=_roi, default=None, help="region X,Y,W,H in pixels")
+    p.add_argument("--frames", type=_frames, default=None, help="frames START:STOP[:STEP] (Python slice)")
+    p.add_argument("--device", default="auto", help="auto | cpu | cuda | cuda:N")
+    p.add_argument("--batch-size", type=int, default=8, help="patches per network call")
+    p.add_argument("--png16", action="store_true", help="also write 16-bit PNG depth frames")
+    p.add_argument("--ply", action="store_true", help="also write a PLY point cloud per frame")
+    p.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(run=_reconstruct)
+
+    p = sub.add_parser("demo", help="reconstruct a synthesised 256×256×16 video and score it against its true depth")
+    p.add_argument("out", nargs="?", default="demo.png", help="output PNG (default: demo.png)")
+    p.add_argument("--model", default=None, help="model.safetensors or run folder (default: the shipped model)")
+    p.add_argument("--size", type=int, default=256, help="video side in pixels")
+    p.add_argument("--seed", type=int, default=None, help="generator seed (default: nrdepth.evaluate.TEST_SEED, held out)")
+    p.add_argument("--device", default="auto", help="auto | cpu | cuda | cuda:N")
+    p.set_defaults(run=_demo)
 
     p = sub.add_parser("preview", help="picture of sample clips and of the surface parameter sweep")
     p.add_argument("out", nargs="?", default="preview.png", help="output PNG (default: preview.png)")

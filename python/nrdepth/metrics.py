@@ -18,7 +18,7 @@ from typing import Literal
 
 import numpy as np
 
-__all__ = ["mae_sn", "flat_baseline", "gbr_fit"]
+__all__ = ["mae_sn", "flat_baseline", "gbr_fit", "gbr_align"]
 
 Align = Literal["frame", "first"]
 
@@ -47,20 +47,35 @@ def gbr_fit(pred: np.ndarray, gt: np.ndarray) -> np.ndarray:
     return coeffs
 
 
-def mae_sn(pred: np.ndarray, gt: np.ndarray, align: Align = "frame") -> float:
-    """MAE-SN of a predicted depth video against the ground truth, both (T, H, W)."""
+def _check_pair(pred: np.ndarray, gt: np.ndarray, align: Align):
     pred, gt = _check("pred", pred), _check("gt", gt)
     if pred.shape != gt.shape:
         raise ValueError(f"pred: expected the shape of gt {gt.shape}, got {pred.shape}")
     if align not in ("frame", "first"):
         raise ValueError(f"align: expected 'frame' or 'first', got {align!r}")
+    return pred, gt
+
+
+def _aligned(pred: np.ndarray, gt: np.ndarray, align: Align) -> np.ndarray:
     first = gbr_fit(pred[0], gt[0])
+    return np.stack([(_design(p) @ (first if align == "first" else gbr_fit(p, g))).reshape(g.shape) for p, g in zip(pred, gt)])
+
+
+def gbr_align(pred: np.ndarray, gt: np.ndarray, align: Align = "frame") -> np.ndarray:
+    """The prediction (T, H, W) mapped onto the ground truth by the
+    least-squares GBR of each frame (or of frame 0 for ``align="first"``):
+    float64 (T, H, W), the depth MAE-SN scores. Useful to show a prediction in
+    the ground truth's units."""
+    return _aligned(*_check_pair(pred, gt, align), align)
+
+
+def mae_sn(pred: np.ndarray, gt: np.ndarray, align: Align = "frame") -> float:
+    """MAE-SN of a predicted depth video against the ground truth, both (T, H, W)."""
+    pred, gt = _check_pair(pred, gt, align)
     scores = []
-    for p, g in zip(pred, gt):
-        coeffs = first if align == "first" else gbr_fit(p, g)
-        aligned = (_design(p) @ coeffs).reshape(g.shape)
+    for a, g in zip(_aligned(pred, gt, align), gt):
         scale = g.std()
-        scores.append(np.abs(aligned - g).mean() / scale if scale > 0 else 0.0)
+        scores.append(np.abs(a - g).mean() / scale if scale > 0 else 0.0)
     return float(np.mean(scores))
 
 

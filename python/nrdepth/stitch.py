@@ -12,13 +12,14 @@ stitching needs no normalisation. The alignment and overlap-add run in Rust.
 
 from __future__ import annotations
 
+import os
 from typing import Callable, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
 
 from . import _core
 
-__all__ = ["PatchLayout", "patch_layout", "stitch", "reconstruct"]
+__all__ = ["PatchLayout", "patch_layout", "stitch", "temporal_align", "reconstruct"]
 
 PATCH = (16, 64, 64)
 
@@ -69,6 +70,18 @@ def stitch(patches: np.ndarray, coarse: np.ndarray, layout: PatchLayout) -> np.n
     )
 
 
+def temporal_align(depth: np.ndarray) -> np.ndarray:
+    """Give every frame of a depth video (T, H, W) frame 0's GBR: frame 0's
+    least-squares plane, its relief norm, and a relief sign consistent with
+    the frame before (beyond the paper: removes the per-frame GBR flicker of
+    stitched depth). Returns float32 (T, H, W); exact for a fixed relief seen
+    through a different GBR in every frame. Formula: ``rust/stitch.rs``."""
+    depth = np.asarray(depth)
+    if depth.dtype.kind != "f" or depth.ndim != 3 or min(depth.shape) < 1:
+        raise ValueError(f"depth: expected a float depth video (T, H, W), got {depth.dtype} {depth.shape}")
+    return _core.temporal_align(np.ascontiguousarray(depth, dtype=np.float32))
+
+
 def _resize(frames: np.ndarray, size: Tuple[int, int]) -> np.ndarray:
     """Bilinear resize of (T, H, W) float frames to (T, *size) (area-averaged when shrinking)."""
     import torch
@@ -82,14 +95,19 @@ def _resize(frames: np.ndarray, size: Tuple[int, int]) -> np.ndarray:
 
 def reconstruct(
     video: np.ndarray,
-    model: Union[str, "torch.nn.Module"],  # noqa: F821
+    model: Union[None, str, "os.PathLike[str]", "torch.nn.Module"] = None,  # noqa: F821
     batch_size: int = 8,
     device: str = "auto",
     progress: Optional[Callable[[int, int], None]] = None,
+    temporal: bool = True,
 ) -> np.ndarray:
     """Depth video float32 (T, H, W) of a grayscale video (T, H, W) (uint8, or
-    float in [0, 1]) with a trained model (a module or a ``model.safetensors``
-    path). Videos smaller than a patch are padded."""
+    float in [0, 1]) with a trained model: a module, a ``model.safetensors``
+    path or run folder, or ``None`` for the default model shipped in the
+    package. Videos smaller than a patch are padded (symmetrically).
+    ``progress(done, total)`` is called as patches are predicted.
+    ``temporal`` applies :func:`temporal_align` to the stitched video (the
+    paper's method is ``temporal=False``)."""
     import torch
 
     from .train import load_model, resolve_device
@@ -107,6 +125,23 @@ def reconstruct(
         raise ValueError("video: expected finite values")
     dev = resolve_device(device)
     net = load_model(model, device=str(dev)) if not isinstance(model, torch.nn.Module) else model.to(dev).eval()
+    patches, coarse, layout = predict_patches(frames, net, batch_size, dev, progress)
+    stitched = stitch(patches, coarse, layout)
+    return temporal_align(stitched) if temporal else stitched
+
+
+def predict_patches(
+    frames: np.ndarray,
+    net: "torch.nn.Module",  # noqa: F821
+    batch_size: int,
+    device: "torch.device",  # noqa: F821
+    progress: Optional[Callable[[int, int], None]] = None,
+) -> Tuple[np.ndarray, np.ndarray, PatchLayout]:
+    """The network half of :func:`reconstruct` for float frames (T, H, W) in
+    [0, 1]: patch depths (N, 16, 64, 64) (the network's half-resolution output
+    upsampled), the coarse depth (T, H, W) and the patch layout."""
+    import torch
+
     lt, ls, _ = PATCH
     t, h, w = frames.shape
 
@@ -114,7 +149,7 @@ def reconstruct(
         out = []
         with torch.no_grad():
             for i in range(0, len(batch), batch_size):
-                x = torch.from_numpy(np.ascontiguousarray(batch[i : i + batch_size])).unsqueeze(1).to(dev)
+                x = torch.from_numpy(np.ascontiguousarray(batch[i : i + batch_size])).unsqueeze(1).to(device)
                 out.append(net(x)[:, 0].float().cpu().numpy())
         return np.concatenate(out)
 
@@ -135,4 +170,4 @@ def reconstruct(
         depth.append(_resize(half.reshape(-1, *half.shape[2:]), (ls, ls)).reshape(len(half), lt, ls, ls))
         if progress is not None:
             progress(min(i + 8 * batch_size, len(patches)), len(patches))
-    return stitch(np.concatenate(depth), coarse, layout)
+    return np.concatenate(depth), coarse, layout

@@ -180,6 +180,11 @@ def _atomic_save(obj: Any, path: Path) -> None:
     os.replace(tmp, path)
 
 
+DEFAULT_MODEL = Path(__file__).with_name("weights") / "default.safetensors"
+"""The shipped default model (weights; its architecture, training loss and
+held-out scores are in ``default.json`` beside it)."""
+
+
 def save_model(model: torch.nn.Module, path: Union[str, os.PathLike], extra: Optional[Dict[str, Any]] = None) -> None:
     """Weights as safetensors at ``path`` and the architecture as JSON beside it."""
     from safetensors.torch import save_file
@@ -194,11 +199,13 @@ def save_model(model: torch.nn.Module, path: Union[str, os.PathLike], extra: Opt
     path.with_suffix(".json").write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
 
 
-def load_model(path: Union[str, os.PathLike], device: str = "cpu") -> UNet3D:
-    """A UNet3D from ``model.safetensors`` (and the ``model.json`` beside it)."""
+def load_model(path: Optional[Union[str, os.PathLike]] = None, device: str = "cpu") -> UNet3D:
+    """A UNet3D from ``model.safetensors`` (and the ``model.json`` beside it),
+    a run folder holding them, or, with ``path=None``, the default model that
+    ships in the package (:data:`DEFAULT_MODEL`)."""
     from safetensors.torch import load_file
 
-    path = Path(path)
+    path = DEFAULT_MODEL if path is None else Path(path)
     if path.is_dir():
         path = path / "model.safetensors"
     meta_path = path.with_suffix(".json")

@@ -1,0 +1,175 @@
+"""Whole-video reconstruction from files: video I/O, the output folder, the
+`nrdepth reconstruct` and `nrdepth demo` commands, and the shipped model."""
+
+from __future__ import annotations
+
+import json
+import re
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+import nrdepth
+from nrdepth.cli import main
+from nrdepth.preview import save_png
+from nrdepth.train import DEFAULT_MODEL, load_model, save_model
+from nrdepth.videoio import read_video, save_reconstruction, write_mp4
+
+
+def moving_texture(t=12, h=48, w=40, seed=0) -> np.ndarray:
+    """A smooth pattern drifting right: compresses well, decodes close to the source."""
+    y, x = np.mgrid[0:h, 0:w]
+    phase = np.random.default_rng(seed).random(2) * 6
+    frames = [128 + 90 * np.sin(0.3 * (x - 2 * k) + phase[0]) * np.cos(0.2 * y + phase[1]) for k in range(t)]
+    return np.rint(np.stack(frames)).astype(np.uint8)
+
+
+@pytest.fixture(scope="module")
+def tiny_model(tmp_path_factory) -> Path:
+    torch.manual_seed(0)
+    path = tmp_path_factory.mktemp("model") / "model.safetensors"
+    save_model(nrdepth.model.UNet3D(base=2), path)
+    return path
+
+
+def leftovers(parent: Path) -> list:
+    return sorted(p.name for p in parent.iterdir() if ".partial" in p.name)
+
+
+def test_mp4_round_trip_is_close_and_keeps_size_and_length(tmp_path):
+    frames = moving_texture(t=9, h=37, w=51)  # odd sides: the writer pads to even
+    write_mp4(tmp_path / "v.mp4", np.repeat(frames[..., None], 3, axis=-1), fps=12)
+    back = read_video(tmp_path / "v.mp4")
+    assert back.frames.shape == (9, 38, 52) and back.fps == 12
+    assert np.abs(back.frames[:, :37, :51].astype(int) - frames).mean() < 3.0
+
+
+def test_image_folder_reads_in_name_order_as_luma(tmp_path):
+    frames = moving_texture(t=5)
+    for k in range(5):  # names sort in frame order only lexicographically
+        save_png(tmp_path / f"frame_{k:03d}.png", np.repeat(frames[k][..., None], 3, axis=-1))
+    (tmp_path / "notes.txt").write_text("not an image")
+    back = read_video(tmp_path)
+    assert back.frames.shape == frames.shape
+    assert np.abs(back.frames.astype(int) - frames).max() <= 1
+
+
+def test_arrays_colour_and_float_inputs(tmp_path):
+    frames = moving_texture(t=4)
+    np.savez(tmp_path / "v.npz", video=np.repeat(frames[..., None], 3, axis=-1))
+    np.save(tmp_path / "v.npy", frames.astype(np.float32) / 255)
+    assert np.array_equal(read_video(tmp_path / "v.npz").frames, frames)
+    assert np.array_equal(read_video(tmp_path / "v.npy").frames, frames)
+
+
+def test_cli_reconstructs_an_mp4_into_every_output(tmp_path, tiny_model):
+    frames = moving_texture(t=10, h=48, w=40)
+    write_mp4(tmp_path / "in.mp4", np.repeat(frames[..., None], 3, axis=-1), fps=10)
+    out = tmp_path / "out"
+    code = main(["reconstruct", str(tmp_path / "in.mp4"), "-o", str(out), "--model", str(tiny_model),
+                 "--device", "cpu", "--png16", "--ply", "--quiet", "--frames", "1:9", "--roi", "4,2,30,40"])
+    assert code == 0
+    with np.load(out / "depth.npz") as saved:
+        depth, (lo, hi) = saved["depth"], saved["range"]
+    assert depth.shape == (8, 40, 30) and depth.dtype == np.float32 and np.isfinite(depth).all()
+    colour, side = read_video(out / "depth.mp4"), read_video(out / "side_by_side.mp4")
+    assert colour.frames.shape == (8, 40, 30) and side.frames.shape == (8, 40, 60)
+    # The left half of the preview is the cropped input.
+    crop = read_video(tmp_path / "in.mp4").frames[1:9, 2:42, 4:34]
+    assert np.abs(side.frames[:, :, :30].astype(int) - crop).mean() < 4.0
+    # 16-bit PNGs hold the depth over the video's min..max.
+    pngs = sorted((out / "png16").iterdir())
+    assert len(pngs) == 8
+    import av
+
+    with av.open(str(pngs[3])) as c:
+        v = next(c.decode(video=0)).to_ndarray(format="gray16le").astype(np.float64)
+    expected = (depth[3] - depth.min()) / (depth.max() - depth.min()) * 65535
+    assert np.abs(v - expected).max() <= 0.5 + 1e-6
+    # One PLY point per pixel, z = −depth.
+    ply = (out / "ply" / "frame_0002.ply").read_bytes()
+    header, body = ply.split(b"end_header\n")
+    assert b"element vertex 1200" in header and len(body) == 1200 * 15
+    z = struct.unpack_from("<f", body, 15 * 31 + 8)[0]
+    assert z == pytest.approx(-depth[2].ravel()[31])
+    assert lo <= hi and leftovers(tmp_path) == []
+
+
+def test_cli_reconstructs_an_image_folder(tmp_path, tiny_model):
+    frames = moving_texture(t=6, h=32, w=32)
+    for k in range(6):
+        save_png(tmp_path / f"{k:02d}.png", np.repeat(frames[k][..., None], 3, axis=-1))
+    out = tmp_path / "result"
+    assert main(["reconstruct", str(tmp_path), "-o", str(out), "--model", str(tiny_model), "--device", "cpu", "--quiet"]) == 0
+    with np.load(out / "depth.npz") as saved:
+        assert saved["depth"].shape == (6, 32, 32)
+    # Refuses to overwrite without --overwrite, and leaves the first result alone.
+    before = (out / "depth.npz").read_bytes()
+    assert main(["reconstruct", str(tmp_path), "-o", str(out), "--model", str(tiny_model), "--device", "cpu", "--quiet"]) == 2
+    assert (out / "depth.npz").read_bytes() == before
+
+
+@pytest.mark.parametrize(
+    "case, args, message",
+    [
+        ("corrupt", ["--device", "cpu"], "input: cannot decode"),
+        ("empty file", ["--device", "cpu"], "input: cannot decode"),
+        ("empty folder", ["--device", "cpu"], "input: folder"),
+        ("missing", ["--device", "cpu"], "input: .* does not exist"),
+        ("roi", ["--device", "cpu", "--roi", "30,0,20,20"], "--roi: expected X,Y,W,H inside the 40×48 frame"),
+        ("frames", ["--device", "cpu", "--frames", "20:30"], "--frames: selects no frame"),
+        ("device", ["--device", "tpu"], "device: expected auto, cpu, cuda or cuda:N"),
+    ],
+)
+def test_cli_bad_input_is_named_and_writes_nothing(tmp_path, tiny_model, capsys, case, args, message):
+    source = {
+        "corrupt": tmp_path / "bad.mp4",
+        "empty file": tmp_path / "empty.avi",
+        "empty folder": tmp_path / "frames",
+        "missing": tmp_path / "nothing.mp4",
+        "roi": tmp_path / "good.npy",
+        "frames": tmp_path / "good.npy",
+        "device": tmp_path / "good.npy",
+    }[case]
+    (tmp_path / "bad.mp4").write_bytes(b"\x00\x00\x00\x18ftypmp42" + bytes(range(256)) * 8)
+    (tmp_path / "empty.avi").write_bytes(b"")
+    (tmp_path / "frames").mkdir()
+    np.save(tmp_path / "good.npy", moving_texture(t=4))
+    out = tmp_path / "out"
+    code = main(["reconstruct", str(source), "-o", str(out), "--model", str(tiny_model), "--quiet", *args])
+    assert code == 2
+    assert re.search(message, capsys.readouterr().err)
+    assert not out.exists() and leftovers(tmp_path) == []
+
+
+def test_interrupted_save_leaves_nothing(tmp_path, monkeypatch):
+    import nrdepth.videoio as videoio
+
+    def fail(*_args, **_kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(videoio, "write_ply", fail)
+    frames = moving_texture(t=3)
+    with pytest.raises(KeyboardInterrupt):
+        save_reconstruction(tmp_path / "out", frames, frames.astype(np.float32), ply=True)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_shipped_model_loads_and_is_documented():
+    meta = json.loads(DEFAULT_MODEL.with_suffix(".json").read_text())
+    model = load_model()
+    assert meta["architecture"] == "UNet3D" and model.config == meta["config"]
+    assert DEFAULT_MODEL.stat().st_size < 20 * 2**20
+
+
+def test_shipped_model_beats_the_flat_baseline_on_a_generated_256_video(tmp_path):
+    from nrdepth.demo import run_demo
+
+    result = run_demo(device="cpu")
+    assert result["depth"].shape == result["truth"].shape == (16, 256, 256)
+    assert result["mae_sn"]["frame"] < result["flat"]["frame"]
+    assert main(["demo", str(tmp_path / "demo.png"), "--device", "cpu"]) == 0
+    assert (tmp_path / "demo.png").stat().st_size > 0
