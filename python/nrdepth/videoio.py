@@ -75,7 +75,7 @@ def _decode(path: Path, name: str) -> Tuple[list, float]:
             stream = container.streams.video[0]
             frames = [f.to_ndarray(format="gray") for f in container.decode(stream)]
             fps = float(stream.average_rate) if stream.average_rate else 25.0
-    except av.FFmpegError as e:
+    except av.error.FFmpegError as e:
         raise ValueError(f"{name}: cannot decode {path}: {e}") from None
     if not frames:
         raise ValueError(f"{name}: {path} holds no frames")
