@@ -173,3 +173,11 @@ def test_shipped_model_beats_the_flat_baseline_on_a_generated_256_video(tmp_path
     assert result["mae_sn"]["frame"] < result["flat"]["frame"]
     assert main(["demo", str(tmp_path / "demo.png"), "--device", "cpu"]) == 0
     assert (tmp_path / "demo.png").stat().st_size > 0
+
+
+def test_cli_default_output_folder_is_named_after_the_input(tmp_path, tiny_model, monkeypatch):
+    np.save(tmp_path / "clip.npy", moving_texture(t=3, h=20, w=24))
+    monkeypatch.chdir(tmp_path)
+    assert main(["reconstruct", "clip.npy", "--model", str(tiny_model), "--device", "cpu", "--quiet"]) == 0
+    with np.load(tmp_path / "clip_depth" / "depth.npz") as saved:
+        assert saved["depth"].shape == (3, 20, 24)

@@ -108,7 +108,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
     # Everything that can be refused is checked before any work or writing.
     device = resolve_device(args.device)
     model = load_model(args.model, device=str(device))
-    out = Path(args.out)
+    out = Path(args.out) if args.out is not None else Path(Path(args.input).stem + "_depth")
     if out.exists() and not args.overwrite and (out.is_file() or any(out.iterdir())):
         raise ValueError(f"--out: {out} exists and is not empty (pass --overwrite)")
     video = read_video(args.input, name="input")
@@ -227,7 +227,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("reconstruct", help="depth video of a video file, an image folder or a .npy/.npz array")
     p.add_argument("input", help="video file (mp4, avi, gif, …), folder of images, or .npy/.npz (T, H, W[, 3])")
-    p.add_argument("-o", "--out", required=True, help="output folder: depth.npz, depth.mp4, side_by_side.mp4 [, png16/, ply/]")
+    p.add_argument("-o", "--out", default=None,
+                   help="output folder: depth.npz, depth.mp4, side_by_side.mp4 [, png16/, ply/] (default: INPUT_depth here)")
     p.add_argument("--model", default=None, help="model.safetensors or run folder (default: the shipped model)")
     p.add_argument("--roi", type=_roi, default=None, help="region X,Y,W,H in pixels")
     p.add_argument("--frames", type=_frames, default=None, help="frames START:STOP[:STEP] (Python slice)")

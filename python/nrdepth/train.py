@@ -194,6 +194,7 @@ def save_model(model: torch.nn.Module, path: Union[str, os.PathLike], extra: Opt
     module = getattr(module, "_orig_mod", module)
     tmp = path.with_name(path.name + ".partial")
     save_file({k: v.detach().cpu().contiguous() for k, v in module.state_dict().items()}, str(tmp))
+    os.chmod(tmp, 0o644)  # safetensors writes 0600; weights are meant to be shared and packaged
     os.replace(tmp, path)
     meta = {"architecture": "UNet3D", "config": module.config, **(extra or {})}
     path.with_suffix(".json").write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
