@@ -534,34 +534,55 @@ fn patch_layout(shape: (i64, i64, i64), patch: (i64, i64, i64)) -> PyResult<(Vec
     Ok((layout.pad.to_vec(), layout.padded.to_vec(), layout.origins()))
 }
 
-/// Align patches (N, Lt, Ls, Ls) to the coarse depth (T, H, W) and overlap-add.
-#[pyfunction]
-fn stitch<'py>(
-    py: Python<'py>,
-    patches: numpy::PyReadonlyArray4<'py, f32>,
-    origins: PyReadonlyArray2<'py, i64>,
-    coarse: PyReadonlyArray3<'py, f32>,
-) -> PyResult<Bound<'py, PyAny>> {
-    let ps = patches.shape().to_vec();
-    let cs = coarse.shape().to_vec();
-    let layout = crate::stitch::Layout::new([cs[0], cs[1], cs[2]], [ps[1], ps[2], ps[3]]).map_err(value_error)?;
-    let origins: Vec<[usize; 3]> = rows::<i64, 3>("origins", &origins)?
-        .iter()
-        .map(|o| {
-            if o.iter().any(|&v| v < 0) {
-                Err(PyValueError::new_err(format!("origins: expected non-negative (t, y, x), got {o:?}")))
-            } else {
-                Ok(o.map(|v| v as usize))
-            }
-        })
-        .collect::<PyResult<_>>()?;
-    if origins.len() != ps[0] {
-        return Err(PyValueError::new_err(format!("origins: expected one row per patch ({}), got {}", ps[0], origins.len())));
+/// Streaming COLA stitcher over a coarse depth (T, H, W): `add` chunks of
+/// patches (N, Lt, Ls, Ls) with their padded origins (N, 3), then `finish`.
+#[pyclass(name = "Stitcher", module = "nrdepth._core")]
+struct PyStitcher {
+    inner: Option<crate::stitch::Stitcher>,
+    shape: [usize; 3],
+}
+
+#[pymethods]
+impl PyStitcher {
+    #[new]
+    fn new(py: Python<'_>, coarse: PyReadonlyArray3<'_, f32>, patch: (i64, i64, i64)) -> PyResult<Self> {
+        let cs = coarse.shape();
+        let shape = [cs[0], cs[1], cs[2]];
+        let ps = [patch.0, patch.1, patch.2];
+        if ps.iter().any(|&l| !(2..=1 << 12).contains(&l)) {
+            return Err(PyValueError::new_err(format!("patch: expected three sizes in [2, 4096], got {ps:?}")));
+        }
+        let layout = crate::stitch::Layout::new(shape, ps.map(|l| l as usize)).map_err(value_error)?;
+        let c = coarse.as_slice().map_err(|_| PyValueError::new_err("coarse: expected a C-contiguous array"))?.to_vec();
+        let inner = py.detach(|| crate::stitch::Stitcher::new(layout, c)).map_err(value_error)?;
+        Ok(Self { inner: Some(inner), shape })
     }
-    let p = patches.as_slice().map_err(|_| PyValueError::new_err("patches: expected a C-contiguous array"))?;
-    let c = coarse.as_slice().map_err(|_| PyValueError::new_err("coarse: expected a C-contiguous array"))?;
-    let video = parallel(py, || crate::stitch::stitch(p, &origins, c, &layout))?.map_err(value_error)?;
-    Ok(PyArray1::from_vec(py, video).reshape([cs[0], cs[1], cs[2]])?.into_any())
+
+    fn add(&mut self, py: Python<'_>, patches: numpy::PyReadonlyArray4<'_, f32>, origins: PyReadonlyArray2<'_, i64>) -> PyResult<()> {
+        let stitcher = self.inner.as_mut().ok_or_else(|| PyRuntimeError::new_err("Stitcher: already finished"))?;
+        let n = patches.shape()[0];
+        let origins: Vec<[usize; 3]> = rows::<i64, 3>("origins", &origins)?
+            .iter()
+            .map(|o| {
+                if o.iter().any(|&v| v < 0) {
+                    Err(PyValueError::new_err(format!("origins: expected non-negative (t, y, x), got {o:?}")))
+                } else {
+                    Ok(o.map(|v| v as usize))
+                }
+            })
+            .collect::<PyResult<_>>()?;
+        if origins.len() != n {
+            return Err(PyValueError::new_err(format!("origins: expected one row per patch ({n}), got {}", origins.len())));
+        }
+        let p = patches.as_slice().map_err(|_| PyValueError::new_err("patches: expected a C-contiguous array"))?;
+        parallel(py, || stitcher.add(p, &origins))?.map_err(value_error)
+    }
+
+    fn finish<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let stitcher = self.inner.take().ok_or_else(|| PyRuntimeError::new_err("Stitcher: already finished"))?;
+        let [t, h, w] = self.shape;
+        Ok(PyArray1::from_vec(py, stitcher.finish()).reshape([t, h, w])?.into_any())
+    }
 }
 
 /// Give every frame of a depth video (T, H, W) frame 0's GBR; returns a new array.
@@ -592,7 +613,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(validate_generator_config, m)?)?;
     m.add_function(wrap_pyfunction!(generate_clips, m)?)?;
     m.add_function(wrap_pyfunction!(patch_layout, m)?)?;
-    m.add_function(wrap_pyfunction!(stitch, m)?)?;
+    m.add_class::<PyStitcher>()?;
     m.add_function(wrap_pyfunction!(temporal_align, m)?)?;
     m.add("CAMERA_Z", crate::geometry::CAMERA_Z)?;
     m.add("FFT_PERIOD", synthesis::PERIOD)?;

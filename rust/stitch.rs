@@ -116,74 +116,110 @@ fn coarse_at(coarse: &[f32], layout: &Layout, t: isize, y: isize, x: isize) -> f
     coarse[(mirror(t, tt) * hh + mirror(y, hh)) * ww + mirror(x, ww)]
 }
 
-/// Align every patch to the coarse depth and overlap-add them into (T, H, W).
-pub fn stitch(patches: &[f32], origins: &[[usize; 3]], coarse: &[f32], layout: &Layout) -> Result<Vec<f32>> {
-    let [lt, ly, lx] = layout.patch;
-    let patch_len = lt * ly * lx;
-    if patches.len() != origins.len() * patch_len {
-        return Err(InvalidArgument::new("patches", format!("expected {} patches of {:?}, got {} values", origins.len(), layout.patch, patches.len())));
+/// Streaming overlap-add: patches arrive in chunks (`add`), in any grouping,
+/// and `finish` returns the video. Memory is the video and the coarse depth
+/// plus one chunk, whatever the video's length. Chunks are accumulated in the
+/// order they arrive (each chunk's patches in order), so the same patches in
+/// the same order give the same bytes whatever the chunking or thread count.
+pub struct Stitcher {
+    layout: Layout,
+    coarse: Vec<f32>,
+    video: Vec<f32>,
+    windows: [Vec<f32>; 3],
+}
+
+impl Stitcher {
+    /// `coarse`: the coarse depth (T, H, W) the patches are aligned to.
+    pub fn new(layout: Layout, coarse: Vec<f32>) -> Result<Self> {
+        if coarse.len() != layout.shape.iter().product::<usize>() {
+            return Err(InvalidArgument::new("coarse", format!("expected shape {:?}", layout.shape)));
+        }
+        if !coarse.iter().all(|v| v.is_finite()) {
+            return Err(InvalidArgument::new("coarse", "expected finite values"));
+        }
+        let windows = layout.patch.map(triangle);
+        Ok(Self { layout, video: vec![0.0; coarse.len()], coarse, windows })
     }
-    if coarse.len() != layout.shape.iter().product::<usize>() {
-        return Err(InvalidArgument::new("coarse", format!("expected shape {:?}", layout.shape)));
-    }
-    if let Some(o) = origins.iter().find(|o| (0..3).any(|a| o[a] + layout.patch[a] > layout.padded[a])) {
-        return Err(InvalidArgument::new("origins", format!("patch at {o:?} leaves the padded video {:?}", layout.padded)));
-    }
-    if !patches.iter().all(|v| v.is_finite()) {
-        return Err(InvalidArgument::new("patches", "expected finite values"));
-    }
-    let (wt, wy, wx) = (triangle(lt), triangle(ly), triangle(lx));
-    let pad = layout.pad.map(|p| p as isize);
-    // Align and window each patch in parallel; accumulate serially (order fixed: same bytes any thread count).
-    let aligned: Vec<Vec<f32>> = origins
-        .par_iter()
-        .enumerate()
-        .map(|(n, o)| {
-            let patch = &patches[n * patch_len..(n + 1) * patch_len];
-            let mut out = vec![0.0f32; patch_len];
-            let mut under = vec![0.0f32; ly * lx];
+
+    /// Align the patches (N, Lt, Ls, Ls) at `origins` (padded (t, y, x)) to the
+    /// coarse depth, window them and add them into the video.
+    pub fn add(&mut self, patches: &[f32], origins: &[[usize; 3]]) -> Result<()> {
+        let layout = &self.layout;
+        let [lt, ly, lx] = layout.patch;
+        let patch_len = lt * ly * lx;
+        if patches.len() != origins.len() * patch_len {
+            return Err(InvalidArgument::new("patches", format!("expected {} patches of {:?}, got {} values", origins.len(), layout.patch, patches.len())));
+        }
+        if let Some(o) = origins.iter().find(|o| (0..3).any(|a| o[a] + layout.patch[a] > layout.padded[a])) {
+            return Err(InvalidArgument::new("origins", format!("patch at {o:?} leaves the padded video {:?}", layout.padded)));
+        }
+        if !patches.iter().all(|v| v.is_finite()) {
+            return Err(InvalidArgument::new("patches", "expected finite values"));
+        }
+        let [wt, wy, wx] = &self.windows;
+        let pad = layout.pad.map(|p| p as isize);
+        let coarse = &self.coarse;
+        // Align and window each patch in parallel; accumulate serially (fixed order).
+        let aligned: Vec<Vec<f32>> = origins
+            .par_iter()
+            .zip(patches.par_chunks(patch_len))
+            .map(|(o, patch)| {
+                let mut out = vec![0.0f32; patch_len];
+                let mut under = vec![0.0f32; ly * lx];
+                for t in 0..lt {
+                    let frame = &patch[t * ly * lx..(t + 1) * ly * lx];
+                    for y in 0..ly {
+                        for x in 0..lx {
+                            let (gt, gy, gx) = (o[0] as isize + t as isize - pad[0], o[1] as isize + y as isize - pad[1], o[2] as isize + x as isize - pad[2]);
+                            under[y * lx + x] = coarse_at(coarse, layout, gt, gy, gx);
+                        }
+                    }
+                    let [a, b, l, c] = gbr_fit(frame, &under, lx);
+                    for y in 0..ly {
+                        for x in 0..lx {
+                            let v = a * x as f64 + b * y as f64 + l * frame[y * lx + x] as f64 + c;
+                            out[(t * ly + y) * lx + x] = (v * (wt[t] * wy[y] * wx[x]) as f64) as f32;
+                        }
+                    }
+                }
+                out
+            })
+            .collect();
+        let [tt, hh, ww] = layout.shape;
+        for (o, patch) in origins.iter().zip(&aligned) {
             for t in 0..lt {
-                let frame = &patch[t * ly * lx..(t + 1) * ly * lx];
-                for y in 0..ly {
-                    for x in 0..lx {
-                        let (gt, gy, gx) = (o[0] as isize + t as isize - pad[0], o[1] as isize + y as isize - pad[1], o[2] as isize + x as isize - pad[2]);
-                        under[y * lx + x] = coarse_at(coarse, layout, gt, gy, gx);
-                    }
-                }
-                let [a, b, l, c] = gbr_fit(frame, &under, lx);
-                for y in 0..ly {
-                    for x in 0..lx {
-                        let v = a * x as f64 + b * y as f64 + l * frame[y * lx + x] as f64 + c;
-                        out[(t * ly + y) * lx + x] = (v * (wt[t] * wy[y] * wx[x]) as f64) as f32;
-                    }
-                }
-            }
-            out
-        })
-        .collect();
-    let [tt, hh, ww] = layout.shape;
-    let mut video = vec![0.0f32; tt * hh * ww];
-    for (o, patch) in origins.iter().zip(&aligned) {
-        for t in 0..lt {
-            let gt = o[0] as isize + t as isize - pad[0];
-            if gt < 0 || gt >= tt as isize {
-                continue;
-            }
-            for y in 0..ly {
-                let gy = o[1] as isize + y as isize - pad[1];
-                if gy < 0 || gy >= hh as isize {
+                let gt = o[0] as isize + t as isize - pad[0];
+                if gt < 0 || gt >= tt as isize {
                     continue;
                 }
-                for x in 0..lx {
-                    let gx = o[2] as isize + x as isize - pad[2];
-                    if gx >= 0 && gx < ww as isize {
-                        video[(gt as usize * hh + gy as usize) * ww + gx as usize] += patch[(t * ly + y) * lx + x];
+                for y in 0..ly {
+                    let gy = o[1] as isize + y as isize - pad[1];
+                    if gy < 0 || gy >= hh as isize {
+                        continue;
+                    }
+                    for x in 0..lx {
+                        let gx = o[2] as isize + x as isize - pad[2];
+                        if gx >= 0 && gx < ww as isize {
+                            self.video[(gt as usize * hh + gy as usize) * ww + gx as usize] += patch[(t * ly + y) * lx + x];
+                        }
                     }
                 }
             }
         }
+        Ok(())
     }
-    Ok(video)
+
+    /// The stitched video (T, H, W).
+    pub fn finish(self) -> Vec<f32> {
+        self.video
+    }
+}
+
+/// Align every patch to the coarse depth and overlap-add them into (T, H, W).
+pub fn stitch(patches: &[f32], origins: &[[usize; 3]], coarse: &[f32], layout: &Layout) -> Result<Vec<f32>> {
+    let mut stitcher = Stitcher::new(*layout, coarse.to_vec())?;
+    stitcher.add(patches, origins)?;
+    Ok(stitcher.finish())
 }
 
 /// Least-squares plane `α x + β y + τ` of one frame (H·W values, row-major).
@@ -266,6 +302,21 @@ mod tests {
             let sum = stitch(&patches, &origins, &coarse, &layout).unwrap();
             assert!(sum.iter().all(|v| (v - 1.0).abs() < 1e-5), "{shape:?}: {:?}", sum.iter().fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v))));
         }
+    }
+
+    #[test]
+    fn chunked_stitching_gives_the_same_bytes() {
+        let layout = Layout::new([9, 20, 27], [4, 8, 8]).unwrap();
+        let origins = layout.origins();
+        let len = 4 * 8 * 8;
+        let patches: Vec<f32> = (0..origins.len() * len).map(|i| ((i * 37 % 101) as f32 * 0.1).sin()).collect();
+        let coarse: Vec<f32> = (0..9 * 20 * 27).map(|i| ((i % 27) as f32 * 0.3).cos() + (i / 540) as f32 * 0.1).collect();
+        let whole = stitch(&patches, &origins, &coarse, &layout).unwrap();
+        let mut stitcher = Stitcher::new(layout, coarse).unwrap();
+        for (chunk, o) in patches.chunks(7 * len).zip(origins.chunks(7)) {
+            stitcher.add(chunk, o).unwrap();
+        }
+        assert_eq!(stitcher.finish(), whole);
     }
 
     #[test]

@@ -13,13 +13,13 @@ stitching needs no normalisation. The alignment and overlap-add run in Rust.
 from __future__ import annotations
 
 import os
-from typing import Callable, NamedTuple, Optional, Tuple, Union
+from typing import Callable, Iterator, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
 
 from . import _core
 
-__all__ = ["PatchLayout", "patch_layout", "stitch", "temporal_align", "reconstruct"]
+__all__ = ["PatchLayout", "patch_layout", "stitch", "temporal_align", "reconstruct", "coarse_depth", "patch_depths"]
 
 PATCH = (16, 64, 64)
 
@@ -61,13 +61,9 @@ def stitch(patches: np.ndarray, coarse: np.ndarray, layout: PatchLayout) -> np.n
         raise ValueError(f"coarse: expected the layout's shape {layout.shape}, got {coarse.shape}")
     if tuple(patches.shape[1:]) != tuple(layout.patch):
         raise ValueError(f"patches: expected patches of {layout.patch}, got {patches.shape[1:]}")
-    if not np.isfinite(coarse).all():
-        raise ValueError("coarse: expected finite values")
-    return _core.stitch(
-        np.ascontiguousarray(patches, dtype=np.float32),
-        np.ascontiguousarray(layout.origins, dtype=np.int64),
-        np.ascontiguousarray(coarse, dtype=np.float32),
-    )
+    stitcher = _core.Stitcher(np.ascontiguousarray(coarse, dtype=np.float32), layout.patch)
+    stitcher.add(np.ascontiguousarray(patches, dtype=np.float32), np.ascontiguousarray(layout.origins, dtype=np.int64))
+    return stitcher.finish()
 
 
 def temporal_align(depth: np.ndarray) -> np.ndarray:
@@ -107,7 +103,9 @@ def reconstruct(
     package. Videos smaller than a patch are padded (symmetrically).
     ``progress(done, total)`` is called as patches are predicted.
     ``temporal`` applies :func:`temporal_align` to the stitched video (the
-    paper's method is ``temporal=False``)."""
+    paper's method is ``temporal=False``). Patches stream through the network
+    and the stitcher a chunk at a time: memory is a few copies of the video,
+    not of its (8× overlapping) patches."""
     import torch
 
     from .train import load_model, resolve_device
@@ -115,59 +113,68 @@ def reconstruct(
     video = np.asarray(video)
     if video.ndim != 3 or min(video.shape) < 1:
         raise ValueError(f"video: expected a grayscale video (T, H, W), got shape {video.shape}")
-    if video.dtype == np.uint8:
-        frames = video.astype(np.float32) / 255.0
-    elif video.dtype.kind == "f":
-        frames = video.astype(np.float32)
-    else:
+    if video.dtype != np.uint8 and video.dtype.kind != "f":
         raise TypeError(f"video: expected uint8 or float frames, got dtype {video.dtype}")
-    if not np.isfinite(frames).all():
+    if video.dtype.kind == "f" and not np.isfinite(video).all():
         raise ValueError("video: expected finite values")
     dev = resolve_device(device)
     net = load_model(model, device=str(dev)) if not isinstance(model, torch.nn.Module) else model.to(dev).eval()
-    patches, coarse, layout = predict_patches(frames, net, batch_size, dev, progress)
-    stitched = stitch(patches, coarse, layout)
+    layout = patch_layout(video.shape)
+    stitcher = _core.Stitcher(coarse_depth(video, net, batch_size, dev), layout.patch)
+    done = 0
+    for origins, depth in patch_depths(video, net, layout, batch_size, dev):
+        stitcher.add(depth, origins)
+        done += len(origins)
+        if progress is not None:
+            progress(done, len(layout.origins))
+    stitched = stitcher.finish()
     return temporal_align(stitched) if temporal else stitched
 
 
-def predict_patches(
-    frames: np.ndarray,
-    net: "torch.nn.Module",  # noqa: F821
-    batch_size: int,
-    device: "torch.device",  # noqa: F821
-    progress: Optional[Callable[[int, int], None]] = None,
-) -> Tuple[np.ndarray, np.ndarray, PatchLayout]:
-    """The network half of :func:`reconstruct` for float frames (T, H, W) in
-    [0, 1]: patch depths (N, 16, 64, 64) (the network's half-resolution output
-    upsampled), the coarse depth (T, H, W) and the patch layout."""
+def _as_unit_float(frames: np.ndarray) -> np.ndarray:
+    return frames.astype(np.float32) / 255.0 if frames.dtype == np.uint8 else frames.astype(np.float32)
+
+
+def _predict(net: "torch.nn.Module", batch: np.ndarray, batch_size: int, device: "torch.device") -> np.ndarray:  # noqa: F821
+    """Network depth (N, Lt, Ls/2, Ls/2) of float patches (N, Lt, Ls, Ls)."""
     import torch
 
+    out = []
+    with torch.no_grad():
+        for i in range(0, len(batch), batch_size):
+            x = torch.from_numpy(np.ascontiguousarray(batch[i : i + batch_size])).unsqueeze(1).to(device)
+            out.append(net(x)[:, 0].float().cpu().numpy())
+    return np.concatenate(out)
+
+
+def coarse_depth(video: np.ndarray, net: "torch.nn.Module", batch_size: int, device: "torch.device") -> np.ndarray:  # noqa: F821
+    """The coarse pass of :func:`reconstruct`: the whole video (T, H, W)
+    resized to the patch side, in 16-frame windows (the last one mirrored),
+    through the network, and its depth resized back: float32 (T, H, W)."""
     lt, ls, _ = PATCH
-    t, h, w = frames.shape
-
-    def run(batch: np.ndarray) -> np.ndarray:
-        out = []
-        with torch.no_grad():
-            for i in range(0, len(batch), batch_size):
-                x = torch.from_numpy(np.ascontiguousarray(batch[i : i + batch_size])).unsqueeze(1).to(device)
-                out.append(net(x)[:, 0].float().cpu().numpy())
-        return np.concatenate(out)
-
-    # Coarse pass: the whole video at patch size, in 16-frame windows.
+    t, h, w = video.shape
     windows = -(-t // lt)
-    small = np.pad(_resize(frames, (ls, ls)), ((0, windows * lt - t), (0, 0), (0, 0)), mode="symmetric")
-    coarse = run(small.reshape(windows, lt, ls, ls)).reshape(windows * lt, ls // 2, ls // 2)[:t]
-    coarse = _resize(coarse, (h, w))
+    small = np.pad(_resize(_as_unit_float(video), (ls, ls)), ((0, windows * lt - t), (0, 0), (0, 0)), mode="symmetric")
+    coarse = _predict(net, small.reshape(windows, lt, ls, ls), batch_size, device)
+    return _resize(coarse.reshape(windows * lt, ls // 2, ls // 2)[:t], (h, w))
 
-    # Fine pass: overlapping patches of the padded video.
-    layout = patch_layout((t, h, w))
+
+def patch_depths(
+    video: np.ndarray,
+    net: "torch.nn.Module",  # noqa: F821
+    layout: PatchLayout,
+    batch_size: int,
+    device: "torch.device",  # noqa: F821
+    chunk: int = 64,
+) -> Iterator[Tuple[np.ndarray, np.ndarray]]:
+    """The fine pass of :func:`reconstruct`: for ``chunk`` patches at a time of
+    the symmetrically padded video, their origins (n, 3) and depths
+    (n, 16, 64, 64) (the network's half-resolution output upsampled)."""
+    lt, ls, _ = PATCH
     back = [layout.padded[a] - layout.shape[a] - layout.pad[a] for a in range(3)]
-    padded = np.pad(frames, [(layout.pad[a], back[a]) for a in range(3)], mode="symmetric")
-    patches = np.stack([padded[o[0] : o[0] + lt, o[1] : o[1] + ls, o[2] : o[2] + ls] for o in layout.origins])
-    depth = []
-    for i in range(0, len(patches), 8 * batch_size):
-        half = run(patches[i : i + 8 * batch_size])  # (n, Lt, Ls/2, Ls/2)
-        depth.append(_resize(half.reshape(-1, *half.shape[2:]), (ls, ls)).reshape(len(half), lt, ls, ls))
-        if progress is not None:
-            progress(min(i + 8 * batch_size, len(patches)), len(patches))
-    return np.concatenate(depth), coarse, layout
+    padded = np.pad(video, [(layout.pad[a], back[a]) for a in range(3)], mode="symmetric")  # the input's dtype
+    for i in range(0, len(layout.origins), chunk):
+        origins = layout.origins[i : i + chunk]
+        patches = _as_unit_float(np.stack([padded[t : t + lt, y : y + ls, x : x + ls] for t, y, x in origins]))
+        half = _predict(net, patches, batch_size, device)
+        yield origins, _resize(half.reshape(-1, *half.shape[2:]), (ls, ls)).reshape(len(half), lt, ls, ls)
