@@ -25,7 +25,7 @@
 
 use rayon::prelude::*;
 
-use crate::geometry::{check_mesh, vertical_hit, TriangleSetup, View};
+use crate::geometry::{ceil_fast, check_mesh, floor_fast, vertical_hit, TriangleSetup, View};
 use crate::error::Result;
 
 pub const LEAF_SIZE: usize = 4;
@@ -267,8 +267,8 @@ impl Bvh {
                 let (c0, c1) = (a[0].min(b[0]).min(c[0]), a[0].max(b[0]).max(c[0]));
                 let (r0, r1) = (a[1].min(b[1]).min(c[1]), a[1].max(b[1]).max(c[1]));
                 let span = |lo: f32, hi: f32, range: &std::ops::Range<usize>, offset: usize| {
-                    let first = ((lo - 0.5 - MARGIN).ceil().max(0.0) as usize).max(range.start + offset);
-                    let last = ((hi - 0.5 + MARGIN).floor().max(-1.0) as isize).min((range.end + offset) as isize - 1);
+                    let first = (ceil_fast(lo - 0.5 - MARGIN).max(0.0) as usize).max(range.start + offset);
+                    let last = (floor_fast(hi - 0.5 + MARGIN).max(-1.0) as isize).min((range.end + offset) as isize - 1);
                     (first, last)
                 };
                 let (row_first, row_last) = span(r0, r1, &tile.rows, tile.row0);

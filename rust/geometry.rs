@@ -117,6 +117,21 @@ impl TriangleSetup {
 /// does: `(z, [λa, λb, λc])` with barycentric weights. Either winding counts
 /// (no culling); triangles whose xy-projection has zero area are never hit;
 /// points on an edge count as inside.
+/// `x.floor()` without the libm call the x86-64 baseline makes of it (no
+/// SSE4.1 `roundss`); exact for |x| < 2³¹, saturating beyond (callers clamp).
+#[inline]
+pub fn floor_fast(x: f32) -> f32 {
+    let i = x as i32 as f32;
+    if i > x { i - 1.0 } else { i }
+}
+
+/// `x.ceil()`, as [`floor_fast`].
+#[inline]
+pub fn ceil_fast(x: f32) -> f32 {
+    let i = x as i32 as f32;
+    if i < x { i + 1.0 } else { i }
+}
+
 #[inline]
 pub fn vertical_hit(a: [f32; 3], b: [f32; 3], c: [f32; 3], px: f32, py: f32) -> Option<(f32, [f32; 3])> {
     TriangleSetup::new(a, b, c)?.hit(px, py)
@@ -143,6 +158,21 @@ pub fn check_mesh(vertices: &[[f32; 3]], triangles: &[[u32; 3]]) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn fast_floor_and_ceil_match_std() {
+        for k in -40_000..40_000 {
+            let x = k as f32 * 0.013_7 - 3.0;
+            assert_eq!(floor_fast(x), x.floor(), "{x}");
+            assert_eq!(ceil_fast(x), x.ceil(), "{x}");
+        }
+        for x in [0.0f32, -0.0, 1.0, -1.0, 1e9, -1e9, 0.5, -0.5, 4096.999] {
+            assert_eq!(floor_fast(x), x.floor());
+            assert_eq!(ceil_fast(x), x.ceil());
+        }
+        // Beyond i32 the result saturates but keeps its side of any clamp.
+        assert!(floor_fast(1e30) > 1e9 && ceil_fast(-1e30) < -1e9);
+    }
 
     #[test]
     fn world_and_pixel_are_inverse_and_row_zero_is_at_the_top() {

@@ -24,7 +24,7 @@
 use rayon::prelude::*;
 
 use crate::error::{InvalidArgument, Result};
-use crate::geometry::{check_mesh, TriangleSetup, View};
+use crate::geometry::{ceil_fast, check_mesh, floor_fast, TriangleSetup, View};
 
 /// Largest supersampling factor per axis.
 pub const MAX_SUPERSAMPLE: usize = 8;
@@ -246,10 +246,10 @@ fn visibility_band(screen: &[[f32; 3]], triangles: &[[u32; 3]], view: &View, s: 
         let (t, &[ia, ib, ic]) = tri;
         let (a, b, c) = (screen[ia as usize], screen[ib as usize], screen[ic as usize]);
         // A small margin absorbs rounding; vertical_hit decides exactly.
-        let r_lo = (a[1].min(b[1]).min(c[1]) - 0.5 - MARGIN).ceil().max(row0 as f32);
-        let r_hi = (a[1].max(b[1]).max(c[1]) - 0.5 + MARGIN).floor().min((row0 + band_rows) as f32 - 1.0);
-        let c_lo = (a[0].min(b[0]).min(c[0]) - 0.5 - MARGIN).ceil().max(0.0);
-        let c_hi = (a[0].max(b[0]).max(c[0]) - 0.5 + MARGIN).floor().min(cols as f32 - 1.0);
+        let r_lo = ceil_fast(a[1].min(b[1]).min(c[1]) - 0.5 - MARGIN).max(row0 as f32);
+        let r_hi = floor_fast(a[1].max(b[1]).max(c[1]) - 0.5 + MARGIN).min((row0 + band_rows) as f32 - 1.0);
+        let c_lo = ceil_fast(a[0].min(b[0]).min(c[0]) - 0.5 - MARGIN).max(0.0);
+        let c_hi = floor_fast(a[0].max(b[0]).max(c[0]) - 0.5 + MARGIN).min(cols as f32 - 1.0);
         if !(r_lo <= r_hi && c_lo <= c_hi) {
             continue;
         }

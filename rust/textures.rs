@@ -9,6 +9,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::error::{InvalidArgument, Result};
+use crate::geometry::floor_fast;
 use crate::raster::Texture;
 use crate::rng::{hash, mix64, unit_f64, SplitMix64};
 
@@ -72,8 +73,8 @@ fn fbm(seed: u64, size: usize, base_cells: usize, octaves: usize, persistence: f
         weights.clear();
         for x in 0..size {
             let p = (x as f32 + 0.5) / size as f32 * cells as f32;
-            let i = p.floor() as usize % cells;
-            let f = p - p.floor();
+            let i = floor_fast(p) as usize % cells;
+            let f = p - floor_fast(p);
             weights.push((i, (i + 1) % cells, f * f * (3.0 - 2.0 * f)));
         }
         for (y, row) in out.chunks_exact_mut(size).enumerate() {
@@ -174,7 +175,7 @@ pub fn procedural(family: TextureFamily, seed: u64, size: usize, texture: &mut T
             };
             for (k, v) in data.iter_mut().enumerate() {
                 let (x, y) = (coords(k) * cells as f32, coords(k / size) * cells as f32);
-                let (ci, cj) = (x.floor() as i64, y.floor() as i64);
+                let (ci, cj) = (floor_fast(x) as i64, floor_fast(y) as i64);
                 let (mut d1, mut d2, mut tone) = (f32::INFINITY, f32::INFINITY, 0.0);
                 for dj in -1..=1 {
                     for di in -1..=1 {
@@ -201,10 +202,10 @@ pub fn procedural(family: TextureFamily, seed: u64, size: usize, texture: &mut T
             fbm(rng.next_u64(), size, 16, 3, 0.6, &mut fibre);
             for (k, v) in data.iter_mut().enumerate() {
                 let (u, w) = (coords(k) * threads as f32, coords(k / size) * threads as f32);
-                let (iu, iw) = (u.floor() as i64, w.floor() as i64);
+                let (iu, iw) = (floor_fast(u) as i64, floor_fast(w) as i64);
                 let warp_on_top = if twill { (iu + iw).rem_euclid(4) < 2 } else { (iu + iw).rem_euclid(2) == 0 };
                 // Thread cross-section: bright in the middle, dark at the gaps.
-                let (profile, tone) = if warp_on_top { ((std::f32::consts::PI * (u - u.floor())).sin(), warp_tone) } else { ((std::f32::consts::PI * (w - w.floor())).sin(), weft_tone) };
+                let (profile, tone) = if warp_on_top { ((std::f32::consts::PI * (u - floor_fast(u))).sin(), warp_tone) } else { ((std::f32::consts::PI * (w - floor_fast(w))).sin(), weft_tone) };
                 *v = tone * profile.sqrt() * (0.75 + 0.5 * fibre[k]);
             }
         }

@@ -47,6 +47,22 @@ def test_mp4_round_trip_is_close_and_keeps_size_and_length(tmp_path):
     assert np.abs(back.frames[:, :37, :51].astype(int) - frames).mean() < 3.0
 
 
+@pytest.mark.parametrize("suffix, codec, pix_fmt", [("avi", "mpeg4", "yuv420p"), ("gif", "gif", "rgb8")])
+def test_avi_and_gif_are_read(tmp_path, suffix, codec, pix_fmt):
+    import av
+
+    levels = [0, 50, 100, 150]
+    with av.open(str(tmp_path / f"v.{suffix}"), "w") as c:
+        stream = c.add_stream(codec, rate=10)
+        stream.width, stream.height, stream.pix_fmt = 32, 24, pix_fmt
+        for level in levels:
+            c.mux(stream.encode(av.VideoFrame.from_ndarray(np.full((24, 32, 3), level, np.uint8), format="rgb24")))
+        c.mux(stream.encode(None))
+    back = read_video(tmp_path / f"v.{suffix}")
+    assert back.frames.shape == (4, 24, 32) and back.fps == 10
+    np.testing.assert_allclose(back.frames.mean(axis=(1, 2)), levels, atol=2.0)
+
+
 def test_image_folder_reads_in_name_order_as_luma(tmp_path):
     frames = moving_texture(t=5)
     for k in range(5):  # names sort in frame order only lexicographically
