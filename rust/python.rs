@@ -540,6 +540,7 @@ fn patch_layout(shape: (i64, i64, i64), patch: (i64, i64, i64)) -> PyResult<(Vec
 struct PyStitcher {
     inner: Option<crate::stitch::Stitcher>,
     shape: [usize; 3],
+    patch: [usize; 3],
 }
 
 #[pymethods]
@@ -555,12 +556,16 @@ impl PyStitcher {
         let layout = crate::stitch::Layout::new(shape, ps.map(|l| l as usize)).map_err(value_error)?;
         let c = coarse.as_slice().map_err(|_| PyValueError::new_err("coarse: expected a C-contiguous array"))?.to_vec();
         let inner = py.detach(|| crate::stitch::Stitcher::new(layout, c)).map_err(value_error)?;
-        Ok(Self { inner: Some(inner), shape })
+        Ok(Self { inner: Some(inner), shape, patch: layout.patch })
     }
 
     fn add(&mut self, py: Python<'_>, patches: numpy::PyReadonlyArray4<'_, f32>, origins: PyReadonlyArray2<'_, i64>) -> PyResult<()> {
         let stitcher = self.inner.as_mut().ok_or_else(|| PyRuntimeError::new_err("Stitcher: already finished"))?;
-        let n = patches.shape()[0];
+        let ps = patches.shape();
+        if ps[1..] != self.patch {
+            return Err(PyValueError::new_err(format!("patches: expected (N, {}, {}, {}), got {ps:?}", self.patch[0], self.patch[1], self.patch[2])));
+        }
+        let n = ps[0];
         let origins: Vec<[usize; 3]> = rows::<i64, 3>("origins", &origins)?
             .iter()
             .map(|o| {

@@ -181,14 +181,21 @@ def test_shipped_model_loads_and_is_documented():
     assert DEFAULT_MODEL.stat().st_size < 20 * 2**20
 
 
-def test_shipped_model_beats_the_flat_baseline_on_a_generated_256_video(tmp_path):
-    from nrdepth.demo import run_demo
+def test_shipped_model_beats_the_flat_baseline_on_a_generated_256_video():
+    from nrdepth.demo import demo_picture, run_demo
 
     result = run_demo(device="cpu")
     assert result["depth"].shape == result["truth"].shape == (16, 256, 256)
     assert result["mae_sn"]["frame"] < result["flat"]["frame"]
-    assert main(["demo", str(tmp_path / "demo.png"), "--device", "cpu"]) == 0
-    assert (tmp_path / "demo.png").stat().st_size > 0
+    picture = demo_picture(result, frames_shown=2)
+    assert picture.dtype == np.uint8 and picture.shape == (2 * 260, 3 * 260, 3)
+
+
+def test_cli_demo_prints_both_alignments_and_writes_the_picture(tmp_path, capsys):
+    assert main(["demo", str(tmp_path / "demo.png"), "--device", "cpu", "--size", "64"]) == 0
+    printed = capsys.readouterr().out
+    assert "align each frame" in printed and "alignment from 1st frame" in printed and "flat baseline" in printed
+    assert (tmp_path / "demo.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_cli_default_output_folder_is_named_after_the_input(tmp_path, tiny_model, monkeypatch):

@@ -100,3 +100,15 @@ def test_temporal_align_is_invariant_to_per_frame_gbr_up_to_one_global_gbr():
         nrdepth.temporal_align(flicker[0])
     with pytest.raises(ValueError, match="^depth:"):
         nrdepth.temporal_align(np.full((2, 4, 4), np.nan, np.float32))
+
+
+def test_streaming_stitcher_refuses_misshapen_chunks_and_reuse():
+    layout = nrdepth.patch_layout((16, 64, 64))
+    stitcher = nrdepth._core.Stitcher(np.zeros((16, 64, 64), np.float32), layout.patch)
+    with pytest.raises(ValueError, match="^patches:"):
+        stitcher.add(np.zeros((1, 64, 16, 64), np.float32), layout.origins[:1])
+    with pytest.raises(ValueError, match="^origins:"):
+        stitcher.add(np.zeros((2, 16, 64, 64), np.float32), layout.origins[:1])
+    stitcher.finish()
+    with pytest.raises(RuntimeError, match="already finished"):
+        stitcher.finish()

@@ -7,7 +7,10 @@ each patch's predicted depth is aligned frame by frame to a coarse depth (the
 network's prediction for the whole video resized to the patch size, in
 16-frame windows) by least-squares GBR, weighted by separable triangle
 windows and added up. The windows sum to exactly one over the video, so
-stitching needs no normalisation. The alignment and overlap-add run in Rust.
+stitching needs no normalisation. The alignment and overlap-add run in Rust
+(``_core.Stitcher``), fed a chunk of patches at a time, so memory does not
+grow with the patches' 8× overlap. Beyond the paper, :func:`temporal_align`
+then removes the per-frame GBR flicker.
 """
 
 from __future__ import annotations
@@ -117,6 +120,8 @@ def reconstruct(
         raise TypeError(f"video: expected uint8 or float frames, got dtype {video.dtype}")
     if video.dtype.kind == "f" and not np.isfinite(video).all():
         raise ValueError("video: expected finite values")
+    if not isinstance(batch_size, int) or batch_size < 1:
+        raise ValueError(f"batch_size: expected a positive integer, got {batch_size!r}")
     dev = resolve_device(device)
     net = load_model(model, device=str(dev)) if not isinstance(model, torch.nn.Module) else model.to(dev).eval()
     layout = patch_layout(video.shape)
