@@ -5,7 +5,7 @@ import pytest
 import torch
 
 import nrdepth
-from nrdepth.losses import aligned_loss, gbr_loss, get_loss, tr_sc_loss
+from nrdepth.losses import aligned_clip_loss, aligned_loss, gbr_loss, get_loss, tr_sc_loss
 from nrdepth.metrics import flat_baseline, mae_sn
 from nrdepth.model import UNet3D, count_parameters
 
@@ -52,6 +52,14 @@ def test_aligned_loss_is_zero_for_gbr_transforms_and_positive_otherwise():
     assert aligned_loss(smooth_depth(3), z).item() > 1e-2
 
 
+def test_aligned_clip_loss_forgives_one_gbr_per_clip_but_not_one_per_frame():
+    z = smooth_depth(6)
+    assert aligned_clip_loss(gbr(z, 0.4, -0.2, -2.0, 1.0), z).item() < 1e-8
+    per_frame = torch.stack([gbr(z[:, k], 0.3 * k, -0.1 * k, 1.0 + k, k) for k in range(z.shape[1])], dim=1)
+    assert aligned_loss(per_frame, z).item() < 1e-8
+    assert aligned_clip_loss(per_frame, z).item() > 1e-2
+
+
 def test_masks_exclude_flat_and_planar_regions():
     z = smooth_depth(4)
     planar = z.clone()
@@ -63,7 +71,7 @@ def test_masks_exclude_flat_and_planar_regions():
     assert tr_sc_loss(pred, planar).item() < 1e-12
 
 
-@pytest.mark.parametrize("name", ["gbr", "tr_sc", "aligned"])
+@pytest.mark.parametrize("name", ["gbr", "tr_sc", "aligned", "aligned_clip"])
 def test_losses_have_finite_gradients_on_flat_input(name):
     loss_fn = get_loss(name)
     pred = torch.zeros(2, 4, 16, 16, requires_grad=True)

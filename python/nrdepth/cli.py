@@ -200,7 +200,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("train", help="train the depth network (online generation or a dataset); resumes in OUT")
     p.add_argument("out", help="run folder: config, checkpoints, weights, metrics")
-    p.add_argument("--loss", default="gbr", help="gbr | tr_sc | aligned")
+    p.add_argument("--loss", default="gbr", help="gbr | tr_sc | aligned | aligned_clip")
     p.add_argument("--epochs", type=int, default=20)
     p.add_argument("--steps", type=int, default=500, help="steps per epoch")
     p.add_argument("--max-epochs", type=int, default=None, help="epochs to run in this call (resume later)")

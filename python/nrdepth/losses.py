@@ -14,6 +14,9 @@ second. With ``H = ∇²z`` and ``‖H‖_F = sqrt(z_xx² + 2 z_xy² + z_yy²)``
   loss is the MSE of the aligned prediction divided by the target frame's
   variance: the squared counterpart of MAE-SN, optimised directly, using the
   depth itself rather than its second derivatives (less noise-sensitive).
+- ``aligned_clip`` (ours): the same with one GBR for the whole clip, which
+  asks the frames to agree with each other (temporal consistency: the
+  first-frame alignment of MAE-SN) instead of leaving each frame its own GBR.
 
 The invariant losses average over pixels where the target's invariant is
 defined: ``‖H_gt‖_F`` above ``MASK_RATIO`` × that frame's mean (flat and
@@ -27,7 +30,7 @@ from typing import Callable, Dict
 
 import torch
 
-__all__ = ["gbr_loss", "tr_sc_loss", "aligned_loss", "LOSSES", "get_loss", "derivatives"]
+__all__ = ["gbr_loss", "tr_sc_loss", "aligned_loss", "aligned_clip_loss", "LOSSES", "get_loss", "derivatives"]
 
 MASK_RATIO = 1e-2
 _EPS = 1e-12
@@ -89,31 +92,46 @@ def tr_sc_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     return _masked_mse(pred, target, with_gradient=True)
 
 
-def aligned_loss(pred: torch.Tensor, target: torch.Tensor, ridge: float = 1e-6) -> torch.Tensor:
-    """Ours: MSE after the per-frame least-squares GBR alignment of pred onto
-    target, divided by the target frame's variance; differentiable in pred."""
+def _aligned(pred: torch.Tensor, target: torch.Tensor, per_clip: bool, ridge: float) -> torch.Tensor:
     pred, target = _frames("pred", pred), _frames("target", target)
     if pred.shape != target.shape:
         raise ValueError(f"pred: expected the shape of target {tuple(target.shape)}, got {tuple(pred.shape)}")
     b, t, h, w = pred.shape
+    groups, frames = (b, t) if per_clip else (b * t, 1)  # one GBR per group of frames
     ys, xs = torch.meshgrid(torch.linspace(-1, 1, h, dtype=pred.dtype, device=pred.device), torch.linspace(-1, 1, w, dtype=pred.dtype, device=pred.device), indexing="ij")
-    p = pred.reshape(b * t, h * w)
-    g = target.reshape(b * t, h * w)
+    p = pred.reshape(groups, frames * h * w)
+    g = target.reshape(groups, frames * h * w)
     # Standardise the prediction so the ridge term is scale-free.
     p = (p - p.mean(1, keepdim=True)) / (p.std(1, keepdim=True) + 1e-8)
     ones = torch.ones_like(p)
-    design = torch.stack([xs.reshape(-1).expand_as(p), ys.reshape(-1).expand_as(p), p, ones], dim=-1)  # (N, P, 4)
-    normal = design.transpose(1, 2) @ design + ridge * h * w * torch.eye(4, dtype=pred.dtype, device=pred.device)
+    design = torch.stack([xs.reshape(-1).repeat(frames).expand_as(p), ys.reshape(-1).repeat(frames).expand_as(p), p, ones], dim=-1)  # (G, P, 4)
+    normal = design.transpose(1, 2) @ design + ridge * frames * h * w * torch.eye(4, dtype=pred.dtype, device=pred.device)
     coeffs = torch.linalg.solve(normal, design.transpose(1, 2) @ g.unsqueeze(-1))
-    aligned = (design @ coeffs).squeeze(-1)
+    aligned = (design @ coeffs).reshape(b * t, h * w)
+    g = target.reshape(b * t, h * w)
     variance = g.var(1, unbiased=False).clamp_min(1e-12)
     return (((aligned - g) ** 2).mean(1) / variance).mean()
+
+
+def aligned_loss(pred: torch.Tensor, target: torch.Tensor, ridge: float = 1e-6) -> torch.Tensor:
+    """Ours: MSE after the per-frame least-squares GBR alignment of pred onto
+    target, divided by the target frame's variance; differentiable in pred."""
+    return _aligned(pred, target, per_clip=False, ridge=ridge)
+
+
+def aligned_clip_loss(pred: torch.Tensor, target: torch.Tensor, ridge: float = 1e-6) -> torch.Tensor:
+    """Ours, for temporal consistency: as :func:`aligned_loss` but with one
+    least-squares GBR for the whole clip, so the frames must agree with each
+    other up to a single GBR (the symmetric form of MAE-SN's "first"
+    alignment); still divided by each target frame's variance."""
+    return _aligned(pred, target, per_clip=True, ridge=ridge)
 
 
 LOSSES: Dict[str, Callable[[torch.Tensor, torch.Tensor], torch.Tensor]] = {
     "gbr": gbr_loss,
     "tr_sc": tr_sc_loss,
     "aligned": aligned_loss,
+    "aligned_clip": aligned_clip_loss,
 }
 
 
