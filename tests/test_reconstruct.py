@@ -16,7 +16,7 @@ import nrdepth
 from nrdepth.cli import main
 from nrdepth.preview import save_png
 from nrdepth.train import DEFAULT_MODEL, load_model, save_model
-from nrdepth.videoio import read_video, save_reconstruction, write_mp4
+from nrdepth.videoio import PLY_RELIEF, read_video, save_reconstruction, write_mp4
 
 
 def moving_texture(t=12, h=48, w=40, seed=0) -> np.ndarray:
@@ -91,6 +91,7 @@ def test_cli_reconstructs_an_mp4_into_every_output(tmp_path, tiny_model):
     with np.load(out / "depth.npz") as saved:
         depth, (lo, hi) = saved["depth"], saved["range"]
     assert depth.shape == (8, 40, 30) and depth.dtype == np.float32 and np.isfinite(depth).all()
+    assert depth.mean() == pytest.approx(0, abs=1e-5) and depth.std() == pytest.approx(1, rel=1e-4)
     colour, side = read_video(out / "depth.mp4"), read_video(out / "side_by_side.mp4")
     assert colour.frames.shape == (8, 40, 30) and side.frames.shape == (8, 40, 60)
     # The left half of the preview is the cropped input.
@@ -105,12 +106,13 @@ def test_cli_reconstructs_an_mp4_into_every_output(tmp_path, tiny_model):
         v = next(c.decode(video=0)).to_ndarray(format="gray16le").astype(np.float64)
     expected = (depth[3] - depth.min()) / (depth.max() - depth.min()) * 65535
     assert np.abs(v - expected).max() <= 0.5 + 1e-6
-    # One PLY point per pixel, z = −depth.
+    # One PLY point per pixel, in frame widths, z = −relief · depth.
     ply = (out / "ply" / "frame_0002.ply").read_bytes()
     header, body = ply.split(b"end_header\n")
     assert b"element vertex 1200" in header and len(body) == 1200 * 15
-    z = struct.unpack_from("<f", body, 15 * 31 + 8)[0]
-    assert z == pytest.approx(-depth[2].ravel()[31])
+    x, y, z = struct.unpack_from("<fff", body, 15 * 31)
+    assert (x, y) == pytest.approx((1.5 / 30, -1.5 / 30))  # point 31: row 1, column 1
+    assert z == pytest.approx(-PLY_RELIEF * depth[2].ravel()[31])
     assert lo <= hi and leftovers(tmp_path) == []
 
 

@@ -103,7 +103,7 @@ def _frames(text: str) -> slice:
 def _reconstruct(args: argparse.Namespace) -> int:
     from .train import load_model, resolve_device
     from .stitch import reconstruct
-    from .videoio import read_video, save_reconstruction
+    from .videoio import PLY_RELIEF, read_video, save_reconstruction
 
     # Everything that can be refused is checked before any work or writing.
     device = resolve_device(args.device)
@@ -138,10 +138,13 @@ def _reconstruct(args: argparse.Namespace) -> int:
             bar.update(done - bar.n)
 
     depth = reconstruct(frames, model, batch_size=args.batch_size, device=str(device), progress=progress)
+    if args.flip:
+        depth = -depth
     if bar is not None:
         bar.close()
     seconds = time.perf_counter() - start
-    save_reconstruction(out, frames, depth, fps=video.fps, png16=args.png16, ply=args.ply, overwrite=args.overwrite)
+    save_reconstruction(out, frames, depth, fps=video.fps, png16=args.png16, ply=args.ply, ply_relief=PLY_RELIEF if args.ply_relief is None else args.ply_relief,
+                        overwrite=args.overwrite)
     t, h, w = depth.shape
     print(f"wrote {out}: depth of {t} frames of {w}×{h} in {seconds:.1f} s on {device} "
           f"(depth.npz, depth.mp4, side_by_side.mp4{', png16/' if args.png16 else ''}{', ply/' if args.ply else ''})")
@@ -236,6 +239,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--batch-size", type=int, default=8, help="patches per network call")
     p.add_argument("--png16", action="store_true", help="also write 16-bit PNG depth frames")
     p.add_argument("--ply", action="store_true", help="also write a PLY point cloud per frame")
+    p.add_argument("--ply-relief", type=float, default=None,
+                   help="PLY depth standard deviation in frame widths (default: nrdepth.videoio.PLY_RELIEF, as the training surfaces)")
+    p.add_argument("--flip", action="store_true", help="negate the depth (the convex/concave reading is ambiguous)")
     p.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=_reconstruct)

@@ -106,7 +106,14 @@ def reconstruct(
     package. Videos smaller than a patch are padded (symmetrically).
     ``progress(done, total)`` is called as patches are predicted.
     ``temporal`` applies :func:`temporal_align` to the stitched video (the
-    paper's method is ``temporal=False``). Patches stream through the network
+    paper's method is ``temporal=False``). Depth is defined up to one GBR
+    (up to one per frame with ``temporal=False``) and returned standardised:
+    zero mean and unit standard deviation over the video. Its overall sign
+    (convex or concave) is ambiguous: under an orthographic camera a surface
+    and its mirror image under mirrored lights make the same video, and the
+    training data hold both equally often; the sign is consistent over space
+    and (with ``temporal``) time, so ``-depth`` is the other reading. Patches
+    stream through the network
     and the stitcher a chunk at a time: memory is a few copies of the video,
     not of its (8× overlapping) patches."""
     import torch
@@ -132,8 +139,13 @@ def reconstruct(
         done += len(origins)
         if progress is not None:
             progress(done, len(layout.origins))
-    stitched = stitcher.finish()
-    return temporal_align(stitched) if temporal else stitched
+    depth = stitcher.finish()
+    if temporal:
+        depth = temporal_align(depth)
+    # The network fixes no depth scale (its losses are GBR-invariant): return a
+    # canonical one rather than whatever magnitude its weights drifted to.
+    mean, std = depth.mean(dtype=np.float64), depth.std(dtype=np.float64)
+    return ((depth - mean) / (std if std > 0 else 1.0)).astype(np.float32)
 
 
 def _as_unit_float(frames: np.ndarray) -> np.ndarray:
