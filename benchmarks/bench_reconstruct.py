@@ -25,8 +25,7 @@ import torch
 import nrdepth
 from nrdepth.evaluate import TEST_SEED
 from nrdepth import _core
-from nrdepth.stitch import coarse_depth, patch_depths, temporal_align
-from nrdepth.train import load_model
+from nrdepth.stitch import coarse_depth, inference_model, patch_depths, temporal_align
 
 
 def out_of_range(config: nrdepth.GeneratorConfig) -> nrdepth.GeneratorConfig:
@@ -40,8 +39,8 @@ def out_of_range(config: nrdepth.GeneratorConfig) -> nrdepth.GeneratorConfig:
 
 def timing(model, device: str, repeats: int) -> None:
     video = nrdepth.generate_clips(1, seed=TEST_SEED, config=nrdepth.GeneratorConfig(size=256)).video[0]
-    net = load_model(model, device=device)
     dev = torch.device(device)
+    net = inference_model(model, dev)
     layout = nrdepth.patch_layout(video.shape)
 
     def run() -> dict:
