@@ -89,7 +89,8 @@ def test_cli_reconstructs_an_mp4_into_every_output(tmp_path, tiny_model):
                  "--device", "cpu", "--png16", "--ply", "--quiet", "--frames", "1:9", "--roi", "4,2,30,40"])
     assert code == 0
     with np.load(out / "depth.npz") as saved:
-        depth, (lo, hi) = saved["depth"], saved["range"]
+        depth, (lo, hi), png16_range = saved["depth"], saved["range"], saved["png16_range"]
+    assert tuple(png16_range) == (depth.min(), depth.max())
     assert depth.shape == (8, 40, 30) and depth.dtype == np.float32 and np.isfinite(depth).all()
     assert depth.mean() == pytest.approx(0, abs=1e-5) and depth.std() == pytest.approx(1, rel=1e-4)
     colour, side = read_video(out / "depth.mp4"), read_video(out / "side_by_side.mp4")

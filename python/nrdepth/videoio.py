@@ -207,7 +207,8 @@ def save_reconstruction(
 ) -> Path:
     """Write a reconstruction into the folder ``out``, all or nothing:
     ``depth.npz`` (float32 ``depth`` (T, H, W), the ``range`` of the colour
-    map), ``depth.mp4`` (colourised), ``side_by_side.mp4`` (input | depth), and
+    map, and with ``png16`` the ``png16_range`` its PNGs span),
+    ``depth.mp4`` (colourised), ``side_by_side.mp4`` (input | depth), and
     optionally ``png16/depth_NNNN.png`` and ``ply/frame_NNNN.ply``. Everything
     is written into a temporary folder beside ``out`` and renamed at the end,
     so an error or an interrupt leaves no partial output. ``ply_relief``: see
@@ -227,11 +228,10 @@ def save_reconstruction(
     try:
         value_range = depth_range(depth)
         colour = colorize_depth(depth, value_range)
-        np.savez_compressed(tmp / "depth.npz", depth=depth, range=np.array(value_range, np.float32))
+        extra = {"png16_range": np.array(write_depth_png16(tmp / "png16", depth), np.float32)} if png16 else {}
+        np.savez_compressed(tmp / "depth.npz", depth=depth, range=np.array(value_range, np.float32), **extra)
         write_mp4(tmp / "depth.mp4", colour, fps)
         write_mp4(tmp / "side_by_side.mp4", np.concatenate([np.repeat(frames[..., None], 3, axis=-1), colour], axis=2), fps)
-        if png16:
-            write_depth_png16(tmp / "png16", depth)
         if ply:
             (tmp / "ply").mkdir()
             for t in range(len(depth)):
