@@ -163,9 +163,8 @@ impl Stitcher {
         let aligned: Vec<Vec<f32>> = origins
             .par_iter()
             .zip(patches.par_chunks(patch_len))
-            .map(|(o, patch)| {
+            .map_init(|| vec![0.0f32; ly * lx], |under, (o, patch)| {
                 let mut out = vec![0.0f32; patch_len];
-                let mut under = vec![0.0f32; ly * lx];
                 for t in 0..lt {
                     let frame = &patch[t * ly * lx..(t + 1) * ly * lx];
                     for y in 0..ly {
@@ -174,7 +173,7 @@ impl Stitcher {
                             under[y * lx + x] = coarse_at(coarse, layout, gt, gy, gx);
                         }
                     }
-                    let [a, b, l, c] = gbr_fit(frame, &under, lx);
+                    let [a, b, l, c] = gbr_fit(frame, under, lx);
                     for y in 0..ly {
                         for x in 0..lx {
                             let v = a * x as f64 + b * y as f64 + l * frame[y * lx + x] as f64 + c;

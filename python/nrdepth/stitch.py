@@ -162,27 +162,17 @@ def _as_unit_float(frames: np.ndarray) -> np.ndarray:
     return frames.astype(np.float32) / 255.0 if frames.dtype == np.uint8 else frames.astype(np.float32)
 
 
-def _predict(net: "torch.nn.Module", batch: np.ndarray, batch_size: int, device: "torch.device") -> np.ndarray:  # noqa: F821
-    """Network depth (N, Lt, Ls/2, Ls/2) of float patches (N, Lt, Ls, Ls)."""
-    import torch
-
-    out = []
-    with torch.inference_mode():
-        for i in range(0, len(batch), batch_size):
-            x = torch.from_numpy(np.ascontiguousarray(batch[i : i + batch_size])).unsqueeze(1).to(device)
-            out.append(net(x.contiguous(memory_format=torch.channels_last_3d))[:, 0].float().cpu().numpy())
-    return np.concatenate(out)
-
-
 def coarse_depth(video: np.ndarray, net: "torch.nn.Module", batch_size: int, device: "torch.device") -> np.ndarray:  # noqa: F821
     """The coarse pass of :func:`reconstruct`: the whole video (T, H, W)
     resized to the patch side, in 16-frame windows (the last one mirrored),
     through the network, and its depth resized back: float32 (T, H, W)."""
+    from .train import predict_depth
+
     lt, ls, _ = PATCH
     t, h, w = video.shape
     windows = -(-t // lt)
     small = np.pad(_resize(_as_unit_float(video), (ls, ls)), ((0, windows * lt - t), (0, 0), (0, 0)), mode="symmetric")
-    coarse = _predict(net, small.reshape(windows, lt, ls, ls), batch_size, device)
+    coarse = predict_depth(net, small.reshape(windows, lt, ls, ls), batch_size, device)
     return _resize(coarse.reshape(windows * lt, ls // 2, ls // 2)[:t], (h, w))
 
 
@@ -197,11 +187,13 @@ def patch_depths(
     """The fine pass of :func:`reconstruct`: for ``chunk`` patches at a time of
     the symmetrically padded video, their origins (n, 3) and depths
     (n, 16, 64, 64) (the network's half-resolution output upsampled)."""
+    from .train import predict_depth
+
     lt, ls, _ = PATCH
     back = [layout.padded[a] - layout.shape[a] - layout.pad[a] for a in range(3)]
     padded = np.pad(video, [(layout.pad[a], back[a]) for a in range(3)], mode="symmetric")  # the input's dtype
     for i in range(0, len(layout.origins), chunk):
         origins = layout.origins[i : i + chunk]
-        patches = _as_unit_float(np.stack([padded[t : t + lt, y : y + ls, x : x + ls] for t, y, x in origins]))
-        half = _predict(net, patches, batch_size, device)
+        patches = np.stack([padded[t : t + lt, y : y + ls, x : x + ls] for t, y, x in origins])  # scaled by predict_depth
+        half = predict_depth(net, patches, batch_size, device)
         yield origins, _resize(half.reshape(-1, *half.shape[2:]), (ls, ls)).reshape(len(half), lt, ls, ls)

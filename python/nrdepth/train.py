@@ -44,7 +44,7 @@ VALIDATION_SEED_OFFSET = 1_000_003
 @dataclass
 class TrainConfig:
     loss: str = "gbr"
-    """One of nrdepth.losses.LOSSES: gbr, tr_sc, aligned."""
+    """One of nrdepth.losses.LOSSES: gbr, tr_sc, aligned, aligned_clip."""
     base: int = 16
     """Width of the network's first stage."""
     batch_size: int = 8
@@ -149,16 +149,21 @@ def validation_set(config: TrainConfig) -> Tuple[np.ndarray, np.ndarray]:
     return clips.video, clips.depth
 
 
-@torch.no_grad()
 def predict_depth(model: torch.nn.Module, video: np.ndarray, batch_size: int = 8, device: Optional[torch.device] = None) -> np.ndarray:
-    """Network depth (n, T, H/2, W/2) float32 of uint8 videos (n, T, H, W)."""
+    """Network depth (n, T, H/2, W/2) float32 of videos (n, T, H, W), uint8 or
+    float in [0, 1]. Inputs go in channels-last 3D layout, which a model laid
+    out the same way (``reconstruct``'s) runs ≈ 1.4× faster on the CPU."""
     device = device or next(model.parameters()).device
     was_training = model.training
     model.eval()
     out = []
-    for i in range(0, len(video), batch_size):
-        v = torch.from_numpy(np.ascontiguousarray(video[i : i + batch_size])).float().div_(255.0).unsqueeze(1).to(device)
-        out.append(model(v)[:, 0].float().cpu().numpy())
+    with torch.inference_mode():
+        for i in range(0, len(video), batch_size):
+            v = torch.from_numpy(np.ascontiguousarray(video[i : i + batch_size])).float()
+            if video.dtype == np.uint8:
+                v = v.div_(255.0)
+            v = v.unsqueeze(1).to(device).contiguous(memory_format=torch.channels_last_3d)
+            out.append(model(v)[:, 0].float().cpu().numpy())
     model.train(was_training)
     return np.concatenate(out)
 
