@@ -60,7 +60,7 @@ fn bench(c: &mut Criterion) {
     for shading in [Shading::Phong, Shading::Gouraud] {
         let scene = Scene { view, supersample: 2, lights: &lights, material, texture: &texture, shading };
         g.bench_function(format!("raster_64x64_ss2_8k_tris_2_lights_{}", shading.name()), |b| {
-            b.iter(|| rasterizer.render_into(&vertices, &triangles, &uv, &scene, &mut frame, false))
+            b.iter(|| rasterizer.render_into(&vertices, &triangles, &uv, &scene, &mut frame))
         });
     }
     let mut tex = Texture::default();

@@ -8,15 +8,15 @@
 //! independent, so the bytes do not depend on the thread count or batch split.
 //!
 //! Per clip: surface (`synthesis`), texture (`textures`), then per frame the
-//! grid BVH is refitted (topology built once per worker) and cast for depth
-//! (`bvh`), the frame is rendered (`raster`), Gaussian noise of the drawn
-//! standard deviation is added and the intensity is clamped to [0, 1] and
-//! quantised to u8. Depth is `camera_z − z` at pixel centres (`geometry`).
+//! frame and its depth are rendered in one pass (`raster`: the depth at pixel
+//! centres is the ray caster's, `bvh::raycast_depth`, bit for bit at the
+//! power-of-two supersampling factors and to rounding otherwise), Gaussian
+//! noise of the drawn standard deviation is added and the intensity is clamped
+//! to [0, 1] and quantised to u8. Depth is `camera_z − z` (`geometry`).
 //! Shapes: video (n, T, H, W) u8, depth (n, T, H, W) f32; H = W = `size`.
 
 use rayon::prelude::*;
 
-use crate::bvh::Bvh;
 use crate::error::{in_range, size_in, InvalidArgument, Result};
 use crate::geometry::{View, CAMERA_Z};
 use crate::mesh::grid_triangles;
@@ -243,7 +243,6 @@ pub fn noisy_u8(image: &[f32], std: f64, seed: u64, frame: usize, out: &mut [u8]
 /// Per-thread state: everything one clip needs, reused across clips.
 pub struct ClipWorker {
     synth: Synthesizer,
-    bvh: Bvh,
     triangles: Vec<[u32; 3]>,
     uv: Vec<[f32; 2]>,
     positions: Vec<[f32; 3]>,
@@ -261,7 +260,6 @@ impl ClipWorker {
         let uv = (0..grid * grid).map(|i| [(i % grid) as f32 * step, 1.0 - (i / grid) as f32 * step]).collect();
         Self {
             synth: Synthesizer::new(grid),
-            bvh: Bvh::for_grid(grid),
             triangles,
             uv,
             positions: vec![[0.0; 3]; clip_len(config.frames, grid) / 3],
@@ -292,18 +290,6 @@ impl ClipWorker {
         let (frames, grid) = (config.frames, config.grid);
         self.synth.synthesize_into(&p.surface, frames, self.positions.as_flattened_mut())?;
         let view = View::new(config.size, config.size, p.window, CAMERA_Z)?;
-        let vertex_count = grid * grid;
-        // Depth first: it is cheaper than rendering and finds most rejections.
-        let frame_len = config.frame_len();
-        for f in 0..frames {
-            let vertices = &self.positions[f * vertex_count..(f + 1) * vertex_count];
-            self.bvh.refit(vertices, &self.triangles);
-            let out = &mut depth[f * frame_len..(f + 1) * frame_len];
-            self.bvh.depth_into(vertices, &self.triangles, &view, out);
-            if out.iter().any(|d| d.is_nan()) {
-                return Ok(false);
-            }
-        }
         match &p.texture {
             TextureChoice::Procedural { family, seed } => procedural(*family, *seed, config.texture_size, &mut self.texture),
             TextureChoice::Image { index, top, left } => {
@@ -313,12 +299,14 @@ impl ClipWorker {
             }
         }
         let scene = Scene { view, supersample: config.supersample, lights: &p.lights, material: p.material, texture: &self.texture, shading: config.shading };
+        let (vertex_count, frame_len) = (grid * grid, config.frame_len());
         for f in 0..frames {
             let vertices = &self.positions[f * vertex_count..(f + 1) * vertex_count];
-            self.rasterizer.render_into(vertices, &self.triangles, &self.uv, &scene, &mut self.frame, false);
-            if self.frame.coverage.iter().any(|&c| c < 1.0) {
+            self.rasterizer.render_into(vertices, &self.triangles, &self.uv, &scene, &mut self.frame);
+            if self.frame.coverage.iter().any(|&c| c < 1.0) || self.frame.depth.iter().any(|d| d.is_nan()) {
                 return Ok(false);
             }
+            depth[f * frame_len..(f + 1) * frame_len].copy_from_slice(&self.frame.depth);
             noisy_u8(&self.frame.image, p.noise_std, p.noise_seed, f, &mut video[f * frame_len..(f + 1) * frame_len]);
         }
         Ok(true)
@@ -371,6 +359,29 @@ mod tests {
         assert_eq!(&video[4 * len..5 * len], &v4[..]);
         assert!(depth[4 * len..5 * len].iter().zip(&d4).all(|(a, b)| a.to_bits() == b.to_bits()));
         assert_eq!(params[4], p4[0]);
+    }
+
+    #[test]
+    fn clip_depth_is_the_ray_casters() {
+        // The renderer's centre depth replaces a BVH pass per frame: check it
+        // against the ray caster, bit for bit at s = 2, to rounding at s = 3.
+        for (supersample, tolerance) in [(2usize, 0.0f32), (3, 2e-6)] {
+            let config = GeneratorConfig { supersample, ..small() };
+            let (_, depth, params) = run(&config, 5, 0, 3);
+            let triangles: Vec<[u32; 3]> = grid_triangles(config.grid as i64).unwrap().chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+            for (clip, p) in params.iter().enumerate() {
+                let positions = crate::synthesis::synthesize(&p.surface, config.frames, config.grid).unwrap();
+                let view = View::new(config.size, config.size, p.window, CAMERA_Z).unwrap();
+                for (f, frame) in positions.chunks_exact(config.grid * config.grid * 3).enumerate() {
+                    let vertices: Vec<[f32; 3]> = frame.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+                    let cast = crate::bvh::raycast_depth(&vertices, &triangles, &view).unwrap();
+                    let rendered = &depth[(clip * config.frames + f) * config.frame_len()..][..config.frame_len()];
+                    for (a, b) in rendered.iter().zip(&cast) {
+                        assert!((a - b).abs() <= tolerance, "s {supersample} clip {clip} frame {f}: {a} vs {b}");
+                    }
+                }
+            }
+        }
     }
 
     #[test]

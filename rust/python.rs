@@ -300,7 +300,7 @@ fn array2<'py, T: numpy::Element>(py: Python<'py>, data: Vec<T>, rows: usize, co
     Ok(PyArray1::from_vec(py, data).reshape([rows, cols])?.into_any())
 }
 
-/// Render a mesh: (image (H, W), coverage (H, W), depth (H·s, W·s)) float32.
+/// Render a mesh: (image, coverage, depth at pixel centres), each (H, W) float32.
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 fn render<'py>(
@@ -331,11 +331,10 @@ fn render<'py>(
     if !(1..=raster::MAX_SUPERSAMPLE as i64).contains(&supersample) {
         return Err(PyValueError::new_err(format!("supersample: expected 1..={}, got {supersample}", raster::MAX_SUPERSAMPLE)));
     }
-    let s = supersample as usize;
-    let scene = Scene { view, supersample: s, lights: &lights, material, texture: &texture, shading };
+    let scene = Scene { view, supersample: supersample as usize, lights: &lights, material, texture: &texture, shading };
     let frame = parallel(py, || raster::render(v, t, uvs, &scene))?.map_err(value_error)?;
     let (h, w) = (view.height, view.width);
-    Ok((array2(py, frame.image, h, w)?, array2(py, frame.coverage, h, w)?, array2(py, frame.depth, h * s, w * s)?))
+    Ok((array2(py, frame.image, h, w)?, array2(py, frame.coverage, h, w)?, array2(py, frame.depth, h, w)?))
 }
 
 /// Ray-cast depth (H, W) float32 of any mesh; NaN where a ray misses.

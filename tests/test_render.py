@@ -16,13 +16,13 @@ def deformed_grid(seed, grid=48):
     return vertices, nrdepth.grid_triangles(grid), np.stack([u, v], -1).reshape(-1, 2)
 
 
-@pytest.mark.parametrize("seed", range(4))
-def test_zbuffer_and_ray_cast_depth_agree_at_pixel_centres(seed):
+@pytest.mark.parametrize("seed,supersample", [(0, 1), (1, 1), (2, 2), (3, 4)])
+def test_zbuffer_and_ray_cast_depth_agree_at_pixel_centres(seed, supersample):
     vertices, triangles, uv = deformed_grid(seed)
     window = (-0.6, -0.5, 0.55, 0.6)
     texture = nrdepth.procedural_texture("fractal", seed, 64)
     cast = nrdepth.raycast_depth(vertices, triangles, (40, 44), window)
-    out = nrdepth.render(vertices, triangles, uv, texture, (40, 44), window, supersample=1)
+    out = nrdepth.render(vertices, triangles, uv, texture, (40, 44), window, supersample=supersample)
     assert np.array_equal(np.isnan(cast), np.isnan(out.depth))
     np.testing.assert_array_equal(cast[~np.isnan(cast)], out.depth[~np.isnan(cast)])
     assert np.isfinite(cast).mean() > 0.9
@@ -63,7 +63,7 @@ def test_point_light_and_supersampling_give_finite_partial_coverage_at_the_borde
         vertices, triangles, uv, np.full((8, 8), 0.5), (30, 30), (-1.5, -1.5, 1.5, 1.5),
         [Light("point", (1.0, 1.0, 3.0), 0.8), Light("directional", (0, 1, 1), 0.3)], supersample=3,
     )
-    assert out.image.shape == (30, 30) and out.depth.shape == (90, 90)
+    assert out.image.shape == (30, 30) and out.depth.shape == (30, 30)
     assert np.isfinite(out.image).all()
     edge = (out.coverage > 0) & (out.coverage < 1)
     assert edge.any() and (out.coverage == 0).any() and (out.coverage == 1).any()

@@ -68,7 +68,7 @@ class GeneratorConfig:
     specular: Interval = _DEFAULT["specular"]
     shininess: Interval = _DEFAULT["shininess"]
     shading: str = _DEFAULT["shading"]
-    """"phong" (per subsample) or "gouraud" (per vertex, faster)."""
+    """"phong" (lit per pixel with the interpolated normal) or "gouraud" (lit per vertex, interpolated)."""
     texture_families: Tuple[str, ...] = tuple(_DEFAULT["texture_families"])
     texture_size: int = _DEFAULT["texture_size"]
     noise_std: Interval = _DEFAULT["noise_std"]

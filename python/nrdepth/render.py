@@ -68,7 +68,9 @@ class Render(NamedTuple):
     coverage: np.ndarray
     """float32 (H, W) fraction of each pixel's subsamples that hit the mesh."""
     depth: np.ndarray
-    """float32 (H·s, W·s) z-buffer depth per subsample, NaN on background."""
+    """float32 (H, W) depth ``camera_z − z`` of the highest hit at each pixel
+    centre, NaN on background: ``raycast_depth``'s, bit for bit when
+    ``supersample`` is a power of two."""
 
 
 def _float_array(name: str, a: Any, columns: Optional[int], ndim: int = 2) -> np.ndarray:
@@ -126,9 +128,11 @@ def render(
     ``vertices`` (V, 3) float, ``triangles`` (F, 3) int, ``uv`` (V, 2) float,
     ``texture`` (h, w) float albedo in [0, 1], ``size`` (H, W), ``window``
     (xmin, ymin, xmax, ymax). Lighting is two-sided; normals are smooth
-    (area-weighted per vertex). ``shading="phong"`` evaluates the model at
-    every subsample, ``"gouraud"`` at the vertices (faster, blurs highlights
-    smaller than a triangle). Default: one light along +z, ``Material()``.
+    (area-weighted per vertex). Albedo is sampled at every subsample; the
+    light terms once per pixel, at its centre: ``shading="phong"`` with the
+    interpolated normal there, ``"gouraud"`` interpolating lighting computed
+    at the vertices (blurs highlights smaller than a triangle). Default: one
+    light along +z, ``Material()``.
     """
     lights = [Light()] if lights is None else list(lights)
     for i, light in enumerate(lights):
