@@ -1,11 +1,12 @@
 """End-to-end clip generation: nrdepth.generate_clips against a straightforward
 numpy reference pipeline doing the same work, both timed in this run.
 
-The reference synthesises the same surface model with numpy's FFT, ray-casts
-depth and rasterises the 2×2-supersampled textured Phong image with vectorised
-numpy (candidate pixels of every triangle's bounding box, barycentric tests,
-per-pixel nearest hit by sorting), builds a fractal texture and adds noise: the
-work `generate_clips` does, written the way one would in numpy.
+The reference synthesises the same surface model with numpy's FFT, finds the
+nearest hit at every pixel centre (depth, Phong light terms) and at 2×2
+subsamples (texture) with vectorised numpy (candidate samples of every
+triangle's bounding box, barycentric tests, nearest hit by sorting), builds a
+fractal texture and adds noise: the work `generate_clips` does, written the
+way one would in numpy.
 
     python benchmarks/bench_generate.py [--clips 256] [--reference-clips 3]
 """
@@ -118,23 +119,25 @@ def reference_clip(seed: int, frames: int = 16, size: int = 64, grid: int = 64) 
         for k in range(3):
             np.add.at(normals, tris[:, k], fn)
         normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-        for s, target in ((1, "depth"), (2, "image")):
+        # Pixel centres: depth and the light terms; 2×2 subsamples: albedo.
+        diffuse, specular = np.zeros(size * size), np.zeros(size * size)
+        for s in (1, 2):
             screen = np.column_stack([(verts[:, 0] - window[0]) / (window[2] - window[0]) * size * s, (window[3] - verts[:, 1]) / (window[3] - window[1]) * size * s, verts[:, 2]])
             tri, w, zbuf = reference_visibility(screen, tris, size * s, size * s)
-            if target == "depth":
-                depth[f] = (nrdepth.CAMERA_Z - zbuf).reshape(size, size)
-                continue
             hit = tri >= 0
             idx = tris[tri[hit]]
-            n = np.einsum("sk,skc->sc", w[hit], normals[idx])
-            n /= np.linalg.norm(n, axis=1, keepdims=True)
+            if s == 1:
+                depth[f] = (nrdepth.CAMERA_Z - zbuf).reshape(size, size)
+                n = np.einsum("sk,skc->sc", w[hit], normals[idx])
+                n /= np.linalg.norm(n, axis=1, keepdims=True)
+                ndl = np.clip(n @ light, 0, None)
+                rdv = np.clip(2 * ndl * n[:, 2] - light[2], 0, None)
+                diffuse[hit], specular[hit] = 0.1 + 0.8 * ndl, 0.3 * rdv**20
+                continue
             uvs = np.einsum("sk,skc->sc", w[hit], uv[idx])
-            albedo = texture[(uvs[:, 1] * 255).astype(int), (uvs[:, 0] * 255).astype(int)]
-            ndl = np.clip(n @ light, 0, None)
-            rdv = np.clip(2 * ndl * n[:, 2] - light[2], 0, None)
-            shade = np.zeros(size * s * size * s)
-            shade[hit] = 0.1 * albedo + 0.8 * albedo * ndl + 0.3 * rdv**20
-            image = shade.reshape(size, 2, size, 2).mean(axis=(1, 3))
+            albedo = np.zeros(size * s * size * s)
+            albedo[hit] = texture[(uvs[:, 1] * 255).astype(int), (uvs[:, 0] * 255).astype(int)]
+            image = albedo.reshape(size, 2, size, 2).mean(axis=(1, 3)) * diffuse.reshape(size, size) + specular.reshape(size, size)
             video[f] = (np.clip(image + rng.normal(0, 0.01, image.shape), 0, 1) * 255).round()
     return video, depth
 

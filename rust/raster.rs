@@ -407,51 +407,49 @@ fn shade_band(p: &Prepared, subsamples: &Samples, centres: &Samples, image: &mut
     let lights = prepared_lights(scene.lights);
     let min_rdv = specular_cutoff(&scene.material);
     let point_lights = lights.iter().any(|l| l.kind == LightKind::Point);
-    let interpolate = |t: u32, [w1, w2]: [f32; 2]| {
-        let [i0, i1, i2] = p.triangles[t as usize].map(|k| k as usize);
-        move |q: &[[f32; 3]]| -> [f32; 3] { std::array::from_fn(|k| (1.0 - w1 - w2) * q[i0][k] + w1 * q[i1][k] + w2 * q[i2][k]) }
-    };
     for (k, (out, cov)) in image.iter_mut().zip(coverage.iter_mut()).enumerate() {
         let (pi, pj) = (k / width, k % width);
         let (mut albedo, mut hits) = (0.0f32, 0u32);
         let mut lit_at = (centres.triangle[k] != NO_TRIANGLE).then(|| (centres.triangle[k], centres.weights[k]));
         for a in 0..s {
-            let base = (pi * s + a) * cols + pj * s;
-            for i in base..base + s {
-                let t = subsamples.triangle[i];
+            let start = (pi * s + a) * cols + pj * s;
+            for (&t, &w) in subsamples.triangle[start..start + s].iter().zip(&subsamples.weights[start..start + s]) {
                 if t == NO_TRIANGLE {
                     continue;
                 }
                 hits += 1;
-                let [w1, w2] = subsamples.weights[i];
-                let [i0, i1, i2] = p.triangles[t as usize].map(|k| k as usize);
-                let w0 = 1.0 - w1 - w2;
-                let (u, v) = (w0 * p.uv[i0][0] + w1 * p.uv[i1][0] + w2 * p.uv[i2][0], w0 * p.uv[i0][1] + w1 * p.uv[i1][1] + w2 * p.uv[i2][1]);
+                let [u, v] = interpolate(p.uv, p.triangles[t as usize], w);
                 albedo += scene.texture.sample(u, v);
-                lit_at.get_or_insert((t, [w1, w2]));
+                lit_at.get_or_insert((t, w));
             }
         }
         let Some((t, w)) = lit_at else {
             (*out, *cov) = (0.0, 0.0);
             continue;
         };
-        let at = interpolate(t, w);
+        let corners = p.triangles[t as usize];
         let (diffuse, specular) = match scene.shading {
             Shading::Phong => {
                 // The surface point matters only to point lights.
-                let point = if point_lights { at(p.vertices) } else { [0.0; 3] };
-                lighting(facing_camera(normalize(at(p.normals))), point, &lights, &scene.material, min_rdv)
+                let point = if point_lights { interpolate(p.vertices, corners, w) } else { [0.0; 3] };
+                lighting(facing_camera(normalize(interpolate(p.normals, corners, w))), point, &lights, &scene.material, min_rdv)
             }
             Shading::Gouraud => {
-                let [i0, i1, i2] = p.triangles[t as usize].map(|k| k as usize);
-                let [w1, w2] = w;
-                let w0 = 1.0 - w1 - w2;
-                (w0 * p.lit[i0][0] + w1 * p.lit[i1][0] + w2 * p.lit[i2][0], w0 * p.lit[i0][1] + w1 * p.lit[i1][1] + w2 * p.lit[i2][1])
+                let [diffuse, specular] = interpolate(p.lit, corners, w);
+                (diffuse, specular)
             }
         };
         *out = (albedo * diffuse + hits as f32 * specular) * per_pixel;
         *cov = hits as f32 * per_pixel;
     }
+}
+
+/// A vertex attribute at barycentric weights (λb, λc) of triangle `corners`.
+#[inline]
+fn interpolate<const N: usize>(attribute: &[[f32; N]], corners: [u32; 3], [w1, w2]: [f32; 2]) -> [f32; N] {
+    let w0 = 1.0 - w1 - w2;
+    let [a, b, c] = corners.map(|k| attribute[k as usize]);
+    std::array::from_fn(|k| w0 * a[k] + w1 * b[k] + w2 * c[k])
 }
 
 #[inline]
