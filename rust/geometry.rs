@@ -113,10 +113,6 @@ impl TriangleSetup {
     }
 }
 
-/// Where the vertical line through (px, py) meets triangle (a, b, c), if it
-/// does: `(z, [λa, λb, λc])` with barycentric weights. Either winding counts
-/// (no culling); triangles whose xy-projection has zero area are never hit;
-/// points on an edge count as inside.
 /// `x.floor()` without the libm call the x86-64 baseline makes of it (no
 /// SSE4.1 `roundss`); exact for |x| < 2³¹, saturating beyond (callers clamp).
 #[inline]
@@ -132,6 +128,10 @@ pub fn ceil_fast(x: f32) -> f32 {
     if i < x { i + 1.0 } else { i }
 }
 
+/// Where the vertical line through (px, py) meets triangle (a, b, c), if it
+/// does: `(z, [λa, λb, λc])` with barycentric weights. Either winding counts
+/// (no culling); triangles whose xy-projection has zero area are never hit;
+/// points on an edge count as inside.
 #[inline]
 pub fn vertical_hit(a: [f32; 3], b: [f32; 3], c: [f32; 3], px: f32, py: f32) -> Option<(f32, [f32; 3])> {
     TriangleSetup::new(a, b, c)?.hit(px, py)

@@ -611,20 +611,25 @@ mod tests {
     }
 
     #[test]
-    fn albedo_is_the_texture_at_the_interpolated_coordinates() {
+    fn albedo_is_the_mean_texture_over_the_subsamples() {
         // Flat plane facing a light along +z, diffuse only: intensity = albedo.
         let (v, t, uv) = plane(0.0);
         let data: Vec<f32> = (0..32 * 32).map(|i| ((i % 32) as f32 * 0.7 + (i / 32) as f32 * 0.3) / 32.0).collect();
         let texture = Texture { height: 32, width: 32, data };
         let lights = [Light { kind: LightKind::Directional, vector: [0.0, 0.0, 1.0], intensity: 1.0 }];
         let view = View::new(10, 12, [-0.7, -0.6, 0.5, 0.8], CAMERA_Z).unwrap();
-        let scene = Scene { view, supersample: 1, lights: &lights, material: matte(), texture: &texture, shading: Shading::Phong };
-        let image = render(&v, &t, &uv, &scene).unwrap().image;
-        for i in 0..10 {
-            for j in 0..12 {
-                let (x, y) = view.world(i as f32 + 0.5, j as f32 + 0.5);
-                let expected = texture.sample((x + 1.0) / 2.0, (1.0 - y) / 2.0);
-                assert!((image[i * 12 + j] - expected).abs() < 1e-5, "({i},{j}): {} vs {expected}", image[i * 12 + j]);
+        for s in [1usize, 2, 3] {
+            let scene = Scene { view, supersample: s, lights: &lights, material: matte(), texture: &texture, shading: Shading::Phong };
+            let image = render(&v, &t, &uv, &scene).unwrap().image;
+            for i in 0..10 {
+                for j in 0..12 {
+                    let mut expected = 0.0;
+                    for (a, b) in (0..s * s).map(|k| (k / s, k % s)) {
+                        let (x, y) = view.world(i as f32 + (a as f32 + 0.5) / s as f32, j as f32 + (b as f32 + 0.5) / s as f32);
+                        expected += texture.sample((x + 1.0) / 2.0, (1.0 - y) / 2.0) / (s * s) as f32;
+                    }
+                    assert!((image[i * 12 + j] - expected).abs() < 1e-5, "s {s} ({i},{j}): {} vs {expected}", image[i * 12 + j]);
+                }
             }
         }
     }
