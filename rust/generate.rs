@@ -58,7 +58,7 @@ pub struct GeneratorConfig {
     pub specular: Range,
     /// Phong exponent, log-uniform.
     pub shininess: Range,
-    /// Where the Phong model is evaluated (per subsample or per vertex).
+    /// Where the Phong model is evaluated (per pixel or per vertex).
     pub shading: Shading,
     /// Procedural families drawn from uniformly (ignored with a texture folder).
     pub texture_families: Vec<TextureFamily>,
