@@ -317,24 +317,28 @@ fn visibility_band(screen: &[[f32; 3]], triangles: &[[u32; 3]], view: &View, s: 
             let k_hi = floor_fast(hi / d - 0.5 + MARGIN).min(last);
             (k_lo <= k_hi).then_some((k_lo as usize, k_hi as usize))
         };
-        let Some((r_lo, r_hi)) = span(y_lo, y_hi, 1.0, sub_lo, sub_hi) else { continue };
-        let Some((c_lo, c_hi)) = span(x_lo, x_hi, 1.0, 0.0, cols as f32 - 1.0) else { continue };
+        // The two grids are tested independently: a sliver can hold pixel
+        // centres between two rows (or columns) of subsamples, or the reverse.
+        let subsample_box = if s > 1 { span(y_lo, y_hi, 1.0, sub_lo, sub_hi).zip(span(x_lo, x_hi, 1.0, 0.0, cols as f32 - 1.0)) } else { None };
+        let centre_box = span(y_lo, y_hi, sf, row0 as f32, (row0 + rows) as f32 - 1.0).zip(span(x_lo, x_hi, sf, 0.0, view.width as f32 - 1.0));
+        if subsample_box.is_none() && centre_box.is_none() {
+            continue;
+        }
         let Some(setup) = TriangleSetup::new(a, b, c) else { continue };
-        if s > 1 {
-            let samples = &mut band.subsamples;
+        if let Some(((r_lo, r_hi), (c_lo, c_hi))) = subsample_box {
             for r in r_lo..=r_hi {
                 let (py, base) = (r as f32 + 0.5, (r - row0 * s) * cols);
                 for col in c_lo..=c_hi {
-                    samples.keep(base + col, t, setup.hit(col as f32 + 0.5, py), view.camera_z);
+                    band.subsamples.keep(base + col, t, setup.hit(col as f32 + 0.5, py), view.camera_z);
                 }
             }
         }
-        let Some((i_lo, i_hi)) = span(y_lo, y_hi, sf, row0 as f32, (row0 + rows) as f32 - 1.0) else { continue };
-        let Some((j_lo, j_hi)) = span(x_lo, x_hi, sf, 0.0, view.width as f32 - 1.0) else { continue };
-        for i in i_lo..=i_hi {
-            let (py, base) = ((i as f32 + 0.5) * sf, (i - row0) * view.width);
-            for j in j_lo..=j_hi {
-                band.centres.keep(base + j, t, setup.hit((j as f32 + 0.5) * sf, py), view.camera_z);
+        if let Some(((i_lo, i_hi), (j_lo, j_hi))) = centre_box {
+            for i in i_lo..=i_hi {
+                let (py, base) = ((i as f32 + 0.5) * sf, (i - row0) * view.width);
+                for j in j_lo..=j_hi {
+                    band.centres.keep(base + j, t, setup.hit((j as f32 + 0.5) * sf, py), view.camera_z);
+                }
             }
         }
     }
@@ -547,6 +551,30 @@ mod tests {
                     let tolerance = if s.is_power_of_two() { 0.0 } else { 1e-5 };
                     assert!((z - d).abs() <= tolerance || (z.is_nan() && d.is_nan()), "seed {seed} s {s} pixel {k}: {z} vs {d}");
                 }
+            }
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+        /// Random soups are full of slivers, which can hold pixel centres and
+        /// no subsample or the reverse: the depth must still be the ray caster's.
+        #[test]
+        fn depth_equals_the_ray_casters_on_random_soups(
+            coords in proptest::collection::vec(-1.0f32..1.0, 9..300),
+            (h, w) in (1usize..24, 1usize..24),
+            log_s in 0u32..3,
+        ) {
+            let vertices: Vec<[f32; 3]> = coords.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+            let triangles: Vec<[u32; 3]> = (0..vertices.len() as u32 / 3).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
+            let uv = vec![[0.5f32; 2]; vertices.len()];
+            let view = View::new(h, w, [-0.9, -1.0, 1.0, 0.8], CAMERA_Z).unwrap();
+            let cast = raycast_depth(&vertices, &triangles, &view).unwrap();
+            let (texture, lights) = (white(2), [Light { kind: LightKind::Directional, vector: [0.0, 0.0, 1.0], intensity: 1.0 }]);
+            let scene = Scene { view, supersample: 1 << log_s, lights: &lights, material: matte(), texture: &texture, shading: Shading::Phong };
+            let frame = render(&vertices, &triangles, &uv, &scene).unwrap();
+            for (k, (z, d)) in frame.depth.iter().zip(&cast).enumerate() {
+                proptest::prop_assert!(z.to_bits() == d.to_bits() || (z.is_nan() && d.is_nan()), "pixel {}: {} vs {}", k, z, d);
             }
         }
     }
