@@ -319,8 +319,12 @@ fn visibility_band(screen: &[[f32; 3]], triangles: &[[u32; 3]], view: &View, s: 
         };
         // The two grids are tested independently: a sliver can hold pixel
         // centres between two rows (or columns) of subsamples, or the reverse.
-        let subsample_box = if s > 1 { span(y_lo, y_hi, 1.0, sub_lo, sub_hi).zip(span(x_lo, x_hi, 1.0, 0.0, cols as f32 - 1.0)) } else { None };
-        let centre_box = span(y_lo, y_hi, sf, row0 as f32, (row0 + rows) as f32 - 1.0).zip(span(x_lo, x_hi, sf, 0.0, view.width as f32 - 1.0));
+        // Most triangles of a grid lie outside the view: out before any rounding.
+        if y_hi < sub_lo - sf || y_lo > sub_hi + sf || x_hi < -sf || x_lo > cols as f32 + sf {
+            continue;
+        }
+        let subsample_box = (s > 1).then(|| Some((span(y_lo, y_hi, 1.0, sub_lo, sub_hi)?, span(x_lo, x_hi, 1.0, 0.0, cols as f32 - 1.0)?))).flatten();
+        let centre_box = (|| Some((span(y_lo, y_hi, sf, row0 as f32, (row0 + rows) as f32 - 1.0)?, span(x_lo, x_hi, sf, 0.0, view.width as f32 - 1.0)?)))();
         if subsample_box.is_none() && centre_box.is_none() {
             continue;
         }
