@@ -317,14 +317,16 @@ fn visibility_band(screen: &[[f32; 3]], triangles: &[[u32; 3]], view: &View, s: 
             let k_hi = floor_fast(hi / d - 0.5 + MARGIN).min(last);
             (k_lo <= k_hi).then_some((k_lo as usize, k_hi as usize))
         };
-        // The two grids are tested independently: a sliver can hold pixel
-        // centres between two rows (or columns) of subsamples, or the reverse.
         // Most triangles of a grid lie outside the view: out before any rounding.
         if y_hi < sub_lo - sf || y_lo > sub_hi + sf || x_hi < -sf || x_lo > cols as f32 + sf {
             continue;
         }
-        let subsample_box = (s > 1).then(|| Some((span(y_lo, y_hi, 1.0, sub_lo, sub_hi)?, span(x_lo, x_hi, 1.0, 0.0, cols as f32 - 1.0)?))).flatten();
-        let centre_box = (|| Some((span(y_lo, y_hi, sf, row0 as f32, (row0 + rows) as f32 - 1.0)?, span(x_lo, x_hi, sf, 0.0, view.width as f32 - 1.0)?)))();
+        // Rows and columns of the grid of spacing d that the bounding box covers.
+        let sample_box = |d: f32, first_row: f32, last_row: f32, last_col: f32| Some((span(y_lo, y_hi, d, first_row, last_row)?, span(x_lo, x_hi, d, 0.0, last_col)?));
+        // The two grids are tested independently: a sliver can hold pixel
+        // centres between two rows (or columns) of subsamples, or the reverse.
+        let subsample_box = if s > 1 { sample_box(1.0, sub_lo, sub_hi, cols as f32 - 1.0) } else { None };
+        let centre_box = sample_box(sf, row0 as f32, (row0 + rows) as f32 - 1.0, view.width as f32 - 1.0);
         if subsample_box.is_none() && centre_box.is_none() {
             continue;
         }
