@@ -569,7 +569,7 @@ mod tests {
         fn depth_equals_the_ray_casters_on_random_soups(
             coords in proptest::collection::vec(-1.0f32..1.0, 9..300),
             (h, w) in (1usize..24, 1usize..24),
-            log_s in 0u32..3,
+            log_s in 0u32..4,
         ) {
             let vertices: Vec<[f32; 3]> = coords.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
             let triangles: Vec<[u32; 3]> = (0..vertices.len() as u32 / 3).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
