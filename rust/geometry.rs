@@ -11,6 +11,8 @@
 //! (row 0 at the top). Subsample (a, b) of an s×s supersampling grid sits at
 //! offsets `((b + ½)/s, (a + ½)/s)` inside the pixel.
 
+use wide::f32x4;
+
 use crate::error::{InvalidArgument, Result};
 
 /// Default camera plane: the undeformed patch (z = 0) is 2 units in front of it.
@@ -70,17 +72,19 @@ impl View {
 }
 
 /// A triangle prepared for many vertical-line tests: the per-triangle part of
-/// `vertical_hit` computed once. `hit` performs exactly the arithmetic of
-/// `vertical_hit`, so results are bit-identical.
+/// `vertical_hit` computed once. `hit`, `hit_in_row` and `hits4` perform
+/// exactly the arithmetic of `vertical_hit`, so results are bit-identical.
 #[derive(Clone, Copy, Debug)]
 pub struct TriangleSetup {
     a: [f32; 3],
     b: [f32; 3],
     c: [f32; 3],
+    // Edge vectors, negated for a clockwise projection so that "inside" is
+    // every edge function >= 0 for either winding. Negation is exact, and
+    // `inv_area` is negated with them, so the weights are unchanged.
     ca: [f32; 2],
     ab: [f32; 2],
     bc: [f32; 2],
-    positive: bool,
     inv_area: f32,
 }
 
@@ -93,23 +97,58 @@ impl TriangleSetup {
         if area == 0.0 || !area.is_finite() {
             return None;
         }
-        Some(Self { a, b, c, ca: [a[0] - c[0], a[1] - c[1]], ab, bc: [c[0] - b[0], c[1] - b[1]], positive: area > 0.0, inv_area: 1.0 / area })
+        let (ca, bc) = ([a[0] - c[0], a[1] - c[1]], [c[0] - b[0], c[1] - b[1]]);
+        let sign = if area > 0.0 { 1.0 } else { -1.0 };
+        let oriented = |e: [f32; 2]| [sign * e[0], sign * e[1]];
+        Some(Self { a, b, c, ca: oriented(ca), ab: oriented(ab), bc: oriented(bc), inv_area: sign / area })
+    }
+
+    /// The part of the three edge functions that depends only on the row y = `py`.
+    #[inline]
+    pub fn row(&self, py: f32) -> [f32; 3] {
+        [self.bc[0] * (py - self.b[1]), self.ca[0] * (py - self.c[1]), self.ab[0] * (py - self.a[1])]
+    }
+
+    /// The edge functions at x = `px` of a row from [`row`](Self::row).
+    #[inline]
+    fn edges(&self, row: [f32; 3], px: f32) -> [f32; 3] {
+        [row[0] - self.bc[1] * (px - self.b[0]), row[1] - self.ca[1] * (px - self.c[0]), row[2] - self.ab[1] * (px - self.a[0])]
+    }
+
+    /// z and weights at edge functions `w` (any point of the plane).
+    #[inline]
+    fn interpolate(&self, w: [f32; 3]) -> (f32, [f32; 3]) {
+        let l = w.map(|w| w * self.inv_area);
+        (l[0] * self.a[2] + l[1] * self.b[2] + l[2] * self.c[2], l)
     }
 
     /// `(z, [λa, λb, λc])` where the vertical line through (px, py) meets the
     /// triangle, if it does; points on an edge count as inside.
     #[inline]
     pub fn hit(&self, px: f32, py: f32) -> Option<(f32, [f32; 3])> {
-        let (a, b, c) = (self.a, self.b, self.c);
-        let w0 = self.bc[0] * (py - b[1]) - self.bc[1] * (px - b[0]);
-        let w1 = self.ca[0] * (py - c[1]) - self.ca[1] * (px - c[0]);
-        let w2 = self.ab[0] * (py - a[1]) - self.ab[1] * (px - a[0]);
-        let inside = if self.positive { w0 >= 0.0 && w1 >= 0.0 && w2 >= 0.0 } else { w0 <= 0.0 && w1 <= 0.0 && w2 <= 0.0 };
-        if !inside {
-            return None;
-        }
-        let l = [w0 * self.inv_area, w1 * self.inv_area, w2 * self.inv_area];
-        Some((l[0] * a[2] + l[1] * b[2] + l[2] * c[2], l))
+        self.hit_in_row(self.row(py), px)
+    }
+
+    /// [`hit`](Self::hit) at (px, py), given `row(py)`.
+    #[inline]
+    pub fn hit_in_row(&self, row: [f32; 3], px: f32) -> Option<(f32, [f32; 3])> {
+        let w = self.edges(row, px);
+        (w[0] >= 0.0 && w[1] >= 0.0 && w[2] >= 0.0).then(|| self.interpolate(w))
+    }
+
+    /// [`hit_in_row`](Self::hit_in_row) at `LANES` x of one row at once
+    /// (SIMD, the same IEEE operations lane by lane): `(inside, z, λb, λc)`,
+    /// `inside` a lane mask; the other lanes hold the plane's values there.
+    #[inline]
+    pub fn hits4(&self, row: [f32; 3], px: f32x4) -> (f32x4, f32x4, f32x4, f32x4) {
+        let splat = f32x4::splat;
+        let w0 = splat(row[0]) - splat(self.bc[1]) * (px - splat(self.b[0]));
+        let w1 = splat(row[1]) - splat(self.ca[1]) * (px - splat(self.c[0]));
+        let w2 = splat(row[2]) - splat(self.ab[1]) * (px - splat(self.a[0]));
+        let inside = w0.simd_ge(f32x4::ZERO) & w1.simd_ge(f32x4::ZERO) & w2.simd_ge(f32x4::ZERO);
+        let inv_area = splat(self.inv_area);
+        let (l0, l1, l2) = (w0 * inv_area, w1 * inv_area, w2 * inv_area);
+        (inside, l0 * splat(self.a[2]) + l1 * splat(self.b[2]) + l2 * splat(self.c[2]), l1, l2)
     }
 }
 

@@ -29,11 +29,14 @@
 use rayon::prelude::*;
 
 use crate::error::{InvalidArgument, Result};
+use wide::{f32x4, u32x4};
+
 use crate::geometry::{ceil_fast, check_mesh, floor_fast, TriangleSetup, View};
 
+/// Sample points tested at once (SIMD lanes).
+const LANES: usize = 4;
 /// Largest supersampling factor per axis.
 pub const MAX_SUPERSAMPLE: usize = 8;
-const NO_TRIANGLE: u32 = u32::MAX;
 /// Relative size below which a specular term is dropped.
 const SPECULAR_FLOOR: f32 = 1e-4;
 /// Slack, in subsamples, of a triangle's bounding box.
@@ -115,7 +118,8 @@ impl Texture {
     pub fn sample(&self, u: f32, v: f32) -> f32 {
         let c = (u * self.width as f32 - 0.5).clamp(0.0, (self.width - 1) as f32);
         let r = (v * self.height as f32 - 0.5).clamp(0.0, (self.height - 1) as f32);
-        let (c0, r0) = (c as usize, r as usize);
+        // In range after the clamp: the cheap conversion.
+        let (c0, r0) = (c as i32 as usize, r as i32 as usize);
         let (c1, r1) = ((c0 + 1).min(self.width - 1), (r0 + 1).min(self.height - 1));
         let (fc, fr) = (c - c0 as f32, r - r0 as f32);
         let row0 = &self.data[r0 * self.width..];
@@ -165,39 +169,61 @@ pub struct Scene<'a> {
 }
 
 /// The highest hit of every sample point of a grid: its z (−∞ where nothing
-/// was hit), triangle and barycentric weights (λb, λc).
+/// was hit), triangle and a two-component attribute interpolated there: the
+/// texture coordinates (u, v) on the subsample grid, the barycentric weights
+/// (λb, λc) on the pixel-centre grid. Only z is reset: the rest is read only
+/// where z is finite. `LANES − 1` padding samples at the end let a group of
+/// lanes start at any sample.
 #[derive(Default)]
 struct Samples {
     z: Vec<f32>,
     triangle: Vec<u32>,
-    weights: Vec<[f32; 2]>,
+    attribute: [Vec<f32>; 2],
 }
 
 impl Samples {
     fn reset(&mut self, len: usize) {
+        let padded = len + LANES - 1;
         self.z.clear();
-        self.z.resize(len, f32::NEG_INFINITY);
-        self.triangle.clear();
-        self.triangle.resize(len, NO_TRIANGLE);
-        self.weights.clear();
-        self.weights.resize(len, [0.0; 2]);
+        self.z.resize(padded, f32::NEG_INFINITY);
+        self.triangle.resize(padded, 0);
+        self.attribute.iter_mut().for_each(|a| a.resize(padded, 0.0));
     }
 
-    /// Keep the hit `(z, λ)` of triangle `t` at sample `i` if it is the highest so far.
     #[inline]
-    fn keep(&mut self, i: usize, t: usize, hit: Option<(f32, [f32; 3])>, camera_z: f32) {
-        if let Some((z, w)) = hit {
-            if z > self.z[i] && z <= camera_z {
-                self.z[i] = z;
-                self.triangle[i] = t as u32;
-                self.weights[i] = [w[1], w[2]];
-            }
+    fn is_hit(&self, i: usize) -> bool {
+        self.z[i] > f32::NEG_INFINITY
+    }
+
+    /// At the `LANES` samples from `i`, keep triangle `t`'s hits (z, attribute)
+    /// in the lanes `inside` where they are the highest so far (and not behind
+    /// the camera). The other lanes are written back unchanged.
+    #[inline]
+    fn keep4(&mut self, i: usize, t: u32, inside: f32x4, z: f32x4, camera_z: f32, attribute: impl FnOnce() -> [f32x4; 2]) {
+        let old = f32x4::new(lanes(&self.z, i));
+        let higher = inside & z.simd_gt(old) & z.simd_le(f32x4::splat(camera_z));
+        if higher.none() {
+            return;
+        }
+        self.z[i..i + LANES].copy_from_slice(&higher.bitselect(z, old).to_array());
+        let old_triangle = u32x4::new(lanes(&self.triangle, i));
+        let triangle: u32x4 = wide::bytemuck::cast::<f32x4, u32x4>(higher).bitselect(u32x4::splat(t), old_triangle);
+        self.triangle[i..i + LANES].copy_from_slice(&triangle.to_array());
+        for (values, new) in self.attribute.iter_mut().zip(attribute()) {
+            let kept = higher.bitselect(new, f32x4::new(lanes(values, i)));
+            values[i..i + LANES].copy_from_slice(&kept.to_array());
         }
     }
 }
 
+/// The `LANES` values from `i`.
+#[inline]
+fn lanes<T: Copy + Default>(values: &[T], i: usize) -> [T; LANES] {
+    values[i..i + LANES].try_into().unwrap_or_default()
+}
+
 /// Visibility buffers of one band of pixel rows: the s×s subsamples of its
-/// pixels (unused at s = 1, where they are the centres) and its pixel centres.
+/// pixels and its pixel centres (two grids even at s = 1, where they coincide).
 #[derive(Default)]
 struct Band {
     subsamples: Samples,
@@ -265,12 +291,9 @@ fn render_band(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], co
     let width = p.scene.view.width;
     let rows = image.len() / width;
     band.centres.reset(rows * width);
-    if s > 1 {
-        band.subsamples.reset(rows * s * width * s);
-    }
-    visibility_band(p.screen, p.triangles, &p.scene.view, s, row0, rows, band);
-    let subsamples = if s > 1 { &band.subsamples } else { &band.centres };
-    shade_band(p, subsamples, &band.centres, image, coverage);
+    band.subsamples.reset(rows * s * width * s);
+    visibility_band(p, row0, rows, band);
+    shade_band(p, row0, band, image, coverage);
     let camera_z = p.scene.view.camera_z;
     depth.iter_mut().zip(&band.centres.z).for_each(|(d, &z)| *d = if z.is_finite() { camera_z - z } else { f32::NAN });
 }
@@ -301,13 +324,15 @@ pub fn vertex_normals(vertices: &[[f32; 3]], triangles: &[[u32; 3]], normals: &m
 }
 
 /// Visibility of the pixel rows `row0 .. row0 + rows` at their subsamples
-/// (s > 1) and pixel centres. `screen` holds the vertices in subsample space,
-/// where the centre of pixel (i, j) is ((j + ½)s, (i + ½)s).
-fn visibility_band(screen: &[[f32; 3]], triangles: &[[u32; 3]], view: &View, s: usize, row0: usize, rows: usize, band: &mut Band) {
+/// and pixel centres. `p.screen` holds the vertices in subsample space, where
+/// the centre of pixel (i, j) is ((j + ½)s, (i + ½)s).
+fn visibility_band(p: &Prepared, row0: usize, rows: usize, band: &mut Band) {
+    let view = &p.scene.view;
+    let (s, camera_z) = (p.scene.supersample, view.camera_z);
     let (cols, sf) = (view.width * s, s as f32);
     let (sub_lo, sub_hi) = ((row0 * s) as f32, ((row0 + rows) * s) as f32 - 1.0);
-    for (t, &[ia, ib, ic]) in triangles.iter().enumerate() {
-        let (a, b, c) = (screen[ia as usize], screen[ib as usize], screen[ic as usize]);
+    for (t, &corners) in p.triangles.iter().enumerate() {
+        let [a, b, c] = corners.map(|k| p.screen[k as usize]);
         let (x_lo, x_hi) = (a[0].min(b[0]).min(c[0]), a[0].max(b[0]).max(c[0]));
         let (y_lo, y_hi) = (a[1].min(b[1]).min(c[1]), a[1].max(b[1]).max(c[1]));
         // Sample k (spacing d) sits at (k + ½)d. A small margin absorbs
@@ -325,27 +350,55 @@ fn visibility_band(screen: &[[f32; 3]], triangles: &[[u32; 3]], view: &View, s: 
         let sample_box = |d: f32, first_row: f32, last_row: f32, last_col: f32| Some((span(y_lo, y_hi, d, first_row, last_row)?, span(x_lo, x_hi, d, 0.0, last_col)?));
         // The two grids are tested independently: a sliver can hold pixel
         // centres between two rows (or columns) of subsamples, or the reverse.
-        let subsample_box = if s > 1 { sample_box(1.0, sub_lo, sub_hi, cols as f32 - 1.0) } else { None };
+        let subsample_box = sample_box(1.0, sub_lo, sub_hi, cols as f32 - 1.0);
         let centre_box = sample_box(sf, row0 as f32, (row0 + rows) as f32 - 1.0, view.width as f32 - 1.0);
         if subsample_box.is_none() && centre_box.is_none() {
             continue;
         }
         let Some(setup) = TriangleSetup::new(a, b, c) else { continue };
-        if let Some(((r_lo, r_hi), (c_lo, c_hi))) = subsample_box {
-            for r in r_lo..=r_hi {
-                let (py, base) = (r as f32 + 0.5, (r - row0 * s) * cols);
-                for col in c_lo..=c_hi {
-                    band.subsamples.keep(base + col, t, setup.hit(col as f32 + 0.5, py), view.camera_z);
-                }
-            }
+        if let Some((rows, columns)) = subsample_box {
+            let [ta, tb, tc] = corners.map(|k| p.uv[k as usize]);
+            let texcoords = |lb: f32x4, lc: f32x4| {
+                let la = f32x4::ONE - lb - lc;
+                let splat = f32x4::splat;
+                std::array::from_fn(|k| la * splat(ta[k]) + lb * splat(tb[k]) + lc * splat(tc[k]))
+            };
+            scan_box(&setup, rows, columns, 1.0, |r| (r - row0 * s) * cols, &mut band.subsamples, t as u32, camera_z, texcoords);
         }
-        if let Some(((i_lo, i_hi), (j_lo, j_hi))) = centre_box {
-            for i in i_lo..=i_hi {
-                let (py, base) = ((i as f32 + 0.5) * sf, (i - row0) * view.width);
-                for j in j_lo..=j_hi {
-                    band.centres.keep(base + j, t, setup.hit((j as f32 + 0.5) * sf, py), view.camera_z);
-                }
-            }
+        if let Some((rows, columns)) = centre_box {
+            scan_box(&setup, rows, columns, sf, |i| (i - row0) * view.width, &mut band.centres, t as u32, camera_z, |lb, lc| [lb, lc]);
+        }
+    }
+}
+
+/// Test the samples `rows` × `columns` (inclusive) of the grid of spacing
+/// `spacing` against triangle `t`, `LANES` columns at a time, and keep its
+/// hits where highest; `row_start(row)` is a row's first index in `samples`,
+/// `attribute(λb, λc)` the attribute of a hit.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn scan_box(
+    setup: &TriangleSetup,
+    rows: (usize, usize),
+    columns: (usize, usize),
+    spacing: f32,
+    row_start: impl Fn(usize) -> usize,
+    samples: &mut Samples,
+    t: u32,
+    camera_z: f32,
+    attribute: impl Fn(f32x4, f32x4) -> [f32x4; 2],
+) {
+    // Sample k sits at (k + ½)·spacing: exact in f32 for k < 2²³, as it is
+    // for the ray caster, whose arithmetic `hits4` repeats lane by lane.
+    let (lane, half, spacing_x4) = (f32x4::new([0.0, 1.0, 2.0, 3.0]), f32x4::splat(0.5), f32x4::splat(spacing));
+    for r in rows.0..=rows.1 {
+        let row = setup.row((r as u32 as f32 + 0.5) * spacing);
+        let start = row_start(r);
+        for col in (columns.0..=columns.1).step_by(LANES) {
+            let px = (f32x4::splat(col as u32 as f32) + lane + half) * spacing_x4;
+            let (inside, z, lb, lc) = setup.hits4(row, px);
+            let in_box = lane.simd_le(f32x4::splat((columns.1 - col) as u32 as f32));
+            samples.keep4(start + col, t, inside & in_box, z, camera_z, || attribute(lb, lc));
         }
     }
 }
@@ -409,7 +462,7 @@ pub fn vertex_lighting(vertices: &[[f32; 3]], normals: &[[f32; 3]], scene: &Scen
 /// first covered subsample where the centre is background), as a
 /// multisampling renderer does: lighting varies over a triangle far more
 /// slowly than a texture does.
-fn shade_band(p: &Prepared, subsamples: &Samples, centres: &Samples, image: &mut [f32], coverage: &mut [f32]) {
+fn shade_band(p: &Prepared, row0: usize, band: &Band, image: &mut [f32], coverage: &mut [f32]) {
     let scene = p.scene;
     let s = scene.supersample;
     let (width, cols) = (scene.view.width, scene.view.width * s);
@@ -417,26 +470,31 @@ fn shade_band(p: &Prepared, subsamples: &Samples, centres: &Samples, image: &mut
     let lights = prepared_lights(scene.lights);
     let min_rdv = specular_cutoff(&scene.material);
     let point_lights = lights.iter().any(|l| l.kind == LightKind::Point);
+    let (subsamples, centres) = (&band.subsamples, &band.centres);
     for (k, (out, cov)) in image.iter_mut().zip(coverage.iter_mut()).enumerate() {
         let (pi, pj) = (k / width, k % width);
-        let (mut albedo, mut hits) = (0.0f32, 0u32);
-        let mut lit_at = (centres.triangle[k] != NO_TRIANGLE).then(|| (centres.triangle[k], centres.weights[k]));
+        let (mut albedo, mut hits, mut first) = (0.0f32, 0u32, None);
         for a in 0..s {
             let start = (pi * s + a) * cols + pj * s;
-            for (&t, &w) in subsamples.triangle[start..start + s].iter().zip(&subsamples.weights[start..start + s]) {
-                if t == NO_TRIANGLE {
-                    continue;
-                }
+            for i in (start..start + s).filter(|&i| subsamples.is_hit(i)) {
                 hits += 1;
-                let [u, v] = interpolate(p.uv, p.triangles[t as usize], w);
-                albedo += scene.texture.sample(u, v);
-                lit_at.get_or_insert((t, w));
+                albedo += scene.texture.sample(subsamples.attribute[0][i], subsamples.attribute[1][i]);
+                first.get_or_insert(i);
             }
         }
-        let Some((t, w)) = lit_at else {
+        let lit_at = if centres.is_hit(k) {
+            (centres.triangle[k], [centres.attribute[0][k], centres.attribute[1][k]])
+        } else if let Some(i) = first {
+            let t = subsamples.triangle[i];
+            let [a, b, c] = p.triangles[t as usize].map(|k| p.screen[k as usize]);
+            // The visibility pass's own arithmetic: it hits again.
+            let hit = TriangleSetup::new(a, b, c).and_then(|setup| setup.hit((i % cols) as f32 + 0.5, (row0 * s + i / cols) as f32 + 0.5));
+            (t, hit.map_or([0.0; 2], |(_, l)| [l[1], l[2]]))
+        } else {
             (*out, *cov) = (0.0, 0.0);
             continue;
         };
+        let (t, w) = lit_at;
         let corners = p.triangles[t as usize];
         let (diffuse, specular) = match scene.shading {
             Shading::Phong => {
