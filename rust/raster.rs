@@ -172,8 +172,8 @@ pub struct Scene<'a> {
 /// was hit), triangle and a two-component attribute interpolated there: the
 /// texture coordinates (u, v) on the subsample grid, the barycentric weights
 /// (λb, λc) on the pixel-centre grid. Only z is reset: the rest is read only
-/// where z is finite. `LANES − 1` padding samples at the end let a group of
-/// lanes start at any sample.
+/// where z is finite. `2 LANES − 1` padding samples at the end let two groups
+/// of lanes start at any sample.
 #[derive(Default)]
 struct Samples {
     z: Vec<f32>,
@@ -183,7 +183,7 @@ struct Samples {
 
 impl Samples {
     fn reset(&mut self, len: usize) {
-        let padded = len + LANES - 1;
+        let padded = len + 2 * LANES - 1;
         self.z.clear();
         self.z.resize(padded, f32::NEG_INFINITY);
         self.triangle.resize(padded, 0);
@@ -201,10 +201,8 @@ impl Samples {
     #[inline]
     fn keep4(&mut self, i: usize, t: u32, inside: f32x4, z: f32x4, camera_z: f32, attribute: impl FnOnce() -> [f32x4; 2]) {
         let old = f32x4::new(lanes(&self.z, i));
+        // Branch-free: a lane that keeps nothing is rewritten with its own value.
         let higher = inside & z.simd_gt(old) & z.simd_le(f32x4::splat(camera_z));
-        if higher.none() {
-            return;
-        }
         self.z[i..i + LANES].copy_from_slice(&higher.bitselect(z, old).to_array());
         let old_triangle = u32x4::new(lanes(&self.triangle, i));
         let triangle: u32x4 = wide::bytemuck::cast::<f32x4, u32x4>(higher).bitselect(u32x4::splat(t), old_triangle);
@@ -394,11 +392,15 @@ fn scan_box(
     for r in rows.0..=rows.1 {
         let row = setup.row((r as u32 as f32 + 0.5) * spacing);
         let start = row_start(r);
-        for col in (columns.0..=columns.1).step_by(LANES) {
-            let px = (f32x4::splat(col as u32 as f32) + lane + half) * spacing_x4;
-            let (inside, z, lb, lc) = setup.hits4(row, px);
-            let in_box = lane.simd_le(f32x4::splat((columns.1 - col) as u32 as f32));
-            samples.keep4(start + col, t, inside & in_box, z, camera_z, || attribute(lb, lc));
+        // Two groups of lanes a step: one step covers most triangles' rows,
+        // so the loop's trip count is predictable.
+        for col in (columns.0..=columns.1).step_by(2 * LANES) {
+            for col in [col, col + LANES] {
+                let px = (f32x4::splat(col as u32 as f32) + lane + half) * spacing_x4;
+                let (inside, z, lb, lc) = setup.hits4(row, px);
+                let in_box = lane.simd_le(f32x4::splat(columns.1 as u32 as f32 - col as u32 as f32));
+                samples.keep4(start + col, t, inside & in_box, z, camera_z, || attribute(lb, lc));
+            }
         }
     }
 }
