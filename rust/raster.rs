@@ -128,6 +128,31 @@ impl Texture {
         let bottom = row1[c0] + (row1[c1] - row1[c0]) * fc;
         top + (bottom - top) * fr
     }
+
+    /// [`sample`](Self::sample) at four points at once: the same arithmetic
+    /// lane by lane (SIMD, texel fetches scalar).
+    #[inline]
+    pub fn sample4(&self, u: f32x4, v: f32x4) -> f32x4 {
+        let (width, height) = (self.width as f32, self.height as f32);
+        // Clamped as `f32::clamp` clamps finite values (a NaN lane reads texel 0).
+        let clamp = |x: f32x4, hi: f32| x.fast_max(f32x4::ZERO).fast_min(f32x4::splat(hi));
+        let c = clamp(u * f32x4::splat(width) - f32x4::splat(0.5), width - 1.0);
+        let r = clamp(v * f32x4::splat(height) - f32x4::splat(0.5), height - 1.0);
+        let (c0, r0) = (c.fast_trunc_int(), r.fast_trunc_int());
+        let (fc, fr) = (c - f32x4::from_i32x4(c0), r - f32x4::from_i32x4(r0));
+        let (c0, r0) = (c0.to_array(), r0.to_array());
+        let mut texels = [[0.0f32; LANES]; 4];
+        for k in 0..LANES {
+            let (c0, r0) = ((c0[k] as usize).min(self.width - 1), (r0[k] as usize).min(self.height - 1));
+            let (c1, r1) = ((c0 + 1).min(self.width - 1), (r0 + 1).min(self.height - 1));
+            let (row0, row1) = (&self.data[r0 * self.width..], &self.data[r1 * self.width..]);
+            [texels[0][k], texels[1][k], texels[2][k], texels[3][k]] = [row0[c0], row0[c1], row1[c0], row1[c1]];
+        }
+        let [t00, t01, t10, t11] = texels.map(f32x4::new);
+        let top = t00 + (t01 - t00) * fc;
+        let bottom = t10 + (t11 - t10) * fc;
+        top + (bottom - top) * fr
+    }
 }
 
 /// Where the Phong model is evaluated.
@@ -220,12 +245,14 @@ fn lanes<T: Copy + Default>(values: &[T], i: usize) -> [T; LANES] {
     values[i..i + LANES].try_into().unwrap_or_default()
 }
 
-/// Visibility buffers of one band of pixel rows: the s×s subsamples of its
-/// pixels and its pixel centres (two grids even at s = 1, where they coincide).
+/// Buffers of one band of pixel rows: the visibility of the s×s subsamples
+/// of its pixels and of its pixel centres (two grids even at s = 1, where
+/// they coincide), and the texture samples of one subsample row.
 #[derive(Default)]
 struct Band {
     subsamples: Samples,
     centres: Samples,
+    texels: Vec<f32>,
 }
 
 /// Reusable buffers of one renderer; one per thread.
@@ -464,7 +491,7 @@ pub fn vertex_lighting(vertices: &[[f32; 3]], normals: &[[f32; 3]], scene: &Scen
 /// first covered subsample where the centre is background), as a
 /// multisampling renderer does: lighting varies over a triangle far more
 /// slowly than a texture does.
-fn shade_band(p: &Prepared, row0: usize, band: &Band, image: &mut [f32], coverage: &mut [f32]) {
+fn shade_band(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], coverage: &mut [f32]) {
     let scene = p.scene;
     let s = scene.supersample;
     let (width, cols) = (scene.view.width, scene.view.width * s);
@@ -472,45 +499,57 @@ fn shade_band(p: &Prepared, row0: usize, band: &Band, image: &mut [f32], coverag
     let lights = prepared_lights(scene.lights);
     let min_rdv = specular_cutoff(&scene.material);
     let point_lights = lights.iter().any(|l| l.kind == LightKind::Point);
-    let (subsamples, centres) = (&band.subsamples, &band.centres);
-    for (k, (out, cov)) in image.iter_mut().zip(coverage.iter_mut()).enumerate() {
-        let (pi, pj) = (k / width, k % width);
-        let (mut albedo, mut hits, mut first) = (0.0f32, 0u32, None);
+    let (subsamples, centres, texels) = (&band.subsamples, &band.centres, &mut band.texels);
+    texels.resize(cols.next_multiple_of(LANES), 0.0);
+    let [u, v] = &subsamples.attribute;
+    for (pi, (albedo, hits)) in image.chunks_exact_mut(width).zip(coverage.chunks_exact_mut(width)).enumerate() {
+        // Albedo summed over each pixel's covered subsamples, row by row
+        // (`hits` counts them), the texture sampled four at a time.
+        albedo.fill(0.0);
+        hits.fill(0.0);
         for a in 0..s {
-            let start = (pi * s + a) * cols + pj * s;
-            for i in (start..start + s).filter(|&i| subsamples.is_hit(i)) {
-                hits += 1;
-                albedo += scene.texture.sample(subsamples.attribute[0][i], subsamples.attribute[1][i]);
-                first.get_or_insert(i);
+            let start = (pi * s + a) * cols;
+            for (c, group) in texels.chunks_exact_mut(LANES).enumerate() {
+                let i = start + c * LANES;
+                group.copy_from_slice(&scene.texture.sample4(f32x4::new(lanes(u, i)), f32x4::new(lanes(v, i))).to_array());
+            }
+            for (j, (albedo, hits)) in albedo.iter_mut().zip(hits.iter_mut()).enumerate() {
+                for b in (j * s..j * s + s).filter(|&b| subsamples.is_hit(start + b)) {
+                    *albedo += texels[b];
+                    *hits += 1.0;
+                }
             }
         }
-        let lit_at = if centres.is_hit(k) {
-            (centres.triangle[k], [centres.attribute[0][k], centres.attribute[1][k]])
-        } else if let Some(i) = first {
-            let t = subsamples.triangle[i];
-            let [a, b, c] = p.triangles[t as usize].map(|k| p.screen[k as usize]);
-            // The visibility pass's own arithmetic: it hits again.
-            let hit = TriangleSetup::new(a, b, c).and_then(|setup| setup.hit((i % cols) as f32 + 0.5, (row0 * s + i / cols) as f32 + 0.5));
-            (t, hit.map_or([0.0; 2], |(_, l)| [l[1], l[2]]))
-        } else {
-            (*out, *cov) = (0.0, 0.0);
-            continue;
-        };
-        let (t, w) = lit_at;
-        let corners = p.triangles[t as usize];
-        let (diffuse, specular) = match scene.shading {
-            Shading::Phong => {
-                // The surface point matters only to point lights.
-                let point = if point_lights { interpolate(p.vertices, corners, w) } else { [0.0; 3] };
-                lighting(facing_camera(normalize(interpolate(p.normals, corners, w))), point, &lights, &scene.material, min_rdv)
-            }
-            Shading::Gouraud => {
-                let [diffuse, specular] = interpolate(p.lit, corners, w);
-                (diffuse, specular)
-            }
-        };
-        *out = (albedo * diffuse + hits as f32 * specular) * per_pixel;
-        *cov = hits as f32 * per_pixel;
+        for (pj, (out, cov)) in albedo.iter_mut().zip(hits.iter_mut()).enumerate() {
+            let k = pi * width + pj;
+            let lit_at = if centres.is_hit(k) {
+                (centres.triangle[k], [centres.attribute[0][k], centres.attribute[1][k]])
+            } else if let Some(i) = (0..s * s).map(|q| (pi * s + q / s) * cols + pj * s + q % s).find(|&i| subsamples.is_hit(i)) {
+                // Lit at the first covered subsample, with the visibility pass's own arithmetic: it hits again.
+                let t = subsamples.triangle[i];
+                let [a, b, c] = p.triangles[t as usize].map(|k| p.screen[k as usize]);
+                let hit = TriangleSetup::new(a, b, c).and_then(|setup| setup.hit((i % cols) as f32 + 0.5, (row0 * s + i / cols) as f32 + 0.5));
+                (t, hit.map_or([0.0; 2], |(_, l)| [l[1], l[2]]))
+            } else {
+                continue; // background: albedo and coverage 0
+            };
+            let (t, w) = lit_at;
+            let corners = p.triangles[t as usize];
+            let (diffuse, specular) = match scene.shading {
+                Shading::Phong => {
+                    // The surface point matters only to point lights.
+                    let point = if point_lights { interpolate(p.vertices, corners, w) } else { [0.0; 3] };
+                    lighting(facing_camera(normalize(interpolate(p.normals, corners, w))), point, &lights, &scene.material, min_rdv)
+                }
+                Shading::Gouraud => {
+                    let [diffuse, specular] = interpolate(p.lit, corners, w);
+                    (diffuse, specular)
+                }
+            };
+            let covered = *cov;
+            *out = (*out * diffuse + covered * specular) * per_pixel;
+            *cov = covered * per_pixel;
+        }
     }
 }
 
@@ -724,6 +763,20 @@ mod tests {
                     }
                     assert!((image[i * 12 + j] - expected).abs() < 1e-5, "s {s} ({i},{j}): {} vs {expected}", image[i * 12 + j]);
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn four_lane_texture_samples_equal_the_scalar_ones_bit_for_bit() {
+        let texture = Texture { height: 7, width: 13, data: (0..91).map(|i| ((i * 37) % 91) as f32 / 91.0 - 0.2).collect() };
+        let mut rng = crate::rng::SplitMix64::new(4);
+        for _ in 0..2000 {
+            // Inside, on and beyond the edges (clamped).
+            let (u, v): ([f32; 4], [f32; 4]) = (std::array::from_fn(|_| rng.uniform(-0.3, 1.3) as f32), std::array::from_fn(|_| rng.uniform(-0.3, 1.3) as f32));
+            let lanes = texture.sample4(f32x4::new(u), f32x4::new(v)).to_array();
+            for k in 0..4 {
+                assert_eq!(lanes[k].to_bits(), texture.sample(u[k], v[k]).to_bits(), "({}, {})", u[k], v[k]);
             }
         }
     }
