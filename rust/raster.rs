@@ -6,13 +6,16 @@
 //! 1. visibility: every triangle is scanned over the sample points its
 //!    bounding box covers, on two grids: the s×s subsamples of each pixel and
 //!    the pixel centres. A sample keeps the highest hit (largest z ≤ camera_z)
-//!    with its triangle and barycentric weights. The test is
-//!    `geometry::TriangleSetup::hit` in subsample space, the ray caster's own
-//!    arithmetic, so the centre depth equals `bvh::raycast_depth` bit for bit
-//!    when s is a power of two (scaling by 2^k is exact) and to rounding
-//!    otherwise: the renderer gives the depth video as well as the images.
-//! 2. shading: albedo sampled bilinearly (clamp to edge) at every covered
-//!    subsample's interpolated texture coordinates and averaged (box filter;
+//!    with its triangle and its texture coordinates (subsamples) or
+//!    barycentric weights (centres). The test is `geometry::TriangleSetup`'s
+//!    in subsample space, the ray caster's own arithmetic, so the centre depth
+//!    equals `bvh::raycast_depth` bit for bit when s is a power of two
+//!    (scaling by 2^k is exact) and to rounding otherwise: the renderer gives
+//!    the depth video as well as the images. Four samples of a row are tested
+//!    and kept at once, branch-free (SIMD lanes: the same IEEE operations
+//!    lane by lane, so the results do not depend on the instruction set).
+//! 2. shading: albedo sampled bilinearly (clamp to edge, four subsamples at
+//!    once) at every covered subsample's texture coordinates and averaged (box filter;
 //!    background subsamples contribute 0 and lower the pixel's coverage); the
 //!    light terms once per pixel at its centre, as multisampling renderers do
 //!    (lighting varies over a ~2 px² triangle far more slowly than texture):
@@ -197,8 +200,8 @@ pub struct Scene<'a> {
 /// was hit), triangle and a two-component attribute interpolated there: the
 /// texture coordinates (u, v) on the subsample grid, the barycentric weights
 /// (λb, λc) on the pixel-centre grid. Only z is reset: the rest is read only
-/// where z is finite. `2 LANES − 1` padding samples at the end let two groups
-/// of lanes start at any sample.
+/// where z is finite. `LANES − 1` padding samples at the end let a group of
+/// lanes start at any sample.
 #[derive(Default)]
 struct Samples {
     z: Vec<f32>,
@@ -208,7 +211,7 @@ struct Samples {
 
 impl Samples {
     fn reset(&mut self, len: usize) {
-        let padded = len + 2 * LANES - 1;
+        let padded = len + LANES - 1;
         self.z.clear();
         self.z.resize(padded, f32::NEG_INFINITY);
         self.triangle.resize(padded, 0);
@@ -419,15 +422,11 @@ fn scan_box(
     for r in rows.0..=rows.1 {
         let row = setup.row((r as u32 as f32 + 0.5) * spacing);
         let start = row_start(r);
-        // Two groups of lanes a step: one step covers most triangles' rows,
-        // so the loop's trip count is predictable.
-        for col in (columns.0..=columns.1).step_by(2 * LANES) {
-            for col in [col, col + LANES] {
-                let px = (f32x4::splat(col as u32 as f32) + lane + half) * spacing_x4;
-                let (inside, z, lb, lc) = setup.hits4(row, px);
-                let in_box = lane.simd_le(f32x4::splat(columns.1 as u32 as f32 - col as u32 as f32));
-                samples.keep4(start + col, t, inside & in_box, z, camera_z, || attribute(lb, lc));
-            }
+        for col in (columns.0..=columns.1).step_by(LANES) {
+            let px = (f32x4::splat(col as u32 as f32) + lane + half) * spacing_x4;
+            let (inside, z, lb, lc) = setup.hits4(row, px);
+            let in_box = lane.simd_le(f32x4::splat((columns.1 - col) as u32 as f32));
+            samples.keep4(start + col, t, inside & in_box, z, camera_z, || attribute(lb, lc));
         }
     }
 }
