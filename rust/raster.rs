@@ -146,7 +146,7 @@ impl Texture {
         let (c0, r0) = (c0.to_array(), r0.to_array());
         let mut texels = [[0.0f32; LANES]; 4];
         for k in 0..LANES {
-            let (c0, r0) = ((c0[k] as usize).min(self.width - 1), (r0[k] as usize).min(self.height - 1));
+            let (c0, r0) = (c0[k] as usize, r0[k] as usize);
             let (c1, r1) = ((c0 + 1).min(self.width - 1), (r0 + 1).min(self.height - 1));
             let (row0, row1) = (&self.data[r0 * self.width..], &self.data[r1 * self.width..]);
             [texels[0][k], texels[1][k], texels[2][k], texels[3][k]] = [row0[c0], row0[c1], row1[c0], row1[c1]];
@@ -361,8 +361,10 @@ fn visibility_band(p: &Prepared, row0: usize, rows: usize, band: &mut Band) {
     let (sub_lo, sub_hi) = ((row0 * s) as f32, ((row0 + rows) * s) as f32 - 1.0);
     for (t, &corners) in p.triangles.iter().enumerate() {
         let [a, b, c] = corners.map(|k| p.screen[k as usize]);
-        let (x_lo, x_hi) = (a[0].min(b[0]).min(c[0]), a[0].max(b[0]).max(c[0]));
-        let (y_lo, y_hi) = (a[1].min(b[1]).min(c[1]), a[1].max(b[1]).max(c[1]));
+        // Plain comparisons: the coordinates are finite (`check_mesh`).
+        let (min, max) = (|p: f32, q: f32| if p < q { p } else { q }, |p: f32, q: f32| if p > q { p } else { q });
+        let (x_lo, x_hi) = (min(min(a[0], b[0]), c[0]), max(max(a[0], b[0]), c[0]));
+        let (y_lo, y_hi) = (min(min(a[1], b[1]), c[1]), max(max(a[1], b[1]), c[1]));
         // Sample k (spacing d) sits at (k + ½)d. A small margin absorbs
         // rounding; `TriangleSetup::hit` decides exactly.
         let span = |lo: f32, hi: f32, d: f32, first: f32, last: f32| {
