@@ -6,7 +6,7 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use nrdepth::bvh::Bvh;
-use nrdepth::generate::{generate_clips, ClipWorker, GeneratorConfig};
+use nrdepth::generate::{generate_clips, noisy_u8, ClipWorker, GeneratorConfig};
 use nrdepth::geometry::{View, CAMERA_Z};
 use nrdepth::mesh::grid_triangles;
 use nrdepth::raster::{Frame, Light, LightKind, Material, Rasterizer, Scene, Shading, Texture};
@@ -63,6 +63,13 @@ fn bench(c: &mut Criterion) {
             b.iter(|| rasterizer.render_into(&vertices, &triangles, &uv, &scene, &mut frame))
         });
     }
+    let (image, mut noisy) = ((0..64 * 64).map(|k| (k % 97) as f32 / 97.0).collect::<Vec<f32>>(), vec![0u8; 64 * 64]);
+    g.bench_function("noise_quantise_64x64", |b| {
+        b.iter(|| {
+            noisy_u8(black_box(&image), 0.02, 7, 3, &mut noisy);
+            black_box(&noisy);
+        })
+    });
     let mut tex = Texture::default();
     g.bench_function("texture_fractal_256", |b| b.iter(|| procedural(TextureFamily::Fractal, 5, 256, &mut tex)));
     g.bench_function("texture_cells_256", |b| b.iter(|| procedural(TextureFamily::Cells, 5, 256, &mut tex)));
