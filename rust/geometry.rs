@@ -72,8 +72,8 @@ impl View {
 }
 
 /// A triangle prepared for many vertical-line tests: the per-triangle part of
-/// `vertical_hit` computed once. `hit`, `hit_in_row` and `hits4` perform
-/// exactly the arithmetic of `vertical_hit`, so results are bit-identical.
+/// `vertical_hit` computed once. `hit` and `hits4` perform exactly the
+/// arithmetic of `vertical_hit`, so results are bit-identical.
 #[derive(Clone, Copy, Debug)]
 pub struct TriangleSetup {
     a: [f32; 3],
@@ -126,19 +126,13 @@ impl TriangleSetup {
     /// triangle, if it does; points on an edge count as inside.
     #[inline]
     pub fn hit(&self, px: f32, py: f32) -> Option<(f32, [f32; 3])> {
-        self.hit_in_row(self.row(py), px)
-    }
-
-    /// [`hit`](Self::hit) at (px, py), given `row(py)`.
-    #[inline]
-    pub fn hit_in_row(&self, row: [f32; 3], px: f32) -> Option<(f32, [f32; 3])> {
-        let w = self.edges(row, px);
+        let w = self.edges(self.row(py), px);
         (w[0] >= 0.0 && w[1] >= 0.0 && w[2] >= 0.0).then(|| self.interpolate(w))
     }
 
-    /// [`hit_in_row`](Self::hit_in_row) at `LANES` x of one row at once
-    /// (SIMD, the same IEEE operations lane by lane): `(inside, z, λb, λc)`,
-    /// `inside` a lane mask; the other lanes hold the plane's values there.
+    /// [`hit`](Self::hit) at four x of the row y = `py`, given `row(py)`, at
+    /// once (SIMD, the same IEEE operations lane by lane): `(inside, z, λb,
+    /// λc)`, `inside` a lane mask; the other lanes hold the plane's values there.
     #[inline]
     pub fn hits4(&self, row: [f32; 3], px: f32x4) -> (f32x4, f32x4, f32x4, f32x4) {
         let splat = f32x4::splat;

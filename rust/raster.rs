@@ -30,10 +30,9 @@
 //! texel (row, col) has its centre at ((row + ½)/H, (col + ½)/W).
 
 use rayon::prelude::*;
-
-use crate::error::{InvalidArgument, Result};
 use wide::{f32x4, u32x4};
 
+use crate::error::{InvalidArgument, Result};
 use crate::geometry::{ceil_fast, check_mesh, floor_fast, TriangleSetup, View};
 
 /// Sample points tested at once (SIMD lanes).
@@ -244,8 +243,8 @@ impl Samples {
 
 /// The `LANES` values from `i`.
 #[inline]
-fn lanes<T: Copy + Default>(values: &[T], i: usize) -> [T; LANES] {
-    values[i..i + LANES].try_into().unwrap_or_default()
+fn lanes<T: Copy>(values: &[T], i: usize) -> [T; LANES] {
+    std::array::from_fn(|k| values[i + k])
 }
 
 /// Buffers of one band of pixel rows: the visibility of the s×s subsamples
