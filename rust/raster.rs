@@ -682,6 +682,53 @@ mod tests {
                 proptest::prop_assert!(z.to_bits() == d.to_bits() || (z.is_nan() && d.is_nan()), "pixel {}: {} vs {}", k, z, d);
             }
         }
+
+        /// The subsample z-buffer against brute force: every subsample tested
+        /// against every triangle, the highest hit kept (the first of equal
+        /// ones), its texture coordinates interpolated and the texture
+        /// sampled. Ambient light only, so the image is the mean albedo of the
+        /// covered subsamples: image and coverage must agree bit for bit.
+        #[test]
+        fn image_and_coverage_equal_a_brute_force_z_buffer_on_random_soups(
+            coords in proptest::collection::vec(-1.0f32..1.0, 9..150),
+            texcoords in proptest::collection::vec(0.0f32..1.0, 200),
+            (h, w) in (1usize..16, 1usize..16),
+            s in 1usize..4,
+        ) {
+            let vertices: Vec<[f32; 3]> = coords.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+            let triangles: Vec<[u32; 3]> = (0..vertices.len() as u32 / 3).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
+            let uv: Vec<[f32; 2]> = (0..vertices.len()).map(|k| [texcoords[2 * k], texcoords[2 * k + 1]]).collect();
+            let texture = Texture { height: 5, width: 7, data: (0..35).map(|i| ((i * 13) % 35) as f32 / 35.0).collect() };
+            // Triangles reach past every side of the view: rows end inside them.
+            let view = View::new(h, w, [-0.7, -0.8, 0.8, 0.6], CAMERA_Z).unwrap();
+            let ambient = Material { ambient: 1.0, diffuse: 0.0, specular: 0.0, shininess: 1.0 };
+            let scene = Scene { view, supersample: s, lights: &[], material: ambient, texture: &texture, shading: Shading::Phong };
+            let frame = render(&vertices, &triangles, &uv, &scene).unwrap();
+            let screen: Vec<[f32; 3]> = vertices.iter().map(|&v| view.pixel_vertex(v, s as f32)).collect();
+            let per_pixel = 1.0 / (s * s) as f32;
+            for k in 0..h * w {
+                let (mut albedo, mut hits) = (0.0f32, 0.0f32);
+                for (a, b) in (0..s * s).map(|q| (q / s, q % s)) {
+                    let (px, py) = (((k % w) * s + b) as f32 + 0.5, ((k / w) * s + a) as f32 + 0.5);
+                    let mut best: Option<(f32, usize, [f32; 3])> = None;
+                    for (t, corners) in triangles.iter().enumerate() {
+                        let [p, q, r] = corners.map(|c| screen[c as usize]);
+                        if let Some((z, l)) = crate::geometry::vertical_hit(p, q, r, px, py) {
+                            if z <= CAMERA_Z && best.is_none_or(|(top, _, _)| z > top) {
+                                best = Some((z, t, l));
+                            }
+                        }
+                    }
+                    if let Some((_, t, l)) = best {
+                        let [u, v] = interpolate(&uv, triangles[t], [l[1], l[2]]);
+                        albedo += texture.sample(u, v);
+                        hits += 1.0;
+                    }
+                }
+                proptest::prop_assert_eq!(frame.coverage[k].to_bits(), (hits * per_pixel).to_bits(), "coverage of pixel {}", k);
+                proptest::prop_assert_eq!(frame.image[k].to_bits(), ((albedo * 1.0 + hits * 0.0) * per_pixel).to_bits(), "image of pixel {}", k);
+            }
+        }
     }
 
     fn plane(normal_tilt: f32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>, Vec<[f32; 2]>) {
