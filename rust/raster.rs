@@ -244,7 +244,8 @@ impl Samples {
 /// The `LANES` values from `i`.
 #[inline]
 fn lanes<T: Copy>(values: &[T], i: usize) -> [T; LANES] {
-    std::array::from_fn(|k| values[i + k])
+    // One bounds check and one unaligned load, not four of each.
+    values[i..i + LANES].try_into().expect("a slice of LANES values")
 }
 
 /// Buffers of one band of pixel rows: the visibility of the s×s subsamples
@@ -260,6 +261,8 @@ struct Band {
 /// Reusable buffers of one renderer; one per thread.
 #[derive(Default)]
 pub struct Rasterizer {
+    /// Vertices whose normal the shading reads (`shaded_vertices`).
+    shaded: Vec<bool>,
     normals: Vec<[f32; 3]>,
     lit: Vec<[f32; 2]>,
     screen: Vec<[f32; 3]>,
@@ -279,6 +282,7 @@ pub struct Frame {
 }
 
 /// The per-render inputs every band reads.
+#[derive(Clone, Copy)]
 struct Prepared<'a> {
     vertices: &'a [[f32; 3]],
     triangles: &'a [[u32; 3]],
@@ -294,21 +298,31 @@ struct Prepared<'a> {
 impl Rasterizer {
     /// Render `vertices` / `triangles` with texture coordinates `uv` into `frame`,
     /// on this thread. The caller validates the inputs (`check_render_inputs`).
+    /// Normals (and Gouraud's vertex lighting) are computed after visibility,
+    /// only at the vertices of the triangles that light a pixel: the same sums
+    /// in the same order, so the same bits as `render`.
     pub fn render_into(&mut self, vertices: &[[f32; 3]], triangles: &[[u32; 3]], uv: &[[f32; 2]], scene: &Scene, frame: &mut Frame) {
         let s = scene.supersample;
-        vertex_normals(vertices, triangles, &mut self.normals);
         self.screen.clear();
         self.screen.extend(vertices.iter().map(|&v| scene.view.pixel_vertex(v, s as f32)));
+        let (height, width) = (scene.view.height, scene.view.width);
+        for buffer in [&mut frame.image, &mut frame.coverage, &mut frame.depth] {
+            buffer.resize(height * width, 0.0);
+        }
+        let band = &mut self.band;
+        let visible = Prepared { vertices, triangles, uv, normals: &[], lit: &[], screen: &self.screen, scene };
+        band.centres.reset(height * width);
+        band.subsamples.reset(height * s * width * s);
+        visibility_band(&visible, 0, height, band);
+        shaded_vertices(band, triangles, s, width, vertices.len(), &mut self.shaded);
+        vertex_normals(vertices, triangles, Some(&self.shaded), &mut self.normals);
         self.lit.clear();
         if scene.shading == Shading::Gouraud {
-            vertex_lighting(vertices, &self.normals, scene, &mut self.lit);
+            vertex_lighting(vertices, &self.normals, Some(&self.shaded), scene, &mut self.lit);
         }
-        let prepared = Prepared { vertices, triangles, uv, normals: &self.normals, lit: &self.lit, screen: &self.screen, scene };
-        let len = scene.view.height * scene.view.width;
-        for buffer in [&mut frame.image, &mut frame.coverage, &mut frame.depth] {
-            buffer.resize(len, 0.0);
-        }
-        render_band(&prepared, 0, &mut self.band, &mut frame.image, &mut frame.coverage, &mut frame.depth);
+        let prepared = Prepared { normals: &self.normals, lit: &self.lit, ..visible };
+        shade_band(&prepared, 0, band, &mut frame.image, &mut frame.coverage);
+        write_depth(&band.centres, scene.view.camera_z, &mut frame.depth);
     }
 }
 
@@ -321,26 +335,57 @@ fn render_band(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], co
     band.subsamples.reset(rows * s * width * s);
     visibility_band(p, row0, rows, band);
     shade_band(p, row0, band, image, coverage);
-    let camera_z = p.scene.view.camera_z;
-    depth.iter_mut().zip(&band.centres.z).for_each(|(d, &z)| *d = if z.is_finite() { camera_z - z } else { f32::NAN });
+    write_depth(&band.centres, p.scene.view.camera_z, depth);
 }
 
-/// Per-vertex unit normals: area-weighted sums of face normals.
-pub fn vertex_normals(vertices: &[[f32; 3]], triangles: &[[u32; 3]], normals: &mut Vec<[f32; 3]>) {
+/// Depth `camera_z − z` of the pixel centres, NaN where nothing was hit.
+fn write_depth(centres: &Samples, camera_z: f32, depth: &mut [f32]) {
+    depth.iter_mut().zip(&centres.z).for_each(|(d, &z)| *d = if z.is_finite() { camera_z - z } else { f32::NAN });
+}
+
+/// Flag the corners of every triangle whose normal `shade_band` may read: the
+/// triangle at each covered pixel centre or, where the centre is background,
+/// those at the pixel's covered subsamples (a superset of the one it reads).
+fn shaded_vertices(band: &Band, triangles: &[[u32; 3]], s: usize, width: usize, vertex_count: usize, shaded: &mut Vec<bool>) {
+    shaded.clear();
+    shaded.resize(vertex_count, false);
+    let mut flag = |t: u32| triangles[t as usize].iter().for_each(|&k| shaded[k as usize] = true);
+    let (centres, subsamples) = (&band.centres, &band.subsamples);
+    for k in 0..centres.z.len() - (LANES - 1) {
+        if centres.is_hit(k) {
+            flag(centres.triangle[k]);
+            continue;
+        }
+        let (row, col) = (k / width, k % width);
+        for i in (0..s * s).map(|q| (row * s + q / s) * width * s + col * s + q % s).filter(|&i| subsamples.is_hit(i)) {
+            flag(subsamples.triangle[i]);
+        }
+    }
+}
+
+/// Per-vertex unit normals: area-weighted sums of face normals, in triangle
+/// order. With `wanted`, only at the vertices it flags (the others are left
+/// unspecified): skipping the triangles with no wanted corner leaves the
+/// wanted sums, and so their bits, unchanged.
+pub fn vertex_normals(vertices: &[[f32; 3]], triangles: &[[u32; 3]], wanted: Option<&[bool]>, normals: &mut Vec<[f32; 3]>) {
+    let is_wanted = |k: usize| wanted.is_none_or(|w| w[k]);
     normals.clear();
     normals.resize(vertices.len(), [0.0; 3]);
-    for t in triangles {
+    for &t in triangles.iter().filter(|t| t.iter().any(|&k| is_wanted(k as usize))) {
         let [a, b, c] = t.map(|k| vertices[k as usize]);
         let (e1, e2) = ([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]);
         let n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
-        for &k in t {
+        for k in t {
             let m = &mut normals[k as usize];
             m[0] += n[0];
             m[1] += n[1];
             m[2] += n[2];
         }
     }
-    for n in normals.iter_mut() {
+    for (k, n) in normals.iter_mut().enumerate() {
+        if !is_wanted(k) {
+            continue;
+        }
         let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
         if len > 0.0 {
             n.iter_mut().for_each(|v| *v /= len);
@@ -475,12 +520,16 @@ fn facing_camera(n: [f32; 3]) -> [f32; 3] {
     }
 }
 
-/// Gouraud: the Phong terms of every vertex, for `Shading::Gouraud`.
-pub fn vertex_lighting(vertices: &[[f32; 3]], normals: &[[f32; 3]], scene: &Scene, lit: &mut Vec<[f32; 2]>) {
+/// Gouraud: the Phong terms of every vertex, for `Shading::Gouraud`; with
+/// `wanted`, only at the vertices it flags (0 elsewhere).
+pub fn vertex_lighting(vertices: &[[f32; 3]], normals: &[[f32; 3]], wanted: Option<&[bool]>, scene: &Scene, lit: &mut Vec<[f32; 2]>) {
     let lights = prepared_lights(scene.lights);
     let min_rdv = specular_cutoff(&scene.material);
     lit.clear();
-    lit.extend(vertices.iter().zip(normals).map(|(&p, &n)| {
+    lit.extend(vertices.iter().zip(normals).enumerate().map(|(k, (&p, &n))| {
+        if !wanted.is_none_or(|w| w[k]) {
+            return [0.0; 2];
+        }
         let (d, s) = lighting(facing_camera(n), p, &lights, &scene.material, min_rdv);
         [d, s]
     }));
@@ -594,11 +643,11 @@ pub fn render(vertices: &[[f32; 3]], triangles: &[[u32; 3]], uv: &[[f32; 2]], sc
     let s = scene.supersample;
     let (height, width) = (scene.view.height, scene.view.width);
     let mut normals = Vec::new();
-    vertex_normals(vertices, triangles, &mut normals);
+    vertex_normals(vertices, triangles, None, &mut normals);
     let screen: Vec<[f32; 3]> = vertices.iter().map(|&v| scene.view.pixel_vertex(v, s as f32)).collect();
     let mut lit = Vec::new();
     if scene.shading == Shading::Gouraud {
-        vertex_lighting(vertices, &normals, scene, &mut lit);
+        vertex_lighting(vertices, &normals, None, scene, &mut lit);
     }
     let prepared = Prepared { vertices, triangles, uv, normals: &normals, lit: &lit, screen: &screen, scene };
     let mut frame = Frame { image: vec![0.0; height * width], coverage: vec![0.0; height * width], depth: vec![0.0; height * width] };
