@@ -22,7 +22,7 @@ use crate::geometry::{View, CAMERA_Z};
 use crate::mesh::grid_triangles;
 use crate::params::{Range, SurfaceConfig, SurfaceParams};
 use crate::raster::{Shading, Frame, Light, LightKind, Material, Rasterizer, Scene, Texture};
-use crate::rng::{hash, SplitMix64};
+use crate::rng::{hash, normals8, SplitMix64};
 use crate::synthesis::{clip_len, Synthesizer};
 use crate::textures::{procedural, TextureBank, TextureFamily, FAMILIES};
 
@@ -214,29 +214,20 @@ fn draw_clip(config: &GeneratorConfig, bank: Option<&TextureBank>, rng: &mut Spl
     Ok(ClipParams { surface, window, lights, material, texture, noise_std, noise_seed: rng.next_u64(), redraws: 0 })
 }
 
-/// A pair of independent standard normals from 64 random bits (Box–Muller).
-#[inline]
-fn gaussian_pair(bits: u64) -> (f64, f64) {
-    let u1 = ((bits >> 32) as f64 + 0.5) / 4_294_967_296.0;
-    let u2 = (bits & 0xffff_ffff) as f64 / 4_294_967_296.0;
-    let radius = (-2.0 * u1.ln()).sqrt();
-    let (sin, cos) = (std::f64::consts::TAU * u2).sin_cos();
-    (radius * cos, radius * sin)
-}
-
-/// Add N(0, std²) noise (a pure function of seed, frame, pixel), clamp to [0, 1], quantise.
+/// Add N(0, std²) noise (a pure function of seed, frame, pixel), clamp to
+/// [0, 1], quantise to 0..=255 (round half up). Pixels 8g .. 8g + 8 take the
+/// normals of words 4g .. 4g + 4 of the frame's stream.
 pub fn noisy_u8(image: &[f32], std: f64, seed: u64, frame: usize, out: &mut [u8]) {
-    let quantise = |v: f64| (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+    let std = std as f32;
+    let quantise = |v: f32| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
     if std == 0.0 {
-        out.iter_mut().zip(image).for_each(|(o, &v)| *o = quantise(v as f64));
+        out.iter_mut().zip(image).for_each(|(o, &v)| *o = quantise(v));
         return;
     }
-    // Pixels 2k and 2k + 1 take the two normals of one Box–Muller pair.
-    for (k, (o, v)) in out.chunks_mut(2).zip(image.chunks(2)).enumerate() {
-        let (n0, n1) = gaussian_pair(hash(seed, &[frame as u64, k as u64]));
-        for (i, (o, &v)) in o.iter_mut().zip(v).enumerate() {
-            *o = quantise(v as f64 + std * if i == 0 { n0 } else { n1 });
-        }
+    let mut stream = SplitMix64::new(hash(seed, &[frame as u64]));
+    for (o, v) in out.chunks_mut(8).zip(image.chunks(8)) {
+        let normals = normals8(std::array::from_fn(|_| stream.next_u64()));
+        o.iter_mut().zip(v).zip(normals).for_each(|((o, &v), n)| *o = quantise(v + std * n));
     }
 }
 
