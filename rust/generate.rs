@@ -24,7 +24,7 @@ use crate::params::{Range, SurfaceConfig, SurfaceParams};
 use crate::raster::{Shading, Frame, Light, LightKind, Material, Rasterizer, Scene, Texture};
 use crate::rng::{hash, normals8, SplitMix64};
 use crate::synthesis::{clip_len, Synthesizer};
-use crate::textures::{procedural, TextureBank, TextureFamily, FAMILIES};
+use crate::textures::{procedural_region, TextureBank, TextureFamily, FAMILIES};
 
 pub const MAX_CLIP_SIZE: usize = 1024;
 
@@ -231,6 +231,40 @@ pub fn noisy_u8(image: &[f32], std: f64, seed: u64, frame: usize, out: &mut [u8]
     }
 }
 
+/// The texture rows and columns (of a `size²` texture) that a clip's frames
+/// can sample: texture coordinates of a hit interpolate those of its grid
+/// cell's corners, so those of the cells whose xy bounding box meets the view
+/// window in some frame, plus the bilinear neighbour and a texel of slack.
+fn sampled_texels(positions: &[[f32; 3]], grid: usize, [x0, y0, x1, y1]: [f32; 4], size: usize) -> (std::ops::Range<usize>, std::ops::Range<usize>) {
+    // Corner index bounds (column i, row j) of the cells that meet the window.
+    let (mut i_lo, mut i_hi, mut j_lo, mut j_hi) = (usize::MAX, 0, usize::MAX, 0);
+    for frame in positions.chunks_exact(grid * grid) {
+        for j in 0..grid - 1 {
+            let (row, next) = (&frame[j * grid..(j + 1) * grid], &frame[(j + 1) * grid..(j + 2) * grid]);
+            for i in 0..grid - 1 {
+                let corners = [row[i], row[i + 1], next[i], next[i + 1]];
+                let (min_x, max_x) = corners.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| (lo.min(p[0]), hi.max(p[0])));
+                let (min_y, max_y) = corners.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1])));
+                if max_x >= x0 && min_x <= x1 && max_y >= y0 && min_y <= y1 {
+                    (i_lo, i_hi, j_lo, j_hi) = (i_lo.min(i), i_hi.max(i + 1), j_lo.min(j), j_hi.max(j + 1));
+                }
+            }
+        }
+    }
+    if i_lo > i_hi {
+        return (0..0, 0..0);
+    }
+    // Corner k has texture coordinates (i·step, 1 − j·step); `Texture::sample`
+    // reads texels floor(t·size − ½) and the next one.
+    let step = 1.0 / (grid - 1) as f64;
+    let texels = |lo: f64, hi: f64| {
+        let first = (lo * size as f64 - 0.5).floor() - 1.0;
+        let last = (hi * size as f64 - 0.5).floor() + 2.0;
+        first.max(0.0) as usize..(last + 1.0).clamp(0.0, size as f64) as usize
+    };
+    (texels(1.0 - j_hi as f64 * step, 1.0 - j_lo as f64 * step), texels(i_lo as f64 * step, i_hi as f64 * step))
+}
+
 /// Per-thread state: everything one clip needs, reused across clips.
 pub struct ClipWorker {
     synth: Synthesizer,
@@ -282,7 +316,10 @@ impl ClipWorker {
         self.synth.synthesize_into(&p.surface, frames, self.positions.as_flattened_mut())?;
         let view = View::new(config.size, config.size, p.window, CAMERA_Z)?;
         match &p.texture {
-            TextureChoice::Procedural { family, seed } => procedural(*family, *seed, config.texture_size, &mut self.texture),
+            TextureChoice::Procedural { family, seed } => {
+                let region = sampled_texels(&self.positions, grid, p.window, config.texture_size);
+                procedural_region(*family, *seed, config.texture_size, region, &mut self.texture)
+            }
             TextureChoice::Image { index, top, left } => {
                 let bank = bank.expect("image texture without a bank");
                 let image = &bank.images[*index];
@@ -379,6 +416,37 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn clips_equal_their_parameters_rendered_with_the_whole_texture() {
+        // A clip computes only the texels its frames can sample: the bytes
+        // must be those of the whole texture, folds and all.
+        let mut folded = small();
+        folded.surface.folding = Range::new(2.0, 2.0);
+        folded.surface.intensity = Range::new(0.8, 1.0);
+        for config in [GeneratorConfig { texture_size: 128, ..small() }, folded] {
+            let (video, _, params) = run(&config, 8, 0, 4);
+            let worker = ClipWorker::new(&config);
+            let mut partial = 0;
+            for (clip, p) in params.iter().enumerate() {
+                let TextureChoice::Procedural { family, seed } = p.texture else { unreachable!() };
+                let mut texture = Texture::default();
+                crate::textures::procedural(family, seed, config.texture_size, &mut texture);
+                let positions: Vec<[f32; 3]> = crate::synthesis::synthesize(&p.surface, config.frames, config.grid).unwrap().chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+                let (rows, cols) = sampled_texels(&positions, config.grid, p.window, config.texture_size);
+                partial += usize::from(rows.len() * cols.len() < config.texture_size.pow(2));
+                let view = View::new(config.size, config.size, p.window, CAMERA_Z).unwrap();
+                let scene = Scene { view, supersample: config.supersample, lights: &p.lights, material: p.material, texture: &texture, shading: config.shading };
+                for (f, vertices) in positions.chunks_exact(config.grid * config.grid).enumerate() {
+                    let frame = crate::raster::render(vertices, &worker.triangles, &worker.uv, &scene).unwrap();
+                    let mut expected = vec![0u8; config.frame_len()];
+                    noisy_u8(&frame.image, p.noise_std, p.noise_seed, f, &mut expected);
+                    assert_eq!(&video[(clip * config.frames + f) * config.frame_len()..][..config.frame_len()], &expected[..], "clip {clip} frame {f}");
+                }
+            }
+            assert!(partial > 0, "no clip used a partial texture");
         }
     }
 

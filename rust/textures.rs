@@ -3,9 +3,12 @@
 //!
 //! A texture is a grayscale `Texture` (row-major, values in [0, 1]) of
 //! `size × size` texels spanning the whole undeformed patch. Every procedural
-//! texture is a pure function of (family, seed, size); spatial coordinates
-//! below are in texture widths, (0, 0) top-left, periodic where noted.
+//! texture is a pure function of (family, seed, size), and so is every texel:
+//! a clip computes only the texels it can see (`procedural_region`). Spatial
+//! coordinates below are in texture widths, (0, 0) top-left, periodic where
+//! noted.
 
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use crate::error::{InvalidArgument, Result};
@@ -54,33 +57,28 @@ fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {
     t * t * (3.0 - 2.0 * t)
 }
 
-/// Periodic fBm value noise into `out` (size², row-major), roughly in [0, 1].
-fn fbm(seed: u64, size: usize, base_cells: usize, octaves: usize, persistence: f32, out: &mut [f32]) {
-    out.iter_mut().for_each(|v| *v = 0.0);
+/// Periodic fBm value noise, roughly in [0, 1], at texels `rows` × `cols`
+/// of a `size²` texture, into `out` (row-major over the two lists).
+fn fbm(seed: u64, size: usize, (base_cells, octaves, persistence): (usize, usize, f32), rows: &[usize], cols: &[usize], out: &mut Vec<f32>) {
+    out.clear();
+    out.resize(rows.len() * cols.len(), 0.0);
     let mut amplitude = 1.0f32;
     let mut total = 0.0f32;
-    let mut lattice = Vec::new();
-    let mut weights = Vec::with_capacity(size);
     for octave in 0..octaves {
         let cells = base_cells << octave;
-        lattice.clear();
-        for j in 0..cells {
-            for i in 0..cells {
-                lattice.push(unit_f64(hash(seed, &[octave as u64, j as u64, i as u64])) as f32);
-            }
-        }
-        // Cell index and smoothstep weight of every texel column (= row) coordinate.
-        weights.clear();
-        for x in 0..size {
+        let lattice: Vec<f32> = (0..cells * cells).map(|k| unit_f64(hash(seed, &[octave as u64, (k / cells) as u64, (k % cells) as u64])) as f32).collect();
+        // Cell index and smoothstep weight of a texel column (= row) coordinate.
+        let weight = |x: usize| {
             let p = (x as f32 + 0.5) / size as f32 * cells as f32;
             let i = floor_fast(p) as usize % cells;
             let f = p - floor_fast(p);
-            weights.push((i, (i + 1) % cells, f * f * (3.0 - 2.0 * f)));
-        }
-        for (y, row) in out.chunks_exact_mut(size).enumerate() {
-            let (j0, j1, fy) = weights[y];
+            (i, (i + 1) % cells, f * f * (3.0 - 2.0 * f))
+        };
+        let col_weights: Vec<_> = cols.iter().map(|&x| weight(x)).collect();
+        for (&y, row) in rows.iter().zip(out.chunks_exact_mut(cols.len())) {
+            let (j0, j1, fy) = weight(y);
             let (l0, l1) = (&lattice[j0 * cells..(j0 + 1) * cells], &lattice[j1 * cells..(j1 + 1) * cells]);
-            for (v, &(i0, i1, fx)) in row.iter_mut().zip(&weights) {
+            for (v, &(i0, i1, fx)) in row.iter_mut().zip(&col_weights) {
                 let top = l0[i0] + (l0[i1] - l0[i0]) * fx;
                 let bottom = l1[i0] + (l1[i1] - l1[i0]) * fx;
                 *v += amplitude * (top + (bottom - top) * fy);
@@ -92,127 +90,178 @@ fn fbm(seed: u64, size: usize, base_cells: usize, octaves: usize, persistence: f
     out.iter_mut().for_each(|v| *v /= total);
 }
 
-fn normalize_range(data: &mut [f32]) {
-    let (lo, hi) = data.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
-    let span = hi - lo;
-    if span > 0.0 {
-        data.iter_mut().for_each(|v| *v = (*v - lo) / span);
-    } else {
-        data.iter_mut().for_each(|v| *v = 0.5);
+/// Texels per side of the lattice whose values set a texture's normalisation.
+const RANGE_STRIDE: usize = 4;
+
+/// A family's drawn parameters: the pattern, a pure function of texel position.
+enum Pattern {
+    Fractal { seed: u64, base: usize, persistence: f32, marble: Option<f32> },
+    Stripes { waves: Vec<(f32, f32, f32, f32)>, warp: f32, noise_seed: u64 },
+    Plaid { rotation: (f32, f32), freq: f32, checks: bool, duty: [f32; 2], levels: [f32; 3], soft: f32 },
+    Cells { cells: usize, radius: f32, walls: bool, features: Vec<(f32, f32, f32)> },
+    Weave { threads: usize, twill: bool, tones: (f32, f32), fibre_seed: u64 },
+}
+
+impl Pattern {
+    fn draw(family: TextureFamily, size: usize, rng: &mut SplitMix64) -> Self {
+        match family {
+            TextureFamily::Fractal => {
+                let base = 2 + (rng.next_u64() % 5) as usize;
+                let persistence = rng.uniform(0.35, 0.7) as f32;
+                let seed = rng.next_u64();
+                // Marble: veins where a sinusoid of the noise crosses zero.
+                let marble = (rng.unit() < 0.35).then(|| rng.uniform(4.0, 14.0) as f32);
+                Self::Fractal { seed, base, persistence, marble }
+            }
+            TextureFamily::Stripes => {
+                let count = 1 + (rng.next_u64() % 3) as usize;
+                let waves = (0..count)
+                    .map(|_| {
+                        let angle = rng.uniform(0.0, std::f64::consts::PI) as f32;
+                        let freq = rng.log_uniform(3.0, 24.0) as f32;
+                        (angle.cos() * freq, angle.sin() * freq, rng.uniform(0.0, 6.3) as f32, rng.uniform(0.4, 1.0) as f32)
+                    })
+                    .collect();
+                Self::Stripes { waves, warp: rng.uniform(0.0, 1.5) as f32, noise_seed: rng.next_u64() }
+            }
+            TextureFamily::Plaid => {
+                let angle = rng.uniform(0.0, std::f64::consts::PI) as f32;
+                let freq = rng.log_uniform(3.0, 16.0) as f32;
+                let checks = rng.unit() < 0.5;
+                let duty = [rng.uniform(-0.6, 0.6) as f32, rng.uniform(-0.6, 0.6) as f32];
+                let levels = [rng.unit() as f32, rng.unit() as f32, rng.uniform(0.3, 0.8) as f32];
+                // Edge softness of about one texel, so the pattern is anti-aliased.
+                let soft = std::f32::consts::TAU * freq / size as f32;
+                Self::Plaid { rotation: (angle.cos(), angle.sin()), freq, checks, duty, levels, soft }
+            }
+            TextureFamily::Cells => {
+                let cells = 4 + (rng.next_u64() % 11) as usize;
+                let radius = rng.uniform(0.2, 0.6) as f32;
+                let walls = rng.unit() < 0.4;
+                let cell_seed = rng.next_u64();
+                // Feature point offset and tone of every cell (periodic).
+                let features = (0..cells * cells)
+                    .map(|k| {
+                        let h = hash(cell_seed, &[(k % cells) as u64, (k / cells) as u64]);
+                        (unit_f64(h) as f32, unit_f64(h.rotate_left(32)) as f32, unit_f64(mix64(h)) as f32)
+                    })
+                    .collect();
+                Self::Cells { cells, radius, walls, features }
+            }
+            TextureFamily::Weave => {
+                let threads = 8 + (rng.next_u64() % 25) as usize;
+                let twill = rng.unit() < 0.5;
+                let tones = (rng.uniform(0.3, 1.0) as f32, rng.uniform(0.3, 1.0) as f32);
+                Self::Weave { threads, twill, tones, fibre_seed: rng.next_u64() }
+            }
+        }
     }
+
+    /// Raw values (before normalisation) at texels `rows` × `cols`, into
+    /// `out` (row-major over the two lists); `noise` is scratch.
+    fn evaluate(&self, size: usize, rows: &[usize], cols: &[usize], out: &mut Vec<f32>, noise: &mut Vec<f32>) {
+        match self {
+            Self::Fractal { seed, base, persistence, marble } => {
+                fbm(*seed, size, (*base, 5, *persistence), rows, cols, out);
+                if let Some(k) = marble {
+                    out.iter_mut().for_each(|v| *v = (0.5 + 0.5 * (k * *v * std::f32::consts::TAU).sin()).powf(0.7));
+                }
+            }
+            Self::Stripes { waves, warp, noise_seed } => {
+                fbm(*noise_seed, size, (3, 3, 0.5), rows, cols, noise);
+                fill_texels(size, rows, cols, out, |k, (x, y)| waves.iter().map(|&(fx, fy, ph, a)| a * (std::f32::consts::TAU * (fx * x + fy * y) + ph + warp * 6.0 * noise[k]).sin()).sum::<f32>());
+            }
+            Self::Plaid { rotation: (c, s), freq, checks, duty, levels, soft } => fill_texels(size, rows, cols, out, |_, (x, y)| {
+                let (u, w) = (c * x + s * y, -s * x + c * y);
+                let a = smoothstep(-soft, *soft, (std::f32::consts::TAU * freq * u).sin() - duty[0]);
+                let b = smoothstep(-soft, *soft, (std::f32::consts::TAU * freq * w).sin() - duty[1]);
+                if *checks { a * b + (1.0 - a) * (1.0 - b) } else { levels[2] * (levels[0] * a + levels[1] * b) + (1.0 - levels[2]) * a * b }
+            }),
+            Self::Cells { cells, radius, walls, features } => {
+                let n = *cells as i64;
+                let point = |i: i64, j: i64| {
+                    let (ox, oy, tone) = features[j.rem_euclid(n) as usize * *cells + i.rem_euclid(n) as usize];
+                    (i as f32 + ox, j as f32 + oy, tone)
+                };
+                fill_texels(size, rows, cols, out, |_, (x, y)| {
+                    let (x, y) = (x * *cells as f32, y * *cells as f32);
+                    let (ci, cj) = (floor_fast(x) as i64, floor_fast(y) as i64);
+                    let (mut d1, mut d2, mut tone) = (f32::INFINITY, f32::INFINITY, 0.0);
+                    for dj in -1..=1 {
+                        for di in -1..=1 {
+                            let (px, py, t) = point(ci + di, cj + dj);
+                            let d = (px - x).powi(2) + (py - y).powi(2);
+                            if d < d1 {
+                                d2 = d1;
+                                d1 = d;
+                                tone = t;
+                            } else if d < d2 {
+                                d2 = d;
+                            }
+                        }
+                    }
+                    let (d1, d2) = (d1.sqrt(), d2.sqrt());
+                    if *walls { smoothstep(0.0, 0.15, d2 - d1) * (0.5 + 0.5 * tone) } else { smoothstep(*radius, radius * 0.7, d1) * (0.4 + 0.6 * tone) }
+                })
+            }
+            Self::Weave { threads, twill, tones: (warp_tone, weft_tone), fibre_seed } => {
+                fbm(*fibre_seed, size, (16, 3, 0.6), rows, cols, noise);
+                fill_texels(size, rows, cols, out, |k, (x, y)| {
+                    let (u, w) = (x * *threads as f32, y * *threads as f32);
+                    let (iu, iw) = (floor_fast(u) as i64, floor_fast(w) as i64);
+                    let warp_on_top = if *twill { (iu + iw).rem_euclid(4) < 2 } else { (iu + iw).rem_euclid(2) == 0 };
+                    // Thread cross-section: bright in the middle, dark at the gaps.
+                    let (profile, tone) = if warp_on_top { ((std::f32::consts::PI * (u - floor_fast(u))).sin(), warp_tone) } else { ((std::f32::consts::PI * (w - floor_fast(w))).sin(), weft_tone) };
+                    tone * profile.sqrt() * (0.75 + 0.5 * noise[k])
+                })
+            }
+        }
+    }
+}
+
+/// `value(k, (x, y))` at texel k of `rows` × `cols` (row-major), (x, y) its
+/// centre in texture widths, into `out`.
+fn fill_texels(size: usize, rows: &[usize], cols: &[usize], out: &mut Vec<f32>, value: impl Fn(usize, (f32, f32)) -> f32) {
+    let coord = |x: usize| (x as f32 + 0.5) / size as f32;
+    out.clear();
+    out.extend(rows.iter().flat_map(|&y| cols.iter().map(move |&x| (coord(x), coord(y)))).enumerate().map(|(k, p)| value(k, p)));
 }
 
 /// A procedural texture of `family`; a pure function of (family, seed, size).
 pub fn procedural(family: TextureFamily, seed: u64, size: usize, texture: &mut Texture) {
-    let n = size * size;
+    procedural_region(family, seed, size, (0..size, 0..size), texture)
+}
+
+/// The texels `rows` × `cols` (clamped to the texture) of
+/// [`procedural`]`(family, seed, size)`, the others 0: each texel's value
+/// does not depend on the region, so a clip computes only the texels it can
+/// sample. Raw values are mapped to [0, 1] by their range over the lattice of
+/// every RANGE_STRIDE-th texel (clamped), then to the drawn tone range.
+pub fn procedural_region(family: TextureFamily, seed: u64, size: usize, (rows, cols): (Range<usize>, Range<usize>), texture: &mut Texture) {
     texture.height = size;
     texture.width = size;
     texture.data.clear();
-    texture.data.resize(n, 0.0);
+    texture.data.resize(size * size, 0.0);
     let mut rng = SplitMix64::new(hash(seed, &[family as u64]));
-    let coords = |k: usize| ((k % size) as f32 + 0.5) / size as f32;
-    let data = &mut texture.data;
-    match family {
-        TextureFamily::Fractal => {
-            let base = 2 + (rng.next_u64() % 5) as usize;
-            let persistence = rng.uniform(0.35, 0.7) as f32;
-            fbm(rng.next_u64(), size, base, 5, persistence, data);
-            if rng.unit() < 0.35 {
-                // Marble: veins where a sinusoid of the noise crosses zero.
-                let k = rng.uniform(4.0, 14.0) as f32;
-                data.iter_mut().for_each(|v| *v = (0.5 + 0.5 * (k * *v * std::f32::consts::TAU).sin()).powf(0.7));
-            }
-        }
-        TextureFamily::Stripes => {
-            let waves = 1 + (rng.next_u64() % 3) as usize;
-            let params: Vec<(f32, f32, f32, f32)> = (0..waves)
-                .map(|_| {
-                    let angle = rng.uniform(0.0, std::f64::consts::PI) as f32;
-                    let freq = rng.log_uniform(3.0, 24.0) as f32;
-                    (angle.cos() * freq, angle.sin() * freq, rng.uniform(0.0, 6.3) as f32, rng.uniform(0.4, 1.0) as f32)
-                })
-                .collect();
-            let warp = rng.uniform(0.0, 1.5) as f32;
-            let mut noise = vec![0.0; n];
-            fbm(rng.next_u64(), size, 3, 3, 0.5, &mut noise);
-            for (k, v) in data.iter_mut().enumerate() {
-                let (x, y) = (coords(k), coords(k / size));
-                *v = params.iter().map(|&(fx, fy, ph, a)| a * (std::f32::consts::TAU * (fx * x + fy * y) + ph + warp * 6.0 * noise[k]).sin()).sum();
-            }
-        }
-        TextureFamily::Plaid => {
-            let angle = rng.uniform(0.0, std::f64::consts::PI) as f32;
-            let (c, s) = (angle.cos(), angle.sin());
-            let freq = rng.log_uniform(3.0, 16.0) as f32;
-            let checks = rng.unit() < 0.5;
-            let duty = [rng.uniform(-0.6, 0.6) as f32, rng.uniform(-0.6, 0.6) as f32];
-            let levels = [rng.unit() as f32, rng.unit() as f32, rng.uniform(0.3, 0.8) as f32];
-            // Edge softness of about one texel, so the pattern is anti-aliased.
-            let soft = std::f32::consts::TAU * freq / size as f32;
-            for (k, v) in data.iter_mut().enumerate() {
-                let (x, y) = (coords(k), coords(k / size));
-                let (u, w) = (c * x + s * y, -s * x + c * y);
-                let a = smoothstep(-soft, soft, (std::f32::consts::TAU * freq * u).sin() - duty[0]);
-                let b = smoothstep(-soft, soft, (std::f32::consts::TAU * freq * w).sin() - duty[1]);
-                *v = if checks { a * b + (1.0 - a) * (1.0 - b) } else { levels[2] * (levels[0] * a + levels[1] * b) + (1.0 - levels[2]) * a * b };
-            }
-        }
-        TextureFamily::Cells => {
-            let cells = 4 + (rng.next_u64() % 11) as usize;
-            let radius = rng.uniform(0.2, 0.6) as f32;
-            let walls = rng.unit() < 0.4;
-            let cell_seed = rng.next_u64();
-            // Feature point offset and tone of every cell (periodic).
-            let features: Vec<(f32, f32, f32)> = (0..cells * cells)
-                .map(|k| {
-                    let h = hash(cell_seed, &[(k % cells) as u64, (k / cells) as u64]);
-                    (unit_f64(h) as f32, unit_f64(h.rotate_left(32)) as f32, unit_f64(mix64(h)) as f32)
-                })
-                .collect();
-            let point = |i: i64, j: i64| {
-                let (ox, oy, tone) = features[j.rem_euclid(cells as i64) as usize * cells + i.rem_euclid(cells as i64) as usize];
-                (i as f32 + ox, j as f32 + oy, tone)
-            };
-            for (k, v) in data.iter_mut().enumerate() {
-                let (x, y) = (coords(k) * cells as f32, coords(k / size) * cells as f32);
-                let (ci, cj) = (floor_fast(x) as i64, floor_fast(y) as i64);
-                let (mut d1, mut d2, mut tone) = (f32::INFINITY, f32::INFINITY, 0.0);
-                for dj in -1..=1 {
-                    for di in -1..=1 {
-                        let (px, py, t) = point(ci + di, cj + dj);
-                        let d = (px - x).powi(2) + (py - y).powi(2);
-                        if d < d1 {
-                            d2 = d1;
-                            d1 = d;
-                            tone = t;
-                        } else if d < d2 {
-                            d2 = d;
-                        }
-                    }
-                }
-                let (d1, d2) = (d1.sqrt(), d2.sqrt());
-                *v = if walls { smoothstep(0.0, 0.15, d2 - d1) * (0.5 + 0.5 * tone) } else { smoothstep(radius, radius * 0.7, d1) * (0.4 + 0.6 * tone) };
-            }
-        }
-        TextureFamily::Weave => {
-            let threads = 8 + (rng.next_u64() % 25) as usize;
-            let twill = rng.unit() < 0.5;
-            let (warp_tone, weft_tone) = (rng.uniform(0.3, 1.0) as f32, rng.uniform(0.3, 1.0) as f32);
-            let mut fibre = vec![0.0; n];
-            fbm(rng.next_u64(), size, 16, 3, 0.6, &mut fibre);
-            for (k, v) in data.iter_mut().enumerate() {
-                let (u, w) = (coords(k) * threads as f32, coords(k / size) * threads as f32);
-                let (iu, iw) = (floor_fast(u) as i64, floor_fast(w) as i64);
-                let warp_on_top = if twill { (iu + iw).rem_euclid(4) < 2 } else { (iu + iw).rem_euclid(2) == 0 };
-                // Thread cross-section: bright in the middle, dark at the gaps.
-                let (profile, tone) = if warp_on_top { ((std::f32::consts::PI * (u - floor_fast(u))).sin(), warp_tone) } else { ((std::f32::consts::PI * (w - floor_fast(w))).sin(), weft_tone) };
-                *v = tone * profile.sqrt() * (0.75 + 0.5 * fibre[k]);
-            }
+    let pattern = Pattern::draw(family, size, &mut rng);
+    let (mut values, mut noise) = (Vec::new(), Vec::new());
+    let lattice: Vec<usize> = (RANGE_STRIDE / 2..size).step_by(RANGE_STRIDE).collect();
+    pattern.evaluate(size, &lattice, &lattice, &mut values, &mut noise);
+    let (min, max) = values.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    let (lo, hi) = (rng.uniform(0.0, 0.35) as f32, rng.uniform(0.6, 1.0) as f32);
+    let (rows, cols): (Vec<usize>, Vec<usize>) = ((rows.start..rows.end.min(size)).collect(), (cols.start..cols.end.min(size)).collect());
+    if rows.is_empty() || cols.is_empty() {
+        return;
+    }
+    pattern.evaluate(size, &rows, &cols, &mut values, &mut noise);
+    let span = max - min;
+    for (&r, row) in rows.iter().zip(values.chunks_exact(cols.len())) {
+        let out = &mut texture.data[r * size + cols[0]..][..cols.len()];
+        for (o, &v) in out.iter_mut().zip(row) {
+            let unit = if span > 0.0 { ((v - min) / span).clamp(0.0, 1.0) } else { 0.5 };
+            *o = lo + (hi - lo) * unit;
         }
     }
-    normalize_range(data);
-    let (lo, hi) = (rng.uniform(0.0, 0.35) as f32, rng.uniform(0.6, 1.0) as f32);
-    data.iter_mut().for_each(|v| *v = lo + (hi - lo) * *v);
 }
 
 /// Grayscale images of a folder, decoded once, for random crops.
@@ -285,6 +334,22 @@ mod tests {
                 let mut c = Texture::default();
                 procedural(family, seed + 100, 64, &mut c);
                 assert_ne!(a, c);
+            }
+        }
+    }
+
+    #[test]
+    fn a_region_holds_the_whole_textures_texels_bit_for_bit_and_zeros_elsewhere() {
+        let (size, rows, cols) = (96, 17..60, 5..91);
+        for family in FAMILIES {
+            for seed in 0..3 {
+                let (mut whole, mut part) = (Texture::default(), Texture::default());
+                procedural(family, seed, size, &mut whole);
+                procedural_region(family, seed, size, (rows.clone(), cols.clone()), &mut part);
+                for (k, (w, p)) in whole.data.iter().zip(&part.data).enumerate() {
+                    let inside = rows.contains(&(k / size)) && cols.contains(&(k % size));
+                    assert_eq!(p.to_bits(), if inside { w.to_bits() } else { 0 }, "{family:?} seed {seed} texel {k}");
+                }
             }
         }
     }
