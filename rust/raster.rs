@@ -146,9 +146,13 @@ impl Texture {
         let mut texels = [[0.0f32; LANES]; 4];
         for k in 0..LANES {
             let (c0, r0) = (c0[k] as usize, r0[k] as usize);
-            let (c1, r1) = ((c0 + 1).min(self.width - 1), (r0 + 1).min(self.height - 1));
-            let (row0, row1) = (&self.data[r0 * self.width..], &self.data[r1 * self.width..]);
-            [texels[0][k], texels[1][k], texels[2][k], texels[3][k]] = [row0[c0], row0[c1], row1[c0], row1[c1]];
+            let r1 = (r0 + 1).min(self.height - 1);
+            // Texels c0 and c0 + 1 of a row (c0 twice at the last column).
+            let pair = |r: usize| match self.data.get(r * self.width + c0..r * self.width + c0 + 2) {
+                Some(&[a, b]) if c0 + 1 < self.width => [a, b],
+                _ => [self.data[r * self.width + c0]; 2],
+            };
+            [[texels[0][k], texels[1][k]], [texels[2][k], texels[3][k]]] = [pair(r0), pair(r1)];
         }
         let [t00, t01, t10, t11] = texels.map(f32x4::new);
         let top = t00 + (t01 - t00) * fc;
