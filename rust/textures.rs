@@ -236,7 +236,8 @@ pub fn procedural(family: TextureFamily, seed: u64, size: usize, texture: &mut T
 /// [`procedural`]`(family, seed, size)`, the others 0: each texel's value
 /// does not depend on the region, so a clip computes only the texels it can
 /// sample. Raw values are mapped to [0, 1] by their range over the lattice of
-/// every RANGE_STRIDE-th texel (clamped), then to the drawn tone range.
+/// every RANGE_STRIDE-th texel (every texel below 16; clamped), then to the
+/// drawn tone range.
 pub fn procedural_region(family: TextureFamily, seed: u64, size: usize, (rows, cols): (Range<usize>, Range<usize>), texture: &mut Texture) {
     texture.height = size;
     texture.width = size;
@@ -245,7 +246,9 @@ pub fn procedural_region(family: TextureFamily, seed: u64, size: usize, (rows, c
     let mut rng = SplitMix64::new(hash(seed, &[family as u64]));
     let pattern = Pattern::draw(family, size, &mut rng);
     let (mut values, mut noise) = (Vec::new(), Vec::new());
-    let lattice: Vec<usize> = (RANGE_STRIDE / 2..size).step_by(RANGE_STRIDE).collect();
+    // Textures too small for a lattice take the range of every texel.
+    let stride = if size >= 4 * RANGE_STRIDE { RANGE_STRIDE } else { 1 };
+    let lattice: Vec<usize> = (stride / 2..size).step_by(stride).collect();
     pattern.evaluate(size, &lattice, &lattice, &mut values, &mut noise);
     let (min, max) = values.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
     let (lo, hi) = (rng.uniform(0.0, 0.35) as f32, rng.uniform(0.6, 1.0) as f32);
@@ -351,6 +354,16 @@ mod tests {
                     assert_eq!(p.to_bits(), if inside { w.to_bits() } else { 0 }, "{family:?} seed {seed} texel {k}");
                 }
             }
+        }
+    }
+
+    #[test]
+    fn tiny_textures_keep_their_contrast() {
+        for size in [2, 3, 5] {
+            let mut t = Texture::default();
+            procedural(TextureFamily::Fractal, 1, size, &mut t);
+            let (lo, hi) = t.data.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+            assert!(hi - lo > 0.2, "size {size}: {lo}..{hi}");
         }
     }
 
