@@ -573,37 +573,110 @@ fn shade_band(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], cov
                 }
             }
         }
-        for (pj, (out, cov)) in albedo.iter_mut().zip(hits.iter_mut()).enumerate() {
+        // Light terms four pixels at a time where their four centres are hit
+        // (every pixel of a training clip), one at a time elsewhere.
+        let mut pj = 0;
+        while pj < width {
             let k = pi * width + pj;
+            if pj + LANES <= width && f32x4::new(lanes(&centres.z, k)).simd_gt(f32x4::splat(f32::NEG_INFINITY)).all() {
+                let (diffuse, specular) = lighting4(p, &lights, min_rdv, point_lights, centres, k);
+                let (out, cov) = (&mut albedo[pj..pj + LANES], &mut hits[pj..pj + LANES]);
+                let (sum, covered) = (f32x4::new(lanes(out, 0)), f32x4::new(lanes(cov, 0)));
+                out.copy_from_slice(&((sum * diffuse + covered * specular) * f32x4::splat(per_pixel)).to_array());
+                cov.copy_from_slice(&(covered * f32x4::splat(per_pixel)).to_array());
+                pj += LANES;
+                continue;
+            }
             let lit_at = if centres.is_hit(k) {
-                (centres.triangle[k], [centres.attribute[0][k], centres.attribute[1][k]])
-            } else if let Some(i) = (0..s * s).map(|q| (pi * s + q / s) * cols + pj * s + q % s).find(|&i| subsamples.is_hit(i)) {
-                // Lit at the first covered subsample, with the visibility pass's own arithmetic: it hits again.
-                let t = subsamples.triangle[i];
-                let [a, b, c] = p.triangles[t as usize].map(|k| p.screen[k as usize]);
-                let hit = TriangleSetup::new(a, b, c).and_then(|setup| setup.hit((i % cols) as f32 + 0.5, (row0 * s + i / cols) as f32 + 0.5));
-                (t, hit.map_or([0.0; 2], |(_, l)| [l[1], l[2]]))
+                Some((centres.triangle[k], [centres.attribute[0][k], centres.attribute[1][k]]))
             } else {
-                continue; // background: albedo and coverage 0
+                (0..s * s).map(|q| (pi * s + q / s) * cols + pj * s + q % s).find(|&i| subsamples.is_hit(i)).map(|i| {
+                    // Lit at the first covered subsample, with the visibility pass's own arithmetic: it hits again.
+                    let t = subsamples.triangle[i];
+                    let [a, b, c] = p.triangles[t as usize].map(|k| p.screen[k as usize]);
+                    let hit = TriangleSetup::new(a, b, c).and_then(|setup| setup.hit((i % cols) as f32 + 0.5, (row0 * s + i / cols) as f32 + 0.5));
+                    (t, hit.map_or([0.0; 2], |(_, l)| [l[1], l[2]]))
+                })
             };
-            let (t, w) = lit_at;
-            let corners = p.triangles[t as usize];
-            let (diffuse, specular) = match scene.shading {
-                Shading::Phong => {
-                    // The surface point matters only to point lights.
-                    let point = if point_lights { interpolate(p.vertices, corners, w) } else { [0.0; 3] };
-                    lighting(facing_camera(normalize(interpolate(p.normals, corners, w))), point, &lights, &scene.material, min_rdv)
-                }
-                Shading::Gouraud => {
-                    let [diffuse, specular] = interpolate(p.lit, corners, w);
-                    (diffuse, specular)
-                }
-            };
-            let covered = *cov;
-            *out = (*out * diffuse + covered * specular) * per_pixel;
-            *cov = covered * per_pixel;
+            // Background: albedo and coverage stay 0.
+            if let Some((t, w)) = lit_at {
+                let corners = p.triangles[t as usize];
+                let (diffuse, specular) = match scene.shading {
+                    Shading::Phong => {
+                        // The surface point matters only to point lights.
+                        let point = if point_lights { interpolate(p.vertices, corners, w) } else { [0.0; 3] };
+                        lighting(facing_camera(normalize(interpolate(p.normals, corners, w))), point, &lights, &scene.material, min_rdv)
+                    }
+                    Shading::Gouraud => {
+                        let [diffuse, specular] = interpolate(p.lit, corners, w);
+                        (diffuse, specular)
+                    }
+                };
+                let covered = hits[pj];
+                albedo[pj] = (albedo[pj] * diffuse + covered * specular) * per_pixel;
+                hits[pj] = covered * per_pixel;
+            }
+            pj += 1;
         }
     }
+}
+
+/// The light terms `(diffuse, specular)` at the four hit pixel centres `k ..
+/// k + LANES`: the scalar path's arithmetic lane by lane (the same IEEE
+/// operations in the same order, so the same bits), with the power computed
+/// only in the lanes whose specular term survives.
+#[inline]
+fn lighting4(p: &Prepared, lights: &[Light], min_rdv: f32, point_lights: bool, centres: &Samples, k: usize) -> (f32x4, f32x4) {
+    let corners = lanes(&centres.triangle, k).map(|t| p.triangles[t as usize]);
+    let [w1, w2] = centres.attribute.each_ref().map(|a| f32x4::new(lanes(a, k)));
+    let m = &p.scene.material;
+    if p.scene.shading == Shading::Gouraud {
+        let [diffuse, specular] = interpolate4(p.lit, &corners, w1, w2);
+        return (diffuse, specular);
+    }
+    let splat = f32x4::splat;
+    // `normalize`, then `facing_camera`.
+    let unit = |v: [f32x4; 3]| {
+        let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        let positive = len.simd_gt(f32x4::ZERO);
+        [positive.bitselect(v[0] / len, f32x4::ZERO), positive.bitselect(v[1] / len, f32x4::ZERO), positive.bitselect(v[2] / len, f32x4::ONE)]
+    };
+    let n = unit(interpolate4(p.normals, &corners, w1, w2));
+    let away = n[2].simd_lt(f32x4::ZERO);
+    let n = n.map(|c| away.bitselect(-c, c));
+    let point = if point_lights { interpolate4(p.vertices, &corners, w1, w2) } else { [f32x4::ZERO; 3] };
+    let (mut diffuse, mut specular) = (splat(m.ambient), [0.0f32; LANES]);
+    for light in lights {
+        let l = match light.kind {
+            LightKind::Directional => light.vector.map(splat),
+            LightKind::Point => unit([0, 1, 2].map(|c| splat(light.vector[c]) - point[c])),
+        };
+        let ndl = n[0] * l[0] + n[1] * l[1] + n[2] * l[2];
+        // `lighting` skips a light where n·l <= 0 (and only there: NaN goes on).
+        let unlit = ndl.simd_le(f32x4::ZERO);
+        diffuse = unlit.bitselect(diffuse, diffuse + splat(light.intensity * m.diffuse) * ndl);
+        if m.specular > 0.0 {
+            let rdv = splat(2.0) * ndl * n[2] - l[2];
+            let shiny = rdv.simd_gt(splat(min_rdv)).to_bitmask() & !unlit.to_bitmask();
+            if shiny != 0 {
+                let rdv = rdv.to_array();
+                for lane in (0..LANES).filter(|&lane| shiny >> lane & 1 == 1) {
+                    specular[lane] += light.intensity * m.specular * rdv[lane].powf(m.shininess);
+                }
+            }
+        }
+    }
+    (diffuse, f32x4::new(specular))
+}
+
+/// [`interpolate`] in four lanes, each with its own triangle.
+#[inline]
+fn interpolate4<const N: usize>(attribute: &[[f32; N]], corners: &[[u32; 3]; LANES], w1: f32x4, w2: f32x4) -> [f32x4; N] {
+    let w0 = f32x4::ONE - w1 - w2;
+    let corner = |q: usize| corners.map(|c| attribute[c[q] as usize]);
+    let (a, b, c) = (corner(0), corner(1), corner(2));
+    let lane = |v: &[[f32; N]; LANES], i: usize| f32x4::new(v.map(|v| v[i]));
+    std::array::from_fn(|i| w0 * lane(&a, i) + w1 * lane(&b, i) + w2 * lane(&c, i))
 }
 
 /// A vertex attribute at barycentric weights (λb, λc) of triangle `corners`.
@@ -915,6 +988,67 @@ mod tests {
         let (a, b) = (render(&v, &t, &uv, &phong).unwrap().image, render(&v, &t, &uv, &gouraud).unwrap().image);
         let mean_diff = a.iter().zip(&b).map(|(x, y)| (x - y).abs()).sum::<f32>() / a.len() as f32;
         assert!(mean_diff < 0.01 && mean_diff > 0.0, "{mean_diff}");
+    }
+
+    #[test]
+    fn four_pixel_lighting_equals_the_scalar_path_bit_for_bit() {
+        let (vertices, triangles, uv) = grid_mesh(3, 12);
+        let mut normals = Vec::new();
+        vertex_normals(&vertices, &triangles, None, &mut normals);
+        // A zero normal and one facing away from the camera take their own branches.
+        normals[0] = [0.0; 3];
+        normals[5] = [0.3, -0.2, -0.9];
+        let lights = [
+            Light { kind: LightKind::Directional, vector: [0.3, -0.4, 1.0], intensity: 0.8 },
+            Light { kind: LightKind::Point, vector: [0.5, 0.2, 1.5], intensity: 0.6 },
+            Light { kind: LightKind::Directional, vector: [-0.6, 0.1, -0.4], intensity: 0.5 },
+        ];
+        let texture = white(4);
+        let mut rng = crate::rng::SplitMix64::new(7);
+        let mut centres = Samples::default();
+        let n = 256;
+        centres.reset(n);
+        for i in 0..n {
+            // Some weights outside the triangle: any plane point must agree.
+            let w1 = rng.uniform(-0.2, 1.0) as f32;
+            centres.z[i] = 0.0;
+            centres.triangle[i] = (rng.next_u64() % triangles.len() as u64) as u32;
+            centres.attribute[0][i] = w1;
+            centres.attribute[1][i] = rng.uniform(-0.2, 1.0 - w1 as f64) as f32;
+        }
+        let (mut unlit, mut shiny) = (0, 0);
+        // All three lights, and the one from below alone (most points unlit).
+        for (lights, shading) in [(&lights[..], Shading::Phong), (&lights[2..], Shading::Phong), (&lights[..], Shading::Gouraud)] {
+            let prepared = prepared_lights(lights);
+            for shininess in [1.0, 7.5, 80.0] {
+                let material = Material { ambient: 0.1, diffuse: 0.7, specular: 0.5, shininess };
+                let view = View::new(8, 8, [-1.0, -1.0, 1.0, 1.0], CAMERA_Z).unwrap();
+                let scene = Scene { view, supersample: 2, lights, material, texture: &texture, shading };
+                let mut lit = Vec::new();
+                vertex_lighting(&vertices, &normals, None, &scene, &mut lit);
+                let p = Prepared { vertices: &vertices, triangles: &triangles, uv: &uv, normals: &normals, lit: &lit, screen: &[], scene: &scene };
+                let min_rdv = specular_cutoff(&material);
+                for k in (0..n).step_by(LANES) {
+                    let (diffuse, specular) = lighting4(&p, &prepared, min_rdv, true, &centres, k);
+                    for lane in 0..LANES {
+                        let i = k + lane;
+                        let (corners, w) = (triangles[centres.triangle[i] as usize], [centres.attribute[0][i], centres.attribute[1][i]]);
+                        let expected = match shading {
+                            Shading::Phong => {
+                                let n = facing_camera(normalize(interpolate(&normals, corners, w)));
+                                lighting(n, interpolate(&vertices, corners, w), &prepared, &material, min_rdv)
+                            }
+                            Shading::Gouraud => (interpolate(&lit, corners, w)[0], interpolate(&lit, corners, w)[1]),
+                        };
+                        let got = (diffuse.to_array()[lane], specular.to_array()[lane]);
+                        assert_eq!((got.0.to_bits(), got.1.to_bits()), (expected.0.to_bits(), expected.1.to_bits()), "{shading:?} α {shininess} sample {i}: {got:?} vs {expected:?}");
+                        unlit += usize::from(expected.0 == material.ambient);
+                        shiny += usize::from(expected.1 > 0.0);
+                    }
+                }
+            }
+        }
+        assert!(unlit > 0 && shiny > 0, "both light branches exercised: {unlit} unlit, {shiny} with a highlight");
     }
 
     #[test]
