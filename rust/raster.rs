@@ -30,7 +30,7 @@
 //! texel (row, col) has its centre at ((row + ½)/H, (col + ½)/W).
 
 use rayon::prelude::*;
-use wide::{f32x4, u32x4};
+use wide::{f32x4, i32x4, u32x4};
 
 use crate::error::{InvalidArgument, Result};
 use crate::geometry::{check_mesh, TriangleSetup, View};
@@ -135,26 +135,52 @@ impl Texture {
     /// lane by lane (SIMD, texel fetches scalar).
     #[inline]
     pub fn sample4(&self, u: f32x4, v: f32x4) -> f32x4 {
+        self.sampler().sample4(u, v)
+    }
+
+    /// The texture with its sizes prepared for many [`Sampler::sample4`] calls.
+    #[inline]
+    pub fn sampler(&self) -> Sampler<'_> {
         let (width, height) = (self.width as f32, self.height as f32);
+        Sampler {
+            data: &self.data,
+            width: self.width,
+            size: [f32x4::splat(width), f32x4::splat(height)],
+            last: [f32x4::splat(width - 1.0), f32x4::splat(height - 1.0)],
+            last_index: [i32x4::splat(self.width as i32 - 1), i32x4::splat(self.height as i32 - 1)],
+        }
+    }
+}
+
+/// A texture and its sizes as SIMD constants, built once per render band
+/// rather than converted again at every texture fetch.
+#[derive(Clone, Copy)]
+pub struct Sampler<'a> {
+    data: &'a [f32],
+    width: usize,
+    /// Width and height.
+    size: [f32x4; 2],
+    /// Last column and row, as floats and as indices.
+    last: [f32x4; 2],
+    last_index: [i32x4; 2],
+}
+
+impl Sampler<'_> {
+    /// [`Texture::sample`] at four points at once: the same arithmetic lane
+    /// by lane (SIMD, texel fetches scalar).
+    #[inline]
+    pub fn sample4(&self, u: f32x4, v: f32x4) -> f32x4 {
+        let half = f32x4::splat(0.5);
         // Clamped as `f32::clamp` clamps finite values (a NaN lane reads texel 0).
-        let clamp = |x: f32x4, hi: f32| x.fast_max(f32x4::ZERO).fast_min(f32x4::splat(hi));
-        let c = clamp(u * f32x4::splat(width) - f32x4::splat(0.5), width - 1.0);
-        let r = clamp(v * f32x4::splat(height) - f32x4::splat(0.5), height - 1.0);
+        let clamp = |x: f32x4, hi: f32x4| x.fast_max(f32x4::ZERO).fast_min(hi);
+        let c = clamp(u * self.size[0] - half, self.last[0]);
+        let r = clamp(v * self.size[1] - half, self.last[1]);
         let (c0, r0) = (c.fast_trunc_int(), r.fast_trunc_int());
         let (fc, fr) = (c - f32x4::from_i32x4(c0), r - f32x4::from_i32x4(r0));
-        let (c0, r0) = (c0.to_array(), r0.to_array());
-        let mut texels = [[0.0f32; LANES]; 4];
-        for k in 0..LANES {
-            let (c0, r0) = (c0[k] as usize, r0[k] as usize);
-            let r1 = (r0 + 1).min(self.height - 1);
-            // Texels c0 and c0 + 1 of a row (c0 twice at the last column).
-            let pair = |r: usize| match self.data.get(r * self.width + c0..r * self.width + c0 + 2) {
-                Some(&[a, b]) if c0 + 1 < self.width => [a, b],
-                _ => [self.data[r * self.width + c0]; 2],
-            };
-            [[texels[0][k], texels[1][k]], [texels[2][k], texels[3][k]]] = [pair(r0), pair(r1)];
-        }
-        let [t00, t01, t10, t11] = texels.map(f32x4::new);
+        let (c1, r1) = ((c0 + i32x4::ONE).min(self.last_index[0]), (r0 + i32x4::ONE).min(self.last_index[1]));
+        let [c0, c1, r0, r1] = [c0, c1, r0, r1].map(|x| x.to_array());
+        let texel = |r: [i32; LANES], c: [i32; LANES]| f32x4::new(std::array::from_fn(|k| self.data[r[k] as usize * self.width + c[k] as usize]));
+        let (t00, t01, t10, t11) = (texel(r0, c0), texel(r0, c1), texel(r1, c0), texel(r1, c1));
         let top = t00 + (t01 - t00) * fc;
         let bottom = t10 + (t11 - t10) * fc;
         top + (bottom - top) * fr
@@ -591,6 +617,7 @@ fn shade_band(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], cov
     let (subsamples, centres, texels) = (&band.subsamples, &band.centres, &mut band.texels);
     texels.resize(cols.next_multiple_of(LANES), 0.0);
     let [u, v] = &subsamples.attribute;
+    let sampler = scene.texture.sampler();
     for (pi, (albedo, hits)) in image.chunks_exact_mut(width).zip(coverage.chunks_exact_mut(width)).enumerate() {
         // Albedo summed over each pixel's covered subsamples, row by row
         // (`hits` counts them), the texture sampled four at a time.
@@ -600,7 +627,7 @@ fn shade_band(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], cov
             let start = (pi * s + a) * cols;
             for (c, group) in texels.chunks_exact_mut(LANES).enumerate() {
                 let i = start + c * LANES;
-                group.copy_from_slice(&scene.texture.sample4(f32x4::new(lanes(u, i)), f32x4::new(lanes(v, i))).to_array());
+                group.copy_from_slice(&sampler.sample4(f32x4::new(lanes(u, i)), f32x4::new(lanes(v, i))).to_array());
             }
             for (j, (albedo, hits)) in albedo.iter_mut().zip(hits.iter_mut()).enumerate() {
                 for b in (j * s..j * s + s).filter(|&b| subsamples.is_hit(start + b)) {
