@@ -104,7 +104,7 @@ impl TriangleSetup {
     }
 
     /// The part of the three edge functions that depends only on the row y = `py`.
-    #[inline]
+    #[inline(always)]
     pub fn row(&self, py: f32) -> [f32; 3] {
         [self.bc[0] * (py - self.b[1]), self.ca[0] * (py - self.c[1]), self.ab[0] * (py - self.a[1])]
     }
@@ -133,7 +133,7 @@ impl TriangleSetup {
     /// [`hit`](Self::hit) at four x of the row y = `py`, given `row(py)`, at
     /// once (SIMD, the same IEEE operations lane by lane): `(inside, z, λb,
     /// λc)`, `inside` a lane mask; the other lanes hold the plane's values there.
-    #[inline]
+    #[inline(always)]
     pub fn hits4(&self, row: [f32; 3], px: f32x4) -> (f32x4, f32x4, f32x4, f32x4) {
         let splat = f32x4::splat;
         let w0 = splat(row[0]) - splat(self.bc[1]) * (px - splat(self.b[0]));

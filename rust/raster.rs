@@ -168,7 +168,7 @@ pub struct Sampler<'a> {
 impl Sampler<'_> {
     /// [`Texture::sample`] at four points at once: the same arithmetic lane
     /// by lane (SIMD, texel fetches scalar).
-    #[inline]
+    #[inline(always)]
     pub fn sample4(&self, u: f32x4, v: f32x4) -> f32x4 {
         let half = f32x4::splat(0.5);
         // Clamped as `f32::clamp` clamps finite values (a NaN lane reads texel 0).
@@ -247,7 +247,7 @@ impl Samples {
         self.attribute.iter_mut().for_each(|a| a.resize(padded, 0.0));
     }
 
-    #[inline]
+    #[inline(always)]
     fn is_hit(&self, i: usize) -> bool {
         self.z[i] > f32::NEG_INFINITY
     }
@@ -255,7 +255,7 @@ impl Samples {
     /// At the `LANES` samples from `i`, keep triangle `t`'s hits (z, attribute)
     /// in the lanes `inside` where they are the highest so far (and not behind
     /// the camera). The other lanes are written back unchanged.
-    #[inline]
+    #[inline(always)]
     fn keep4(&mut self, i: usize, t: u32, inside: f32x4, z: f32x4, camera_z: f32, attribute: impl FnOnce() -> [f32x4; 2]) {
         let old = f32x4::new(lanes(&self.z, i));
         // Branch-free: a lane that keeps nothing is rewritten with its own value.
@@ -272,7 +272,7 @@ impl Samples {
 }
 
 /// The `LANES` values from `i`.
-#[inline]
+#[inline(always)]
 fn lanes<T: Copy>(values: &[T], i: usize) -> [T; LANES] {
     // One bounds check and one unaligned load, not four of each.
     values[i..i + LANES].try_into().expect("a slice of LANES values")
@@ -358,6 +358,48 @@ impl Rasterizer {
     }
 }
 
+// Tests can hold the passes to their baseline build (`baseline_only`).
+#[cfg(all(test, target_arch = "x86_64"))]
+use tests::baseline_only;
+#[cfg(all(not(test), target_arch = "x86_64"))]
+#[inline(always)]
+fn baseline_only() -> bool {
+    false
+}
+
+/// The two hot passes, compiled twice: for the baseline target and, chosen
+/// at run time where the CPU has it, for AVX2. Rust never contracts a
+/// multiply and an add into an FMA, so both run the same IEEE operations and
+/// give the same bits; AVX2 code is only encoded better (three-operand VEX
+/// instructions, fewer register copies).
+macro_rules! with_avx2 {
+    ($(#[$doc:meta])* fn $name:ident($($arg:ident: $ty:ty),*) => $pass:ident) => {
+        $(#[$doc])*
+        fn $name($($arg: $ty),*) {
+            #[cfg(target_arch = "x86_64")]
+            if std::arch::is_x86_feature_detected!("avx2") && !baseline_only() {
+                #[target_feature(enable = "avx2")]
+                fn avx2($($arg: $ty),*) {
+                    $pass($($arg),*)
+                }
+                // SAFETY: the CPU has AVX2 (detected just above).
+                return unsafe { avx2($($arg),*) };
+            }
+            $pass($($arg),*)
+        }
+    };
+}
+
+with_avx2! {
+    /// [`visibility_pass`], AVX2 where available.
+    fn visibility_band(p: &Prepared, row0: usize, rows: usize, band: &mut Band) => visibility_pass
+}
+
+with_avx2! {
+    /// [`shade_pass`], AVX2 where available.
+    fn shade_band(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], coverage: &mut [f32]) => shade_pass
+}
+
 /// Render the pixel rows `row0 ..` that `image` / `coverage` / `depth` cover.
 fn render_band(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], coverage: &mut [f32], depth: &mut [f32]) {
     let s = p.scene.supersample;
@@ -430,7 +472,8 @@ pub fn vertex_normals(vertices: &[[f32; 3]], triangles: &[[u32; 3]], wanted: Opt
 /// Visibility of the pixel rows `row0 .. row0 + rows` at their subsamples
 /// and pixel centres. `p.screen` holds the vertices in subsample space, where
 /// the centre of pixel (i, j) is ((j + ½)s, (i + ½)s).
-fn visibility_band(p: &Prepared, row0: usize, rows: usize, band: &mut Band) {
+#[inline(always)]
+fn visibility_pass(p: &Prepared, row0: usize, rows: usize, band: &mut Band) {
     let view = &p.scene.view;
     let (s, camera_z) = (p.scene.supersample, view.camera_z);
     let (cols, sf) = (view.width * s, s as f32);
@@ -488,10 +531,10 @@ struct Grids {
 
 impl Grids {
     /// The first and last sample index, in each lane, that the bounding box
-    /// of a triangle (in subsample space) covers; a lane is empty where first
-    /// > last. Sample k (spacing d) sits at (k + ½)d; a small margin absorbs
-    /// rounding, and `TriangleSetup::hit` decides exactly.
-    #[inline]
+    /// of a triangle (in subsample space) covers (none where the first is
+    /// past the last). Sample k (spacing d) sits at (k + ½)d; a small margin
+    /// absorbs rounding, and `TriangleSetup::hit` decides exactly.
+    #[inline(always)]
     fn spans(&self, [a, b, c]: [[f32; 3]; 3]) -> ([i32; LANES], [i32; LANES]) {
         // Plain comparisons: the coordinates are finite (`check_mesh`).
         let (min, max) = (|p: f32, q: f32| if p < q { p } else { q }, |p: f32, q: f32| if p > q { p } else { q });
@@ -516,7 +559,7 @@ impl Grids {
 /// hits where highest; `row_start(row)` is a row's first index in `samples`,
 /// `attribute(λb, λc)` the attribute of a hit.
 #[allow(clippy::too_many_arguments)]
-#[inline]
+#[inline(always)]
 fn scan_box(
     setup: &TriangleSetup,
     rows: (usize, usize),
@@ -552,7 +595,7 @@ fn prepared_lights(lights: &[Light]) -> Vec<Light> {
 /// `(k_a + Σ I_l k_d max(0, n·l), Σ I_l k_s max(0, r·v)^α)`, so that the
 /// intensity is `albedo · first + second`. `min_rdv`: (r·v)^α below
 /// SPECULAR_FLOOR is dropped, which skips the powf for most points.
-#[inline]
+#[inline(always)]
 fn lighting(n: [f32; 3], p: [f32; 3], lights: &[Light], m: &Material, min_rdv: f32) -> (f32, f32) {
     let (mut diffuse, mut specular) = (m.ambient, 0.0);
     for light in lights {
@@ -577,7 +620,7 @@ fn specular_cutoff(m: &Material) -> f32 {
     SPECULAR_FLOOR.powf(1.0 / m.shininess.max(1e-3))
 }
 
-#[inline]
+#[inline(always)]
 fn facing_camera(n: [f32; 3]) -> [f32; 3] {
     if n[2] < 0.0 {
         [-n[0], -n[1], -n[2]]
@@ -606,7 +649,8 @@ pub fn vertex_lighting(vertices: &[[f32; 3]], normals: &[[f32; 3]], wanted: Opti
 /// first covered subsample where the centre is background), as a
 /// multisampling renderer does: lighting varies over a triangle far more
 /// slowly than a texture does.
-fn shade_band(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], coverage: &mut [f32]) {
+#[inline(always)]
+fn shade_pass(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], coverage: &mut [f32]) {
     let scene = p.scene;
     let s = scene.supersample;
     let (width, cols) = (scene.view.width, scene.view.width * s);
@@ -688,7 +732,7 @@ fn shade_band(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], cov
 /// k + LANES`: the scalar path's arithmetic lane by lane (the same IEEE
 /// operations in the same order, so the same bits), with the power computed
 /// only in the lanes whose specular term survives.
-#[inline]
+#[inline(always)]
 fn lighting4(p: &Prepared, lights: &[Light], min_rdv: f32, point_lights: bool, centres: &Samples, k: usize) -> (f32x4, f32x4) {
     let corners = lanes(&centres.triangle, k).map(|t| p.triangles[t as usize]);
     let [w1, w2] = centres.attribute.each_ref().map(|a| f32x4::new(lanes(a, k)));
@@ -733,7 +777,7 @@ fn lighting4(p: &Prepared, lights: &[Light], min_rdv: f32, point_lights: bool, c
 }
 
 /// [`interpolate`] in four lanes, each with its own triangle.
-#[inline]
+#[inline(always)]
 fn interpolate4<const N: usize>(attribute: &[[f32; N]], corners: &[[u32; 3]; LANES], w1: f32x4, w2: f32x4) -> [f32x4; N] {
     let w0 = f32x4::ONE - w1 - w2;
     let corner = |q: usize| corners.map(|c| attribute[c[q] as usize]);
@@ -743,14 +787,14 @@ fn interpolate4<const N: usize>(attribute: &[[f32; N]], corners: &[[u32; 3]; LAN
 }
 
 /// A vertex attribute at barycentric weights (λb, λc) of triangle `corners`.
-#[inline]
+#[inline(always)]
 fn interpolate<const N: usize>(attribute: &[[f32; N]], corners: [u32; 3], [w1, w2]: [f32; 2]) -> [f32; N] {
     let w0 = 1.0 - w1 - w2;
     let [a, b, c] = corners.map(|k| attribute[k as usize]);
     std::array::from_fn(|k| w0 * a[k] + w1 * b[k] + w2 * c[k])
 }
 
-#[inline]
+#[inline(always)]
 fn normalize(v: [f32; 3]) -> [f32; 3] {
     let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
     if len > 0.0 {
@@ -811,6 +855,16 @@ mod tests {
     use crate::mesh::grid_triangles;
     use crate::params::SurfaceConfig;
     use crate::synthesis::synthesize;
+
+    static BASELINE_ONLY: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+    /// Whether the hot passes are held to their baseline build: one test
+    /// compares it with the AVX2 build (other tests running meanwhile see
+    /// the same bits either way).
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+    pub(super) fn baseline_only() -> bool {
+        BASELINE_ONLY.load(std::sync::atomic::Ordering::Relaxed)
+    }
 
     fn white(n: usize) -> Texture {
         Texture { height: n, width: n, data: vec![1.0; n * n] }
@@ -1114,6 +1168,28 @@ mod tests {
             }
         }
         assert!(unlit > 0 && shiny > 0, "both light branches exercised: {unlit} unlit, {shiny} with a highlight");
+    }
+
+    #[test]
+    fn baseline_and_avx2_builds_give_the_same_bits() {
+        let (vertices, triangles, uv) = grid_mesh(11, 24);
+        let texture = Texture { height: 16, width: 16, data: (0..256).map(|i| ((i * 7) % 16) as f32 / 16.0).collect() };
+        let lights = [
+            Light { kind: LightKind::Directional, vector: [0.3, -0.4, 1.0], intensity: 0.8 },
+            Light { kind: LightKind::Point, vector: [0.5, 0.2, 1.5], intensity: 0.6 },
+        ];
+        let material = Material { ambient: 0.1, diffuse: 0.7, specular: 0.5, shininess: 12.0 };
+        for (shading, s) in [(Shading::Phong, 2), (Shading::Gouraud, 3)] {
+            let view = View::new(21, 19, [-0.6, -0.5, 0.5, 0.6], CAMERA_Z).unwrap();
+            let scene = Scene { view, supersample: s, lights: &lights, material, texture: &texture, shading };
+            let bits = |frame: &Frame| [&frame.image, &frame.coverage, &frame.depth].map(|v| v.iter().map(|x| x.to_bits()).collect::<Vec<u32>>());
+            BASELINE_ONLY.store(true, std::sync::atomic::Ordering::Relaxed);
+            let baseline = render(&vertices, &triangles, &uv, &scene).unwrap();
+            BASELINE_ONLY.store(false, std::sync::atomic::Ordering::Relaxed);
+            let dispatched = render(&vertices, &triangles, &uv, &scene).unwrap();
+            assert!(baseline.coverage.iter().all(|&c| c == 1.0), "the view lies inside the surface");
+            assert_eq!(bits(&baseline), bits(&dispatched), "{shading:?}");
+        }
     }
 
     #[test]
