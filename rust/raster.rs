@@ -280,14 +280,17 @@ fn lanes<T: Copy>(values: &[T], i: usize) -> [T; LANES] {
 
 /// Buffers of one band of pixel rows: the visibility of the s×s subsamples
 /// of its pixels and of its pixel centres (two grids even at s = 1, where
-/// they coincide), and the texture samples of one subsample row.
+/// they coincide), and one subsample row's texture samples and hit flags.
 #[derive(Default)]
 struct Band {
     /// Per vertex, the sides of the band it lies beyond (`visibility_band`).
     outside: Vec<u8>,
     subsamples: Samples,
     centres: Samples,
+    /// Albedo at each subsample of a row, 0 where it is background.
     texels: Vec<f32>,
+    /// 1 where a subsample of the row is hit, 0 where it is background.
+    covered: Vec<f32>,
 }
 
 /// Reusable buffers of one renderer; one per thread.
@@ -658,8 +661,9 @@ fn shade_pass(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], cov
     let lights = prepared_lights(scene.lights);
     let min_rdv = specular_cutoff(&scene.material);
     let point_lights = lights.iter().any(|l| l.kind == LightKind::Point);
-    let (subsamples, centres, texels) = (&band.subsamples, &band.centres, &mut band.texels);
+    let (subsamples, centres, texels, covered) = (&band.subsamples, &band.centres, &mut band.texels, &mut band.covered);
     texels.resize(cols.next_multiple_of(LANES), 0.0);
+    covered.resize(texels.len(), 0.0);
     let [u, v] = &subsamples.attribute;
     let sampler = scene.texture.sampler();
     for (pi, (albedo, hits)) in image.chunks_exact_mut(width).zip(coverage.chunks_exact_mut(width)).enumerate() {
@@ -669,14 +673,19 @@ fn shade_pass(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], cov
         hits.fill(0.0);
         for a in 0..s {
             let start = (pi * s + a) * cols;
-            for (c, group) in texels.chunks_exact_mut(LANES).enumerate() {
+            for (c, (group, flags)) in texels.chunks_exact_mut(LANES).zip(covered.chunks_exact_mut(LANES)).enumerate() {
                 let i = start + c * LANES;
-                group.copy_from_slice(&sampler.sample4(f32x4::new(lanes(u, i)), f32x4::new(lanes(v, i))).to_array());
+                let hit = f32x4::new(lanes(&subsamples.z, i)).simd_gt(f32x4::splat(f32::NEG_INFINITY));
+                let albedo = sampler.sample4(f32x4::new(lanes(u, i)), f32x4::new(lanes(v, i)));
+                group.copy_from_slice(&hit.bitselect(albedo, f32x4::ZERO).to_array());
+                flags.copy_from_slice(&hit.bitselect(f32x4::ONE, f32x4::ZERO).to_array());
             }
+            // Branch-free: a background subsample adds +0, which leaves every
+            // sum unchanged (sums that start at +0 are never −0).
             for (j, (albedo, hits)) in albedo.iter_mut().zip(hits.iter_mut()).enumerate() {
-                for b in (j * s..j * s + s).filter(|&b| subsamples.is_hit(start + b)) {
+                for b in j * s..j * s + s {
                     *albedo += texels[b];
-                    *hits += 1.0;
+                    *hits += covered[b];
                 }
             }
         }
