@@ -13,7 +13,9 @@
 //!    (scaling by 2^k is exact) and to rounding otherwise: the renderer gives
 //!    the depth video as well as the images. Four samples of a row are tested
 //!    and kept at once, branch-free (SIMD lanes: the same IEEE operations
-//!    lane by lane, so the results do not depend on the instruction set).
+//!    lane by lane, so the results do not depend on the instruction set;
+//!    both passes are compiled for the baseline and for AVX2, chosen at run
+//!    time, with the same bits).
 //! 2. shading: albedo sampled bilinearly (clamp to edge, four subsamples at
 //!    once) at every covered subsample's texture coordinates and averaged (box filter;
 //!    background subsamples contribute 0 and lower the pixel's coverage); the
