@@ -237,17 +237,18 @@ pub fn noisy_u8(image: &[f32], std: f64, seed: u64, frame: usize, out: &mut [u8]
 /// window in some frame, plus the bilinear neighbour and a texel of slack.
 fn sampled_texels(positions: &[[f32; 3]], grid: usize, [x0, y0, x1, y1]: [f32; 4], size: usize) -> (std::ops::Range<usize>, std::ops::Range<usize>) {
     // Corner index bounds (column i, row j) of the cells that meet the window.
+    // One bit per side of the window a vertex lies beyond: a cell's bounding
+    // box meets the window unless its four corners share a bit.
     let (mut i_lo, mut i_hi, mut j_lo, mut j_hi) = (usize::MAX, 0, usize::MAX, 0);
+    let mut outside = Vec::with_capacity(grid * grid);
     for frame in positions.chunks_exact(grid * grid) {
+        outside.clear();
+        outside.extend(frame.iter().map(|p| u8::from(p[0] < x0) | u8::from(p[0] > x1) << 1 | u8::from(p[1] < y0) << 2 | u8::from(p[1] > y1) << 3));
         for j in 0..grid - 1 {
-            let (row, next) = (&frame[j * grid..(j + 1) * grid], &frame[(j + 1) * grid..(j + 2) * grid]);
-            for i in 0..grid - 1 {
-                let corners = [row[i], row[i + 1], next[i], next[i + 1]];
-                let (min_x, max_x) = corners.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| (lo.min(p[0]), hi.max(p[0])));
-                let (min_y, max_y) = corners.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1])));
-                if max_x >= x0 && min_x <= x1 && max_y >= y0 && min_y <= y1 {
-                    (i_lo, i_hi, j_lo, j_hi) = (i_lo.min(i), i_hi.max(i + 1), j_lo.min(j), j_hi.max(j + 1));
-                }
+            let (row, next) = (&outside[j * grid..(j + 1) * grid], &outside[(j + 1) * grid..(j + 2) * grid]);
+            let meets = |i: usize| row[i] & row[i + 1] & next[i] & next[i + 1] == 0;
+            if let (Some(first), Some(last)) = ((0..grid - 1).find(|&i| meets(i)), (0..grid - 1).rev().find(|&i| meets(i))) {
+                (i_lo, i_hi, j_lo, j_hi) = (i_lo.min(first), i_hi.max(last + 1), j_lo.min(j), j_hi.max(j + 1));
             }
         }
     }
