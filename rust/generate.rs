@@ -200,9 +200,9 @@ fn draw_clip(config: &GeneratorConfig, bank: Option<&TextureBank>, rng: &mut Spl
         Some(bank) => {
             let index = (rng.next_u64() % bank.images.len() as u64) as usize;
             let image = &bank.images[index];
-            let (crop_h, crop_w) = (config.texture_size.min(image.height), config.texture_size.min(image.width));
-            let top = (rng.next_u64() % (image.height - crop_h + 1) as u64) as usize;
-            let left = (rng.next_u64() % (image.width - crop_w + 1) as u64) as usize;
+            let (crop_h, crop_w) = (config.texture_size.min(image.height()), config.texture_size.min(image.width()));
+            let top = (rng.next_u64() % (image.height() - crop_h + 1) as u64) as usize;
+            let left = (rng.next_u64() % (image.width() - crop_w + 1) as u64) as usize;
             TextureChoice::Image { index, top, left }
         }
         None => {
@@ -324,7 +324,7 @@ impl ClipWorker {
             TextureChoice::Image { index, top, left } => {
                 let bank = bank.expect("image texture without a bank");
                 let image = &bank.images[*index];
-                bank.crop(*index, *top, *left, config.texture_size.min(image.height).min(image.width), &mut self.texture)
+                bank.crop(*index, *top, *left, config.texture_size.min(image.height()).min(image.width()), &mut self.texture)
             }
         }
         let scene = Scene { view, supersample: config.supersample, lights: &p.lights, material: p.material, texture: &self.texture, shading: config.shading };

@@ -323,11 +323,8 @@ fn render<'py>(
     let lights = lights.iter().enumerate().map(|(i, d)| light_from_dict(&d, i)).collect::<PyResult<Vec<_>>>()?;
     let material = material_from_dict(material)?;
     let tex_shape = texture.shape().to_vec();
-    let texture = Texture {
-        height: tex_shape[0],
-        width: tex_shape[1],
-        data: texture.as_slice().map_err(|_| PyValueError::new_err("texture: expected a C-contiguous array"))?.to_vec(),
-    };
+    let texels = texture.as_slice().map_err(|_| PyValueError::new_err("texture: expected a C-contiguous array"))?;
+    let texture = Texture::new(tex_shape[0], tex_shape[1], texels).map_err(value_error)?;
     if !(1..=raster::MAX_SUPERSAMPLE as i64).contains(&supersample) {
         return Err(PyValueError::new_err(format!("supersample: expected 1..={}, got {supersample}", raster::MAX_SUPERSAMPLE)));
     }
@@ -360,7 +357,7 @@ fn procedural_texture<'py>(py: Python<'py>, family: &str, seed: u64, size: i64) 
     let size = crate::error::size_in("size", size, 2, 4096).map_err(value_error)?;
     let mut texture = Texture::default();
     py.detach(|| textures::procedural(family, seed, size, &mut texture));
-    array2(py, texture.data, size, size)
+    array2(py, texture.to_vec(), size, size)
 }
 
 /// Names of the procedural texture families.

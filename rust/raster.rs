@@ -98,23 +98,75 @@ pub fn check_lights(lights: &[Light]) -> Result<()> {
     Ok(())
 }
 
-/// A grayscale albedo image, row-major, values in [0, 1].
+/// A grayscale albedo image (values finite, normally in [0, 1]), stored with
+/// its last column and last row repeated once past the edge: a bilinear
+/// footprint is then two contiguous texel pairs wherever it lies, and reading
+/// the repeated texel gives what clamping the index to the edge gives.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Texture {
-    pub height: usize,
-    pub width: usize,
-    pub data: Vec<f32>,
+    height: usize,
+    width: usize,
+    /// (height + 1) × (width + 1) texels, row-major.
+    padded: Vec<f32>,
 }
 
 impl Texture {
-    pub fn validate(&self) -> Result<()> {
-        if self.height == 0 || self.width == 0 || self.data.len() != self.height * self.width {
-            return Err(InvalidArgument::new("texture", format!("expected a non-empty (H, W) image, got {}×{} with {} values", self.height, self.width, self.data.len())));
+    /// `height × width` texels, row-major.
+    pub fn new(height: usize, width: usize, texels: &[f32]) -> Result<Self> {
+        // Texel indices are computed in i32 lanes.
+        if height == 0 || width == 0 || texels.len() != height * width || (height + 1).saturating_mul(width + 1) > i32::MAX as usize {
+            return Err(InvalidArgument::new("texture", format!("expected a non-empty (H, W) image of at most 2^31 texels, got {height}×{width} with {} values", texels.len())));
         }
-        if !self.data.iter().all(|v| v.is_finite()) {
+        if !texels.iter().all(|v| v.is_finite()) {
             return Err(InvalidArgument::new("texture", "expected finite values"));
         }
-        Ok(())
+        let mut texture = Self::default();
+        texture.reset(height, width);
+        for (r, row) in texels.chunks_exact(width).enumerate() {
+            texture.row_mut(r).copy_from_slice(row);
+        }
+        texture.repeat_edges();
+        Ok(texture)
+    }
+
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Row `r` (`width` texels).
+    pub fn row(&self, r: usize) -> &[f32] {
+        &self.padded[r * (self.width + 1)..][..self.width]
+    }
+
+    /// The texels, row-major, without the repeated edges.
+    pub fn to_vec(&self) -> Vec<f32> {
+        (0..self.height).flat_map(|r| self.row(r).iter().copied()).collect()
+    }
+
+    /// Refill in place: `height × width` zeros; write rows with
+    /// [`row_mut`](Self::row_mut), then call [`repeat_edges`](Self::repeat_edges).
+    pub(crate) fn reset(&mut self, height: usize, width: usize) {
+        (self.height, self.width) = (height, width);
+        self.padded.clear();
+        self.padded.resize((height + 1) * (width + 1), 0.0);
+    }
+
+    pub(crate) fn row_mut(&mut self, r: usize) -> &mut [f32] {
+        &mut self.padded[r * (self.width + 1)..][..self.width]
+    }
+
+    /// Copy the last column and row past the edge.
+    pub(crate) fn repeat_edges(&mut self) {
+        let stride = self.width + 1;
+        for row in self.padded.chunks_exact_mut(stride) {
+            row[stride - 1] = row[stride - 2];
+        }
+        let last = self.height * stride;
+        self.padded.copy_within(last - stride..last, last);
     }
 
     /// Bilinear sample at (u, v), clamped to the edge.
@@ -126,8 +178,7 @@ impl Texture {
         let (c0, r0) = (c as i32 as usize, r as i32 as usize);
         let (c1, r1) = ((c0 + 1).min(self.width - 1), (r0 + 1).min(self.height - 1));
         let (fc, fr) = (c - c0 as f32, r - r0 as f32);
-        let row0 = &self.data[r0 * self.width..];
-        let row1 = &self.data[r1 * self.width..];
+        let (row0, row1) = (self.row(r0), self.row(r1));
         let top = row0[c0] + (row0[c1] - row0[c0]) * fc;
         let bottom = row1[c0] + (row1[c1] - row1[c0]) * fc;
         top + (bottom - top) * fr
@@ -145,11 +196,10 @@ impl Texture {
     pub fn sampler(&self) -> Sampler<'_> {
         let (width, height) = (self.width as f32, self.height as f32);
         Sampler {
-            data: &self.data,
-            width: self.width,
+            padded: &self.padded,
+            stride: i32x4::splat(self.width as i32 + 1),
             size: [f32x4::splat(width), f32x4::splat(height)],
             last: [f32x4::splat(width - 1.0), f32x4::splat(height - 1.0)],
-            last_index: [i32x4::splat(self.width as i32 - 1), i32x4::splat(self.height as i32 - 1)],
         }
     }
 }
@@ -158,18 +208,20 @@ impl Texture {
 /// rather than converted again at every texture fetch.
 #[derive(Clone, Copy)]
 pub struct Sampler<'a> {
-    data: &'a [f32],
-    width: usize,
+    padded: &'a [f32],
+    /// Texels per padded row.
+    stride: i32x4,
     /// Width and height.
     size: [f32x4; 2],
-    /// Last column and row, as floats and as indices.
+    /// Last column and row.
     last: [f32x4; 2],
-    last_index: [i32x4; 2],
 }
 
 impl Sampler<'_> {
     /// [`Texture::sample`] at four points at once: the same arithmetic lane
-    /// by lane (SIMD, texel fetches scalar).
+    /// by lane (SIMD, texel fetches scalar). Where a footprint's first texel
+    /// is on the last column (or row), its weight there is exactly 1 and the
+    /// repeated texel beside it is the one `sample` clamps to: the same bits.
     #[inline(always)]
     pub fn sample4(&self, u: f32x4, v: f32x4) -> f32x4 {
         let half = f32x4::splat(0.5);
@@ -179,10 +231,15 @@ impl Sampler<'_> {
         let r = clamp(v * self.size[1] - half, self.last[1]);
         let (c0, r0) = (c.fast_trunc_int(), r.fast_trunc_int());
         let (fc, fr) = (c - f32x4::from_i32x4(c0), r - f32x4::from_i32x4(r0));
-        let (c1, r1) = ((c0 + i32x4::ONE).min(self.last_index[0]), (r0 + i32x4::ONE).min(self.last_index[1]));
-        let [c0, c1, r0, r1] = [c0, c1, r0, r1].map(|x| x.to_array());
-        let texel = |r: [i32; LANES], c: [i32; LANES]| f32x4::new(std::array::from_fn(|k| self.data[r[k] as usize * self.width + c[k] as usize]));
-        let (t00, t01, t10, t11) = (texel(r0, c0), texel(r0, c1), texel(r1, c0), texel(r1, c1));
+        let first = (r0 * self.stride + c0).to_array();
+        // u32 indices: one bounds check a lane, no overflow check.
+        let stride = self.stride.to_array()[0] as u32 as usize;
+        let footprints: [[f32; 4]; LANES] = std::array::from_fn(|k| {
+            let i = first[k] as u32 as usize;
+            let texels = &self.padded[i..i + stride + 2];
+            [texels[0], texels[1], texels[stride], texels[stride + 1]]
+        });
+        let [t00, t01, t10, t11] = std::array::from_fn(|q| f32x4::new(footprints.map(|f| f[q])));
         let top = t00 + (t01 - t00) * fc;
         let bottom = t10 + (t11 - t10) * fc;
         top + (bottom - top) * fr
@@ -827,7 +884,6 @@ pub fn check_render_inputs(vertices: &[[f32; 3]], triangles: &[[u32; 3]], uv: &[
     if !(1..=MAX_SUPERSAMPLE).contains(&scene.supersample) {
         return Err(InvalidArgument::new("supersample", format!("expected 1..={MAX_SUPERSAMPLE}, got {}", scene.supersample)));
     }
-    scene.texture.validate()?;
     scene.material.validate()?;
     check_lights(scene.lights)
 }
@@ -878,7 +934,7 @@ mod tests {
     }
 
     fn white(n: usize) -> Texture {
-        Texture { height: n, width: n, data: vec![1.0; n * n] }
+        Texture::new(n, n, &vec![1.0; n * n]).unwrap()
     }
 
     fn matte() -> Material {
@@ -954,7 +1010,7 @@ mod tests {
             let vertices: Vec<[f32; 3]> = coords.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
             let triangles: Vec<[u32; 3]> = (0..vertices.len() as u32 / 3).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
             let uv: Vec<[f32; 2]> = (0..vertices.len()).map(|k| [texcoords[2 * k], texcoords[2 * k + 1]]).collect();
-            let texture = Texture { height: 5, width: 7, data: (0..35).map(|i| ((i * 13) % 35) as f32 / 35.0).collect() };
+            let texture = Texture::new(5, 7, &(0..35).map(|i| ((i * 13) % 35) as f32 / 35.0).collect::<Vec<f32>>()).unwrap();
             // Triangles reach past every side of the view: rows end inside them.
             let view = View::new(h, w, [-0.7, -0.8, 0.8, 0.6], CAMERA_Z).unwrap();
             let ambient = Material { ambient: 1.0, diffuse: 0.0, specular: 0.0, shininess: 1.0 };
@@ -1051,7 +1107,7 @@ mod tests {
         // Flat plane facing a light along +z, diffuse only: intensity = albedo.
         let (v, t, uv) = plane(0.0);
         let data: Vec<f32> = (0..32 * 32).map(|i| ((i % 32) as f32 * 0.7 + (i / 32) as f32 * 0.3) / 32.0).collect();
-        let texture = Texture { height: 32, width: 32, data };
+        let texture = Texture::new(32, 32, &data).unwrap();
         let lights = [Light { kind: LightKind::Directional, vector: [0.0, 0.0, 1.0], intensity: 1.0 }];
         let view = View::new(10, 12, [-0.7, -0.6, 0.5, 0.8], CAMERA_Z).unwrap();
         for s in [1usize, 2, 3] {
@@ -1072,14 +1128,18 @@ mod tests {
 
     #[test]
     fn four_lane_texture_samples_equal_the_scalar_ones_bit_for_bit() {
-        let texture = Texture { height: 7, width: 13, data: (0..91).map(|i| ((i * 37) % 91) as f32 / 91.0 - 0.2).collect() };
-        let mut rng = crate::rng::SplitMix64::new(4);
-        for _ in 0..2000 {
-            // Inside, on and beyond the edges (clamped).
-            let (u, v): ([f32; 4], [f32; 4]) = (std::array::from_fn(|_| rng.uniform(-0.3, 1.3) as f32), std::array::from_fn(|_| rng.uniform(-0.3, 1.3) as f32));
-            let lanes = texture.sample4(f32x4::new(u), f32x4::new(v)).to_array();
-            for k in 0..4 {
-                assert_eq!(lanes[k].to_bits(), texture.sample(u[k], v[k]).to_bits(), "({}, {})", u[k], v[k]);
+        // Single rows and columns too: there the repeated edge is every footprint's second texel.
+        for (height, width) in [(7, 13), (1, 5), (4, 1), (1, 1)] {
+            let n = height * width;
+            let texture = Texture::new(height, width, &(0..n).map(|i| ((i * 37) % n) as f32 / n as f32 - 0.2).collect::<Vec<f32>>()).unwrap();
+            let mut rng = crate::rng::SplitMix64::new(4);
+            for _ in 0..2000 {
+                // Inside, on and beyond the edges (clamped).
+                let (u, v): ([f32; 4], [f32; 4]) = (std::array::from_fn(|_| rng.uniform(-0.3, 1.3) as f32), std::array::from_fn(|_| rng.uniform(-0.3, 1.3) as f32));
+                let lanes = texture.sample4(f32x4::new(u), f32x4::new(v)).to_array();
+                for k in 0..4 {
+                    assert_eq!(lanes[k].to_bits(), texture.sample(u[k], v[k]).to_bits(), "{height}×{width} at ({}, {})", u[k], v[k]);
+                }
             }
         }
     }
@@ -1089,7 +1149,7 @@ mod tests {
         // Shift the mesh by one pixel: the image shifts by one pixel.
         let (mut v, t, uv) = plane(0.0);
         let data: Vec<f32> = (0..64 * 64).map(|i| ((i % 64) as f32 / 63.0 + (i / 64) as f32 / 90.0).fract()).collect();
-        let texture = Texture { height: 64, width: 64, data };
+        let texture = Texture::new(64, 64, &data).unwrap();
         let lights = [Light { kind: LightKind::Directional, vector: [0.0, 0.0, 1.0], intensity: 1.0 }];
         let view = View::new(16, 16, [-0.5, -0.5, 0.5, 0.5], CAMERA_Z).unwrap();
         let scene = Scene { view, supersample: 2, lights: &lights, material: matte(), texture: &texture, shading: Shading::Phong };
@@ -1105,7 +1165,7 @@ mod tests {
 
     #[test]
     fn gouraud_is_phong_on_a_plane_and_close_on_a_smooth_surface() {
-        let texture = Texture { height: 16, width: 16, data: (0..256).map(|i| (i % 7) as f32 / 7.0).collect() };
+        let texture = Texture::new(16, 16, &(0..256).map(|i| (i % 7) as f32 / 7.0).collect::<Vec<f32>>()).unwrap();
         let lights = [Light { kind: LightKind::Directional, vector: [0.3, -0.2, 1.0], intensity: 0.9 }];
         let material = Material { ambient: 0.1, diffuse: 0.8, specular: 0.3, shininess: 10.0 };
         let view = View::new(32, 32, [-0.5, -0.5, 0.5, 0.5], CAMERA_Z).unwrap();
@@ -1184,7 +1244,7 @@ mod tests {
     #[test]
     fn baseline_and_avx2_builds_give_the_same_bits() {
         let (vertices, triangles, uv) = grid_mesh(11, 24);
-        let texture = Texture { height: 16, width: 16, data: (0..256).map(|i| ((i * 7) % 16) as f32 / 16.0).collect() };
+        let texture = Texture::new(16, 16, &(0..256).map(|i| ((i * 7) % 16) as f32 / 16.0).collect::<Vec<f32>>()).unwrap();
         let lights = [
             Light { kind: LightKind::Directional, vector: [0.3, -0.4, 1.0], intensity: 0.8 },
             Light { kind: LightKind::Point, vector: [0.5, 0.2, 1.5], intensity: 0.6 },
@@ -1216,5 +1276,8 @@ mod tests {
         assert_eq!(render(&v, &[[0, 1, 9]], &uv, &scene).unwrap_err().name, "triangles");
         let scene = Scene { supersample: 0, ..scene };
         assert_eq!(render(&v, &t, &uv, &scene).unwrap_err().name, "supersample");
+        for (height, width, texels) in [(0, 2, vec![]), (2, 2, vec![0.5; 3]), (1, 2, vec![0.5, f32::NAN])] {
+            assert_eq!(Texture::new(height, width, &texels).unwrap_err().name, "texture", "{height}×{width}");
+        }
     }
 }

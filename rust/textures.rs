@@ -239,10 +239,7 @@ pub fn procedural(family: TextureFamily, seed: u64, size: usize, texture: &mut T
 /// every RANGE_STRIDE-th texel (every texel below 16; clamped), then to the
 /// drawn tone range.
 pub fn procedural_region(family: TextureFamily, seed: u64, size: usize, (rows, cols): (Range<usize>, Range<usize>), texture: &mut Texture) {
-    texture.height = size;
-    texture.width = size;
-    texture.data.clear();
-    texture.data.resize(size * size, 0.0);
+    texture.reset(size, size);
     let mut rng = SplitMix64::new(hash(seed, &[family as u64]));
     let pattern = Pattern::draw(family, size, &mut rng);
     let (mut values, mut noise) = (Vec::new(), Vec::new());
@@ -259,12 +256,13 @@ pub fn procedural_region(family: TextureFamily, seed: u64, size: usize, (rows, c
     pattern.evaluate(size, &rows, &cols, &mut values, &mut noise);
     let span = max - min;
     for (&r, row) in rows.iter().zip(values.chunks_exact(cols.len())) {
-        let out = &mut texture.data[r * size + cols[0]..][..cols.len()];
+        let out = &mut texture.row_mut(r)[cols[0]..][..cols.len()];
         for (o, &v) in out.iter_mut().zip(row) {
             let unit = if span > 0.0 { ((v - min) / span).clamp(0.0, 1.0) } else { 0.5 };
             *o = lo + (hi - lo) * unit;
         }
     }
+    texture.repeat_edges();
 }
 
 /// Grayscale images of a folder, decoded once, for random crops.
@@ -301,7 +299,8 @@ impl TextureBank {
                 img
             };
             let (w, h) = img.dimensions();
-            images.push(Texture { height: h as usize, width: w as usize, data: img.into_raw().into_iter().map(|v| v.clamp(0.0, 1.0)).collect() });
+            let texels: Vec<f32> = img.into_raw().into_iter().map(|v| v.clamp(0.0, 1.0)).collect();
+            images.push(Texture::new(h as usize, w as usize, &texels).map_err(|e| err(format!("image {}: {}", path.display(), e.message)))?);
         }
         Ok(Self { paths, images })
     }
@@ -309,12 +308,11 @@ impl TextureBank {
     /// A `crop × crop` window of image `index` at (top, left) into `texture`.
     pub fn crop(&self, index: usize, top: usize, left: usize, crop: usize, texture: &mut Texture) {
         let image = &self.images[index];
-        texture.height = crop;
-        texture.width = crop;
-        texture.data.clear();
-        for r in top..top + crop {
-            texture.data.extend_from_slice(&image.data[r * image.width + left..r * image.width + left + crop]);
+        texture.reset(crop, crop);
+        for r in 0..crop {
+            texture.row_mut(r).copy_from_slice(&image.row(top + r)[left..left + crop]);
         }
+        texture.repeat_edges();
     }
 }
 
@@ -330,9 +328,10 @@ mod tests {
                 procedural(family, seed, 64, &mut a);
                 procedural(family, seed, 64, &mut b);
                 assert_eq!(a, b);
-                assert!(a.data.iter().all(|v| (0.0..=1.0).contains(v)), "{family:?}");
-                let mean = a.data.iter().sum::<f32>() / a.data.len() as f32;
-                let var = a.data.iter().map(|v| (v - mean).powi(2)).sum::<f32>() / a.data.len() as f32;
+                let texels = a.to_vec();
+                assert!(texels.iter().all(|v| (0.0..=1.0).contains(v)), "{family:?}");
+                let mean = texels.iter().sum::<f32>() / texels.len() as f32;
+                let var = texels.iter().map(|v| (v - mean).powi(2)).sum::<f32>() / texels.len() as f32;
                 assert!(var > 1e-3, "{family:?} seed {seed} is flat: var {var}");
                 let mut c = Texture::default();
                 procedural(family, seed + 100, 64, &mut c);
@@ -349,7 +348,7 @@ mod tests {
                 let (mut whole, mut part) = (Texture::default(), Texture::default());
                 procedural(family, seed, size, &mut whole);
                 procedural_region(family, seed, size, (rows.clone(), cols.clone()), &mut part);
-                for (k, (w, p)) in whole.data.iter().zip(&part.data).enumerate() {
+                for (k, (w, p)) in whole.to_vec().iter().zip(&part.to_vec()).enumerate() {
                     let inside = rows.contains(&(k / size)) && cols.contains(&(k % size));
                     assert_eq!(p.to_bits(), if inside { w.to_bits() } else { 0 }, "{family:?} seed {seed} texel {k}");
                 }
@@ -362,7 +361,7 @@ mod tests {
         for size in [2, 3, 5] {
             let mut t = Texture::default();
             procedural(TextureFamily::Fractal, 1, size, &mut t);
-            let (lo, hi) = t.data.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+            let (lo, hi) = t.to_vec().iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
             assert!(hi - lo > 0.2, "size {size}: {lo}..{hi}");
         }
     }
