@@ -311,21 +311,40 @@ impl Samples {
         self.z[i] > f32::NEG_INFINITY
     }
 
-    /// At the `LANES` samples from `i`, keep triangle `t`'s hits (z, attribute)
-    /// in the lanes `inside` where they are the highest so far (and not behind
-    /// the camera). The other lanes are written back unchanged.
+    /// The `groups` consecutive groups of `LANES` samples from `i`: one
+    /// bounds check a row of groups, not one a buffer and group.
     #[inline(always)]
-    fn keep4(&mut self, i: usize, t: u32, inside: f32x4, z: f32x4, camera_z: f32, attribute: impl FnOnce() -> [f32x4; 2]) {
-        let old = f32x4::new(lanes(&self.z, i));
+    fn groups(&mut self, i: usize, groups: usize) -> impl Iterator<Item = Group<'_>> {
+        let n = groups * LANES;
+        let [u, v] = &mut self.attribute;
+        let z = self.z[i..i + n].as_chunks_mut().0.iter_mut();
+        let triangle = self.triangle[i..i + n].as_chunks_mut().0.iter_mut();
+        let (u, v) = (u[i..i + n].as_chunks_mut().0.iter_mut(), v[i..i + n].as_chunks_mut().0.iter_mut());
+        z.zip(triangle).zip(u.zip(v)).map(|((z, triangle), (u, v))| Group { z, triangle, attribute: [u, v] })
+    }
+}
+
+/// `LANES` consecutive samples of a grid.
+struct Group<'a> {
+    z: &'a mut [f32; LANES],
+    triangle: &'a mut [u32; LANES],
+    attribute: [&'a mut [f32; LANES]; 2],
+}
+
+impl Group<'_> {
+    /// Keep triangle `t`'s hits (z, attribute) in the lanes `inside` where
+    /// they are the highest so far (and not behind the camera). The other
+    /// lanes are written back unchanged.
+    #[inline(always)]
+    fn keep(self, t: u32, inside: f32x4, z: f32x4, camera_z: f32, attribute: impl FnOnce() -> [f32x4; 2]) {
+        let old = f32x4::new(*self.z);
         // Branch-free: a lane that keeps nothing is rewritten with its own value.
         let higher = inside & z.simd_gt(old) & z.simd_le(f32x4::splat(camera_z));
-        self.z[i..i + LANES].copy_from_slice(&higher.bitselect(z, old).to_array());
-        let old_triangle = u32x4::new(lanes(&self.triangle, i));
-        let triangle: u32x4 = wide::bytemuck::cast::<f32x4, u32x4>(higher).bitselect(u32x4::splat(t), old_triangle);
-        self.triangle[i..i + LANES].copy_from_slice(&triangle.to_array());
-        for (values, new) in self.attribute.iter_mut().zip(attribute()) {
-            let kept = higher.bitselect(new, f32x4::new(lanes(values, i)));
-            values[i..i + LANES].copy_from_slice(&kept.to_array());
+        *self.z = higher.bitselect(z, old).to_array();
+        let triangle: u32x4 = wide::bytemuck::cast::<f32x4, u32x4>(higher).bitselect(u32x4::splat(t), u32x4::new(*self.triangle));
+        *self.triangle = triangle.to_array();
+        for (values, new) in self.attribute.into_iter().zip(attribute()) {
+            *values = higher.bitselect(new, f32x4::new(*values)).to_array();
         }
     }
 }
@@ -638,12 +657,14 @@ fn scan_box(
     let (lane, half, spacing_x4) = (f32x4::new([0.0, 1.0, 2.0, 3.0]), f32x4::splat(0.5), f32x4::splat(spacing));
     for r in rows.0..=rows.1 {
         let row = setup.row((r as u32 as f32 + 0.5) * spacing);
-        let start = row_start(r);
-        for col in (columns.0..=columns.1).step_by(LANES) {
+        // The padding at the end of `samples` holds the last row's last group.
+        let groups = (columns.1 - columns.0) / LANES + 1;
+        for (g, group) in samples.groups(row_start(r) + columns.0, groups).enumerate() {
+            let col = columns.0 + g * LANES;
             let px = (f32x4::splat(col as u32 as f32) + lane + half) * spacing_x4;
             let (inside, z, lb, lc) = setup.hits4(row, px);
             let in_box = lane.simd_le(f32x4::splat((columns.1 - col) as u32 as f32));
-            samples.keep4(start + col, t, inside & in_box, z, camera_z, || attribute(lb, lc));
+            group.keep(t, inside & in_box, z, camera_z, || attribute(lb, lc));
         }
     }
 }
