@@ -761,11 +761,24 @@ fn shade_pass(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], cov
                 flags.copy_from_slice(&hit.bitselect(f32x4::ONE, f32x4::ZERO).to_array());
             }
             // Branch-free: a background subsample adds +0, which leaves every
-            // sum unchanged (sums that start at +0 are never −0).
-            for (j, (albedo, hits)) in albedo.iter_mut().zip(hits.iter_mut()).enumerate() {
+            // sum unchanged (sums that start at +0 are never −0). Four
+            // pixels at a time, each lane adding its s subsamples in order.
+            let whole = width - width % LANES;
+            for (g, (albedo, hits)) in albedo[..whole].chunks_exact_mut(LANES).zip(hits[..whole].chunks_exact_mut(LANES)).enumerate() {
+                let (texels, covered) = (&texels[g * LANES * s..][..LANES * s], &covered[g * LANES * s..][..LANES * s]);
+                let (mut sum, mut count) = (f32x4::new(lanes(albedo, 0)), f32x4::new(lanes(hits, 0)));
+                for q in 0..s {
+                    let subsample = |values: &[f32]| f32x4::new(std::array::from_fn(|l| values[l * s + q]));
+                    sum += subsample(texels);
+                    count += subsample(covered);
+                }
+                albedo.copy_from_slice(&sum.to_array());
+                hits.copy_from_slice(&count.to_array());
+            }
+            for j in whole..width {
                 for b in j * s..j * s + s {
-                    *albedo += texels[b];
-                    *hits += covered[b];
+                    albedo[j] += texels[b];
+                    hits[j] += covered[b];
                 }
             }
         }
