@@ -120,6 +120,8 @@ pub struct Synthesizer {
     rows: Vec<Complex32>,
     cols: Vec<Complex32>,
     envelope: Vec<f64>,
+    /// `grid_coordinate` of every grid index.
+    coordinates: Vec<f64>,
 }
 
 impl Synthesizer {
@@ -148,6 +150,7 @@ impl Synthesizer {
             rows: Vec::new(),
             cols: Vec::new(),
             envelope: Vec::new(),
+            coordinates: (0..grid).map(|j| grid_coordinate(j, grid)).collect(),
         }
     }
 
@@ -356,29 +359,25 @@ impl Synthesizer {
     fn compose(&mut self, params: &SurfaceParams, frames: usize, out: &mut [f32]) {
         let grid = self.grid;
         self.envelope.clear();
-        for jy in 0..grid {
-            let y = grid_coordinate(jy, grid);
-            for jx in 0..grid {
-                let x = grid_coordinate(jx, grid);
+        for &y in &self.coordinates {
+            for &x in &self.coordinates {
                 self.envelope.push(params.intensity * (-params.constraint * (x * x + y * y)).exp());
             }
         }
         let zeta = params.folding;
+        let coordinates = &self.coordinates;
         for (frame, positions) in out.chunks_exact_mut(grid * grid * 3).enumerate() {
             let t = frame_time(frame, frames);
             let v = |a: [f64; 3], b: [f64; 3]| Vector3::new(a[0] + t * b[0], a[1] + t * b[1], a[2] + t * b[2]);
             let rotation = Rotation3::new(v(params.rotation, params.rotation_rate));
             let translation = v([0.0; 3], params.drift);
-            for (i, p) in positions.chunks_exact_mut(3).enumerate() {
-                let (jy, jx) = (i / grid, i % grid);
-                let g = self.envelope[i];
-                let local = Vector3::new(
-                    grid_coordinate(jx, grid) + g * zeta * p[0] as f64,
-                    grid_coordinate(jy, grid) + g * zeta * p[1] as f64,
-                    g * p[2] as f64,
-                );
-                let world = rotation * local + translation;
-                p.copy_from_slice(&[world.x as f32, world.y as f32, world.z as f32]);
+            let rows = positions.chunks_exact_mut(3 * grid).zip(self.envelope.chunks_exact(grid)).zip(coordinates);
+            for ((row, envelope), &y) in rows {
+                for ((p, &g), &x) in row.chunks_exact_mut(3).zip(envelope).zip(coordinates) {
+                    let local = Vector3::new(x + g * zeta * p[0] as f64, y + g * zeta * p[1] as f64, g * p[2] as f64);
+                    let world = rotation * local + translation;
+                    p.copy_from_slice(&[world.x as f32, world.y as f32, world.z as f32]);
+                }
             }
         }
     }
