@@ -677,7 +677,7 @@ fn prepared_lights(lights: &[Light]) -> Vec<Light> {
 /// Phong terms at a point `p` with unit normal `n` (facing the camera):
 /// `(k_a + Σ I_l k_d max(0, n·l), Σ I_l k_s max(0, r·v)^α)`, so that the
 /// intensity is `albedo · first + second`. `min_rdv`: (r·v)^α below
-/// SPECULAR_FLOOR is dropped, which skips the powf for most points.
+/// SPECULAR_FLOOR is dropped, which skips the power for most points.
 #[inline(always)]
 fn lighting(n: [f32; 3], p: [f32; 3], lights: &[Light], m: &Material, min_rdv: f32) -> (f32, f32) {
     let (mut diffuse, mut specular) = (m.ambient, 0.0);
@@ -693,14 +693,44 @@ fn lighting(n: [f32; 3], p: [f32; 3], lights: &[Light], m: &Material, min_rdv: f
         diffuse += light.intensity * m.diffuse * ndl;
         let rdv = 2.0 * ndl * n[2] - l[2];
         if rdv > min_rdv && m.specular > 0.0 {
-            specular += light.intensity * m.specular * rdv.powf(m.shininess);
+            specular += light.intensity * m.specular * pow4(f32x4::splat(rdv), m.shininess).to_array()[0];
         }
     }
     (diffuse, specular)
 }
 
 fn specular_cutoff(m: &Material) -> f32 {
-    SPECULAR_FLOOR.powf(1.0 / m.shininess.max(1e-3))
+    pow4(f32x4::splat(SPECULAR_FLOOR), 1.0 / m.shininess.max(1e-3)).to_array()[0]
+}
+
+/// `x^α` in four lanes, for x > 0: `2^(α log₂ x)`, both with polynomials
+/// in plain f32 operations (no libm, no fused multiply-add), so the same
+/// bits on every platform and whichever lane a value sits in. Relative
+/// error below 2e-7 + 1.5e-7·|α log₂ x| (tested against f64); `α log₂ x`
+/// is clamped to [−126, 127], x below f32::MIN_POSITIVE taken as it.
+#[inline(always)]
+fn pow4(x: f32x4, alpha: f32) -> f32x4 {
+    let splat = f32x4::splat;
+    // log₂ x = e + ln(m)/ln 2 with x = m·2^e, m in [√½, √2):
+    // ln m = 2 atanh s, s = (m − 1)/(m + 1), |s| < 0.172.
+    let bits: u32x4 = wide::bytemuck::cast(x.fast_max(splat(f32::MIN_POSITIVE)));
+    let m: f32x4 = wide::bytemuck::cast((bits & u32x4::splat(0x007f_ffff)) | u32x4::splat(0x3f80_0000));
+    let e = f32x4::from_i32x4(wide::bytemuck::cast::<u32x4, i32x4>(bits >> 23) - i32x4::splat(127));
+    let high = m.simd_gt(splat(std::f32::consts::SQRT_2));
+    let (m, e) = (high.bitselect(m * splat(0.5), m), high.bitselect(e + f32x4::ONE, e));
+    let s = (m - f32x4::ONE) / (m + f32x4::ONE);
+    let s2 = s * s;
+    let ln_m = s * (splat(2.0) + s2 * (splat(2.0 / 3.0) + s2 * (splat(2.0 / 5.0) + s2 * (splat(2.0 / 7.0) + s2 * splat(2.0 / 9.0)))));
+    let y = (splat(alpha) * (e + ln_m * splat(std::f32::consts::LOG2_E))).fast_max(splat(-126.0)).fast_min(splat(127.0));
+    // 2^y = 2^k · e^(f ln 2), k = y rounded, |f| <= ½ (floor by truncation:
+    // exact in this range).
+    let half_up = y + splat(0.5);
+    let k = f32x4::from_i32x4(half_up.fast_trunc_int());
+    let k = k.simd_gt(half_up).bitselect(k - f32x4::ONE, k);
+    let t = (y - k) * splat(std::f32::consts::LN_2);
+    let exp_t = f32x4::ONE + t * (f32x4::ONE + t * (splat(1.0 / 2.0) + t * (splat(1.0 / 6.0) + t * (splat(1.0 / 24.0) + t * (splat(1.0 / 120.0) + t * splat(1.0 / 720.0))))));
+    let scale: f32x4 = wide::bytemuck::cast((k.fast_trunc_int() + i32x4::splat(127)) << 23);
+    exp_t * scale
 }
 
 #[inline(always)]
@@ -854,7 +884,7 @@ fn lighting4(p: &Prepared, lights: &[Light], min_rdv: f32, point_lights: bool, c
     let away = n[2].simd_lt(f32x4::ZERO);
     let n = n.map(|c| away.bitselect(-c, c));
     let point = if point_lights { interpolate4(p.vertices, &corners, w1, w2) } else { [f32x4::ZERO; 3] };
-    let (mut diffuse, mut specular) = (splat(m.ambient), [0.0f32; LANES]);
+    let (mut diffuse, mut specular) = (splat(m.ambient), f32x4::ZERO);
     for light in lights {
         let l = match light.kind {
             LightKind::Directional => light.vector.map(splat),
@@ -866,16 +896,13 @@ fn lighting4(p: &Prepared, lights: &[Light], min_rdv: f32, point_lights: bool, c
         diffuse = unlit.bitselect(diffuse, diffuse + splat(light.intensity * m.diffuse) * ndl);
         if m.specular > 0.0 {
             let rdv = splat(2.0) * ndl * n[2] - l[2];
-            let shiny = rdv.simd_gt(splat(min_rdv)).to_bitmask() & !unlit.to_bitmask();
-            if shiny != 0 {
-                let rdv = rdv.to_array();
-                for lane in (0..LANES).filter(|&lane| shiny >> lane & 1 == 1) {
-                    specular[lane] += light.intensity * m.specular * rdv[lane].powf(m.shininess);
-                }
+            let shiny = rdv.simd_gt(splat(min_rdv)) & !unlit;
+            if shiny.any() {
+                specular = shiny.bitselect(specular + splat(light.intensity * m.specular) * pow4(rdv, m.shininess), specular);
             }
         }
     }
-    (diffuse, f32x4::new(specular))
+    (diffuse, specular)
 }
 
 /// [`interpolate`] in four lanes, each with its own triangle.
@@ -1212,6 +1239,22 @@ mod tests {
         let (a, b) = (render(&v, &t, &uv, &phong).unwrap().image, render(&v, &t, &uv, &gouraud).unwrap().image);
         let mean_diff = a.iter().zip(&b).map(|(x, y)| (x - y).abs()).sum::<f32>() / a.len() as f32;
         assert!(mean_diff < 0.01 && mean_diff > 0.0, "{mean_diff}");
+    }
+
+    #[test]
+    fn pow4_is_the_power_to_its_stated_accuracy() {
+        let mut rng = crate::rng::SplitMix64::new(9);
+        for _ in 0..20_000 {
+            let (x, alpha) = (rng.log_uniform(1e-6, 1.01) as f32, rng.log_uniform(1e-3, 1e4) as f32);
+            let exact = (x as f64).powf(alpha as f64);
+            let y = alpha as f64 * (x as f64).log2();
+            if !(-120.0..120.0).contains(&y) {
+                continue;
+            }
+            let got = pow4(f32x4::splat(x), alpha).to_array()[0] as f64;
+            let tolerance = 2e-7 + 1.5e-7 * y.abs();
+            assert!((got - exact).abs() <= tolerance * exact, "{x}^{alpha}: {got} against {exact}");
+        }
     }
 
     #[test]
