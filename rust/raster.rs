@@ -16,8 +16,9 @@
 //!    lane by lane, so the results do not depend on the instruction set;
 //!    both passes are compiled for the baseline and for AVX2, chosen at run
 //!    time, with the same bits).
-//! 2. shading: albedo sampled bilinearly (clamp to edge, four subsamples at
-//!    once) at every covered subsample's texture coordinates and averaged (box filter;
+//! 2. shading: albedo sampled bilinearly (clamp to edge, by a repeated last
+//!    row and column; four subsamples at once) at every covered subsample's
+//!    texture coordinates and averaged (box filter;
 //!    background subsamples contribute 0 and lower the pixel's coverage); the
 //!    light terms once per pixel at its centre, as multisampling renderers do
 //!    (lighting varies over a ~2 px² triangle far more slowly than texture):
@@ -26,7 +27,8 @@
 //!    `Shading::Gouraud` interpolates lighting computed at the vertices. Phong:
 //!    `I = k_a ρ + Σ_l I_l (k_d ρ max(0, n·l) + k_s max(0, r·v)^α)` with
 //!    `v = +z` (orthographic view), `r = 2(n·l)n − l`; specular terms
-//!    `(r·v)^α` below 1e-4 are dropped.
+//!    `(r·v)^α` below 1e-4 are dropped, the power is `pow4`'s (polynomial
+//!    log₂ and exp₂ in plain f32 operations: no libm).
 //!
 //! Texture coordinates: u along texture columns, v along rows, both in [0, 1];
 //! texel (row, col) has its centre at ((row + ½)/H, (col + ½)/W).
