@@ -117,7 +117,7 @@ impl Texture {
     pub fn new(height: usize, width: usize, texels: &[f32]) -> Result<Self> {
         // Texel indices are computed in i32 lanes.
         if height == 0 || width == 0 || texels.len() != height * width || (height + 1).saturating_mul(width + 1) > i32::MAX as usize {
-            return Err(InvalidArgument::new("texture", format!("expected a non-empty (H, W) image of at most 2^31 texels, got {height}×{width} with {} values", texels.len())));
+            return Err(InvalidArgument::new("texture", format!("expected a non-empty (H, W) image with (H + 1)(W + 1) < 2^31, got {height}×{width} with {} values", texels.len())));
         }
         if !texels.iter().all(|v| v.is_finite()) {
             return Err(InvalidArgument::new("texture", "expected finite values"));
@@ -947,6 +947,9 @@ pub fn check_render_inputs(vertices: &[[f32; 3]], triangles: &[[u32; 3]], uv: &[
     if !(1..=MAX_SUPERSAMPLE).contains(&scene.supersample) {
         return Err(InvalidArgument::new("supersample", format!("expected 1..={MAX_SUPERSAMPLE}, got {}", scene.supersample)));
     }
+    if scene.texture.height == 0 || scene.texture.width == 0 {
+        return Err(InvalidArgument::new("texture", "expected a non-empty image (Texture::new), got an empty one"));
+    }
     scene.material.validate()?;
     check_lights(scene.lights)
 }
@@ -1355,6 +1358,8 @@ mod tests {
         assert_eq!(render(&v, &[[0, 1, 9]], &uv, &scene).unwrap_err().name, "triangles");
         let scene = Scene { supersample: 0, ..scene };
         assert_eq!(render(&v, &t, &uv, &scene).unwrap_err().name, "supersample");
+        let empty = Texture::default();
+        assert_eq!(render(&v, &t, &uv, &Scene { supersample: 1, texture: &empty, ..scene.clone() }).unwrap_err().name, "texture");
         for (height, width, texels) in [(0, 2, vec![]), (2, 2, vec![0.5; 3]), (1, 2, vec![0.5, f32::NAN])] {
             assert_eq!(Texture::new(height, width, &texels).unwrap_err().name, "texture", "{height}×{width}");
         }
