@@ -630,11 +630,23 @@ impl Grids {
         // where truncation to i32 is exact, so ceil and floor are too.
         let (below, above) = (self.first - f32x4::ONE, self.last + f32x4::ONE);
         let (lo, hi) = (lo.fast_max(below).fast_min(above), hi.fast_max(below).fast_min(above));
-        let (lo_int, hi_int) = (f32x4::from_i32x4(lo.fast_trunc_int()), f32x4::from_i32x4(hi.fast_trunc_int()));
-        let ceil = lo_int.simd_lt(lo).bitselect(lo_int + f32x4::ONE, lo_int);
-        let floor = hi_int.simd_gt(hi).bitselect(hi_int - f32x4::ONE, hi_int);
-        (ceil.fast_max(self.first).fast_trunc_int().to_array(), floor.fast_min(self.last).fast_trunc_int().to_array())
+        (ceil4(lo).fast_max(self.first).fast_trunc_int().to_array(), floor4(hi).fast_min(self.last).fast_trunc_int().to_array())
     }
+}
+
+/// Floor of four values by truncation, exact for |x| < 2³¹ (the baseline
+/// x86-64 target has no rounding instruction).
+#[inline(always)]
+fn floor4(x: f32x4) -> f32x4 {
+    let t = f32x4::from_i32x4(x.fast_trunc_int());
+    t.simd_gt(x).bitselect(t - f32x4::ONE, t)
+}
+
+/// Ceiling of four values by truncation, exact for |x| < 2³¹.
+#[inline(always)]
+fn ceil4(x: f32x4) -> f32x4 {
+    let t = f32x4::from_i32x4(x.fast_trunc_int());
+    t.simd_lt(x).bitselect(t + f32x4::ONE, t)
 }
 
 /// Test the samples `rows` × `columns` (inclusive) of the grid of spacing
@@ -724,11 +736,8 @@ fn pow4(x: f32x4, alpha: f32) -> f32x4 {
     let s2 = s * s;
     let ln_m = s * (splat(2.0) + s2 * (splat(2.0 / 3.0) + s2 * (splat(2.0 / 5.0) + s2 * (splat(2.0 / 7.0) + s2 * splat(2.0 / 9.0)))));
     let y = (splat(alpha) * (e + ln_m * splat(std::f32::consts::LOG2_E))).fast_max(splat(-126.0)).fast_min(splat(127.0));
-    // 2^y = 2^k · e^(f ln 2), k = y rounded, |f| <= ½ (floor by truncation:
-    // exact in this range).
-    let half_up = y + splat(0.5);
-    let k = f32x4::from_i32x4(half_up.fast_trunc_int());
-    let k = k.simd_gt(half_up).bitselect(k - f32x4::ONE, k);
+    // 2^y = 2^k · e^(f ln 2), k = y rounded, |f| <= ½.
+    let k = floor4(y + splat(0.5));
     let t = (y - k) * splat(std::f32::consts::LN_2);
     let exp_t = f32x4::ONE + t * (f32x4::ONE + t * (splat(1.0 / 2.0) + t * (splat(1.0 / 6.0) + t * (splat(1.0 / 24.0) + t * (splat(1.0 / 120.0) + t * splat(1.0 / 720.0))))));
     let scale: f32x4 = wide::bytemuck::cast((k.fast_trunc_int() + i32x4::splat(127)) << 23);
@@ -864,8 +873,8 @@ fn shade_pass(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], cov
 
 /// The light terms `(diffuse, specular)` at the four hit pixel centres `k ..
 /// k + LANES`: the scalar path's arithmetic lane by lane (the same IEEE
-/// operations in the same order, so the same bits), with the power computed
-/// only in the lanes whose specular term survives.
+/// operations in the same order, so the same bits); a light's power is
+/// computed, in all four lanes, only where some lane's specular term survives.
 #[inline(always)]
 fn lighting4(p: &Prepared, lights: &[Light], min_rdv: f32, point_lights: bool, centres: &Samples, k: usize) -> (f32x4, f32x4) {
     let corners = lanes(&centres.triangle, k).map(|t| p.triangles[t as usize]);
@@ -1244,6 +1253,22 @@ mod tests {
         let (a, b) = (render(&v, &t, &uv, &phong).unwrap().image, render(&v, &t, &uv, &gouraud).unwrap().image);
         let mean_diff = a.iter().zip(&b).map(|(x, y)| (x - y).abs()).sum::<f32>() / a.len() as f32;
         assert!(mean_diff < 0.01 && mean_diff > 0.0, "{mean_diff}");
+    }
+
+    #[test]
+    fn four_lane_floor_and_ceil_equal_std() {
+        let mut rng = crate::rng::SplitMix64::new(5);
+        for _ in 0..5000 {
+            // Integers, halves and arbitrary values, up to 2^30 either side.
+            let x: [f32; 4] = std::array::from_fn(|k| {
+                let v = rng.uniform(-1.0, 1.0) * 2f64.powi((rng.next_u64() % 31) as i32);
+                [v, v.round(), v.round() + 0.5, -0.0][k] as f32
+            });
+            let (floor, ceil) = (floor4(f32x4::new(x)).to_array(), ceil4(f32x4::new(x)).to_array());
+            for k in 0..4 {
+                assert_eq!((floor[k], ceil[k]), (x[k].floor(), x[k].ceil()), "{}", x[k]);
+            }
+        }
     }
 
     #[test]
