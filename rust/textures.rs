@@ -16,6 +16,8 @@ use crate::geometry::floor_fast;
 use crate::raster::Texture;
 use crate::rng::{hash, mix64, unit_f64, SplitMix64};
 
+use wide::f32x4;
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TextureFamily {
     /// Fractal (fBm) value noise, sometimes folded into marble veins.
@@ -57,37 +59,91 @@ fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {
     t * t * (3.0 - 2.0 * t)
 }
 
-/// Periodic fBm value noise, roughly in [0, 1], at texels `rows` × `cols`
-/// of a `size²` texture, into `out` (row-major over the two lists).
-fn fbm(seed: u64, size: usize, (base_cells, octaves, persistence): (usize, usize, f32), rows: &[usize], cols: &[usize], out: &mut Vec<f32>) {
-    out.clear();
-    out.resize(rows.len() * cols.len(), 0.0);
-    let mut amplitude = 1.0f32;
-    let mut total = 0.0f32;
-    for octave in 0..octaves {
-        let cells = base_cells << octave;
-        let lattice: Vec<f32> = (0..cells * cells).map(|k| unit_f64(hash(seed, &[octave as u64, (k / cells) as u64, (k % cells) as u64])) as f32).collect();
-        // Cell index and smoothstep weight of a texel column (= row) coordinate.
-        let weight = |x: usize| {
-            let p = (x as f32 + 0.5) / size as f32 * cells as f32;
-            let i = floor_fast(p) as usize % cells;
-            let f = p - floor_fast(p);
-            (i, (i + 1) % cells, f * f * (3.0 - 2.0 * f))
-        };
-        let col_weights: Vec<_> = cols.iter().map(|&x| weight(x)).collect();
-        for (&y, row) in rows.iter().zip(out.chunks_exact_mut(cols.len())) {
-            let (j0, j1, fy) = weight(y);
-            let (l0, l1) = (&lattice[j0 * cells..(j0 + 1) * cells], &lattice[j1 * cells..(j1 + 1) * cells]);
-            for (v, &(i0, i1, fx)) in row.iter_mut().zip(&col_weights) {
-                let top = l0[i0] + (l0[i1] - l0[i0]) * fx;
-                let bottom = l1[i0] + (l1[i1] - l1[i0]) * fx;
-                *v += amplitude * (top + (bottom - top) * fy);
-            }
-        }
-        total += amplitude;
-        amplitude *= persistence;
+/// [`smoothstep`] in four lanes: the same operations lane by lane.
+#[inline]
+fn smoothstep4(e0: f32, e1: f32, x: f32x4) -> f32x4 {
+    // Clamped as `f32::clamp` clamps finite values.
+    let t = ((x - f32x4::splat(e0)) / f32x4::splat(e1 - e0)).fast_max(f32x4::ZERO).fast_min(f32x4::ONE);
+    t * t * (f32x4::splat(3.0) - f32x4::splat(2.0) * t)
+}
+
+/// Periodic fBm value noise, roughly in [0, 1]: octave o interpolates (by
+/// smoothstep) a periodic lattice of `base_cells · 2^o` random values per side.
+struct Fbm {
+    /// Per octave: cells per side and the lattice, row-major.
+    octaves: Vec<(usize, Vec<f32>)>,
+    persistence: f32,
+}
+
+impl Fbm {
+    fn new(seed: u64, base_cells: usize, octaves: usize, persistence: f32) -> Self {
+        let octaves = (0..octaves)
+            .map(|octave| {
+                let cells = base_cells << octave;
+                let lattice = (0..cells).flat_map(|j| (0..cells).map(move |i| unit_f64(hash(seed, &[octave as u64, j as u64, i as u64])) as f32)).collect();
+                (cells, lattice)
+            })
+            .collect();
+        Self { octaves, persistence }
     }
-    out.iter_mut().for_each(|v| *v /= total);
+
+    /// The noise at texels `rows` × `cols` of a `size²` texture, into `out`
+    /// (row-major over the two lists).
+    fn evaluate(&self, size: usize, rows: &[usize], cols: &[usize], out: &mut Vec<f32>) {
+        out.clear();
+        out.resize(rows.len() * cols.len(), 0.0);
+        let mut amplitude = 1.0f32;
+        let mut total = 0.0f32;
+        for (cells, lattice) in &self.octaves {
+            let cells = *cells;
+            // Cell index and smoothstep weight of a texel column (= row) coordinate.
+            let weight = |x: usize| {
+                let p = (x as f32 + 0.5) / size as f32 * cells as f32;
+                let i = floor_fast(p) as usize % cells;
+                let f = p - floor_fast(p);
+                (i, (i + 1) % cells, f * f * (3.0 - 2.0 * f))
+            };
+            let col_weights: Vec<_> = cols.iter().map(|&x| weight(x)).collect();
+            // Lattice row j interpolated along x at every column: shared by
+            // all the texel rows between lattice rows j and j ± 1, so built
+            // once per lattice row (the last two kept), and the texels then
+            // need no lattice lookups.
+            let along_x = |j: usize, values: &mut Vec<f32>| {
+                let l = &lattice[j * cells..(j + 1) * cells];
+                values.clear();
+                values.extend(col_weights.iter().map(|&(i0, i1, fx)| l[i0] + (l[i1] - l[i0]) * fx));
+            };
+            let mut lines: [(usize, Vec<f32>); 2] = [(usize::MAX, Vec::new()), (usize::MAX, Vec::new())];
+            for (&y, row) in rows.iter().zip(out.chunks_exact_mut(cols.len())) {
+                let (j0, j1, fy) = weight(y);
+                for (slot, j) in [j0, j1].into_iter().enumerate() {
+                    if lines[slot].0 != j {
+                        match lines.iter().position(|line| line.0 == j) {
+                            Some(other) => lines.swap(slot, other),
+                            None => {
+                                along_x(j, &mut lines[slot].1);
+                                lines[slot].0 = j;
+                            }
+                        }
+                    }
+                }
+                let (top, bottom) = (&lines[0].1, &lines[1].1);
+                let (amplitude, fy) = (f32x4::splat(amplitude), f32x4::splat(fy));
+                let whole = row.len() - row.len() % 4;
+                for ((v, top), bottom) in row[..whole].chunks_exact_mut(4).zip(top.chunks_exact(4)).zip(bottom.chunks_exact(4)) {
+                    let (top, bottom) = (f32x4::new(top.try_into().unwrap()), f32x4::new(bottom.try_into().unwrap()));
+                    let sum = f32x4::new((&*v).try_into().unwrap()) + amplitude * (top + (bottom - top) * fy);
+                    v.copy_from_slice(&sum.to_array());
+                }
+                for k in whole..row.len() {
+                    row[k] += amplitude.to_array()[0] * (top[k] + (bottom[k] - top[k]) * fy.to_array()[0]);
+                }
+            }
+            total += amplitude;
+            amplitude *= self.persistence;
+        }
+        out.iter_mut().for_each(|v| *v /= total);
+    }
 }
 
 /// Texels per side of the lattice whose values set a texture's normalisation.
@@ -95,11 +151,11 @@ const RANGE_STRIDE: usize = 4;
 
 /// A family's drawn parameters: the pattern, a pure function of texel position.
 enum Pattern {
-    Fractal { seed: u64, base: usize, persistence: f32, marble: Option<f32> },
-    Stripes { waves: Vec<(f32, f32, f32, f32)>, warp: f32, noise_seed: u64 },
+    Fractal { noise: Fbm, marble: Option<f32> },
+    Stripes { waves: Vec<(f32, f32, f32, f32)>, warp: f32, noise: Fbm },
     Plaid { rotation: (f32, f32), freq: f32, checks: bool, duty: [f32; 2], levels: [f32; 3], soft: f32 },
     Cells { cells: usize, radius: f32, walls: bool, features: Vec<(f32, f32, f32)> },
-    Weave { threads: usize, twill: bool, tones: (f32, f32), fibre_seed: u64 },
+    Weave { threads: usize, twill: bool, tones: (f32, f32), fibres: Fbm },
 }
 
 impl Pattern {
@@ -111,7 +167,7 @@ impl Pattern {
                 let seed = rng.next_u64();
                 // Marble: veins where a sinusoid of the noise crosses zero.
                 let marble = (rng.unit() < 0.35).then(|| rng.uniform(4.0, 14.0) as f32);
-                Self::Fractal { seed, base, persistence, marble }
+                Self::Fractal { noise: Fbm::new(seed, base, 5, persistence), marble }
             }
             TextureFamily::Stripes => {
                 let count = 1 + (rng.next_u64() % 3) as usize;
@@ -122,7 +178,7 @@ impl Pattern {
                         (angle.cos() * freq, angle.sin() * freq, rng.uniform(0.0, 6.3) as f32, rng.uniform(0.4, 1.0) as f32)
                     })
                     .collect();
-                Self::Stripes { waves, warp: rng.uniform(0.0, 1.5) as f32, noise_seed: rng.next_u64() }
+                Self::Stripes { waves, warp: rng.uniform(0.0, 1.5) as f32, noise: Fbm::new(rng.next_u64(), 3, 3, 0.5) }
             }
             TextureFamily::Plaid => {
                 let angle = rng.uniform(0.0, std::f64::consts::PI) as f32;
@@ -152,7 +208,7 @@ impl Pattern {
                 let threads = 8 + (rng.next_u64() % 25) as usize;
                 let twill = rng.unit() < 0.5;
                 let tones = (rng.uniform(0.3, 1.0) as f32, rng.uniform(0.3, 1.0) as f32);
-                Self::Weave { threads, twill, tones, fibre_seed: rng.next_u64() }
+                Self::Weave { threads, twill, tones, fibres: Fbm::new(rng.next_u64(), 16, 3, 0.6) }
             }
         }
     }
@@ -161,14 +217,14 @@ impl Pattern {
     /// `out` (row-major over the two lists); `noise` is scratch.
     fn evaluate(&self, size: usize, rows: &[usize], cols: &[usize], out: &mut Vec<f32>, noise: &mut Vec<f32>) {
         match self {
-            Self::Fractal { seed, base, persistence, marble } => {
-                fbm(*seed, size, (*base, 5, *persistence), rows, cols, out);
+            Self::Fractal { noise, marble } => {
+                noise.evaluate(size, rows, cols, out);
                 if let Some(k) = marble {
                     out.iter_mut().for_each(|v| *v = (0.5 + 0.5 * (k * *v * std::f32::consts::TAU).sin()).powf(0.7));
                 }
             }
-            Self::Stripes { waves, warp, noise_seed } => {
-                fbm(*noise_seed, size, (3, 3, 0.5), rows, cols, noise);
+            Self::Stripes { waves, warp, noise: fbm } => {
+                fbm.evaluate(size, rows, cols, noise);
                 fill_texels(size, rows, cols, out, |k, (x, y)| waves.iter().map(|&(fx, fy, ph, a)| a * (std::f32::consts::TAU * (fx * x + fy * y) + ph + warp * 6.0 * noise[k]).sin()).sum::<f32>());
             }
             Self::Plaid { rotation: (c, s), freq, checks, duty, levels, soft } => fill_texels(size, rows, cols, out, |_, (x, y)| {
@@ -177,35 +233,9 @@ impl Pattern {
                 let b = smoothstep(-soft, *soft, (std::f32::consts::TAU * freq * w).sin() - duty[1]);
                 if *checks { a * b + (1.0 - a) * (1.0 - b) } else { levels[2] * (levels[0] * a + levels[1] * b) + (1.0 - levels[2]) * a * b }
             }),
-            Self::Cells { cells, radius, walls, features } => {
-                let n = *cells as i64;
-                let point = |i: i64, j: i64| {
-                    let (ox, oy, tone) = features[j.rem_euclid(n) as usize * *cells + i.rem_euclid(n) as usize];
-                    (i as f32 + ox, j as f32 + oy, tone)
-                };
-                fill_texels(size, rows, cols, out, |_, (x, y)| {
-                    let (x, y) = (x * *cells as f32, y * *cells as f32);
-                    let (ci, cj) = (floor_fast(x) as i64, floor_fast(y) as i64);
-                    let (mut d1, mut d2, mut tone) = (f32::INFINITY, f32::INFINITY, 0.0);
-                    for dj in -1..=1 {
-                        for di in -1..=1 {
-                            let (px, py, t) = point(ci + di, cj + dj);
-                            let d = (px - x).powi(2) + (py - y).powi(2);
-                            if d < d1 {
-                                d2 = d1;
-                                d1 = d;
-                                tone = t;
-                            } else if d < d2 {
-                                d2 = d;
-                            }
-                        }
-                    }
-                    let (d1, d2) = (d1.sqrt(), d2.sqrt());
-                    if *walls { smoothstep(0.0, 0.15, d2 - d1) * (0.5 + 0.5 * tone) } else { smoothstep(*radius, radius * 0.7, d1) * (0.4 + 0.6 * tone) }
-                })
-            }
-            Self::Weave { threads, twill, tones: (warp_tone, weft_tone), fibre_seed } => {
-                fbm(*fibre_seed, size, (16, 3, 0.6), rows, cols, noise);
+            Self::Cells { cells, radius, walls, features } => cells_texels(*cells, *radius, *walls, features, size, rows, cols, out),
+            Self::Weave { threads, twill, tones: (warp_tone, weft_tone), fibres } => {
+                fibres.evaluate(size, rows, cols, noise);
                 fill_texels(size, rows, cols, out, |k, (x, y)| {
                     let (u, w) = (x * *threads as f32, y * *threads as f32);
                     let (iu, iw) = (floor_fast(u) as i64, floor_fast(w) as i64);
@@ -215,6 +245,60 @@ impl Pattern {
                     tone * profile.sqrt() * (0.75 + 0.5 * noise[k])
                 })
             }
+        }
+    }
+}
+
+/// The Cells family at texels `rows` × `cols` (see `Pattern::Cells`), four
+/// texels of a row at a time: the distance to the nearest (d1) and second
+/// nearest (d2) feature point of the 3×3 cells around a texel's cell.
+#[allow(clippy::too_many_arguments)]
+fn cells_texels(cells: usize, radius: f32, walls: bool, features: &[(f32, f32, f32)], size: usize, rows: &[usize], cols: &[usize], out: &mut Vec<f32>) {
+    let splat = f32x4::splat;
+    let coord = |x: usize| (x as f32 + 0.5) / size as f32 * cells as f32;
+    let n = cells as i64;
+    // A column's cell does not depend on the row: the cells of the columns,
+    // and the range of cells (and neighbours) they reach.
+    let cell_of = |x: f32| floor_fast(x) as i64;
+    let (first, last) = cols.iter().fold((i64::MAX, i64::MIN), |(lo, hi), &x| (lo.min(cell_of(coord(x))), hi.max(cell_of(coord(x)))));
+    let reach = (first - 1)..=(last + 1);
+    // Per row, for each cell i of `reach` and each of the rows cj − 1, cj,
+    // cj + 1: the feature point's x, its (py − y)², and its tone.
+    let mut table: Vec<[f32; 3]> = Vec::with_capacity(3 * reach.clone().count());
+    out.clear();
+    for &y in rows {
+        let y = coord(y);
+        let cj = cell_of(y);
+        table.clear();
+        for i in reach.clone() {
+            for j in cj - 1..=cj + 1 {
+                let (ox, oy, tone) = features[j.rem_euclid(n) as usize * cells + i.rem_euclid(n) as usize];
+                let py = j as f32 + oy;
+                table.push([i as f32 + ox, (py - y) * (py - y), tone]);
+            }
+        }
+        let entry = |i: i64, di: usize, dj: usize| table[(i - first) as usize * 3 + di * 3 + dj];
+        for group in cols.chunks(4) {
+            let x = f32x4::new(std::array::from_fn(|l| coord(group[l.min(group.len() - 1)])));
+            let ci = x.to_array().map(cell_of);
+            let same_cell = ci.iter().all(|&i| i == ci[0]);
+            // Nearest and second nearest, in the order dj, di (ties keep the
+            // earlier), branch-free.
+            let (mut d1, mut d2, mut tone) = (splat(f32::INFINITY), splat(f32::INFINITY), f32x4::ZERO);
+            for dj in 0..3 {
+                for di in 0..3 {
+                    // Four texels of a row mostly share their cell: one lookup, not four.
+                    let [px, dy2, t] = if same_cell { entry(ci[0], di, dj).map(splat) } else { std::array::from_fn(|q| f32x4::new(ci.map(|i| entry(i, di, dj)[q]))) };
+                    let d = (px - x) * (px - x) + dy2;
+                    let nearer = d.simd_lt(d1);
+                    d2 = nearer.bitselect(d1, d.simd_lt(d2).bitselect(d, d2));
+                    d1 = nearer.bitselect(d, d1);
+                    tone = nearer.bitselect(t, tone);
+                }
+            }
+            let (d1, d2) = (d1.sqrt(), d2.sqrt());
+            let value = if walls { smoothstep4(0.0, 0.15, d2 - d1) * (splat(0.5) + splat(0.5) * tone) } else { smoothstep4(radius, radius * 0.7, d1) * (splat(0.4) + splat(0.6) * tone) };
+            out.extend_from_slice(&value.to_array()[..group.len()]);
         }
     }
 }
