@@ -101,18 +101,18 @@ pub fn normals8(words: [u64; 4]) -> [f32; 8] {
     let t2 = theta * theta;
     let sin = theta * (splat(1.0) + t2 * (splat(-1.0 / 6.0) + t2 * (splat(1.0 / 120.0) + t2 * splat(-1.0 / 5040.0))));
     let cos = splat(1.0) + t2 * (splat(-0.5) + t2 * (splat(1.0 / 24.0) + t2 * (splat(-1.0 / 720.0) + t2 * splat(1.0 / 40320.0))));
-    let (x, y) = (((cos - sin) * splat(FRAC_1_SQRT_2) * r).to_array(), ((cos + sin) * splat(FRAC_1_SQRT_2) * r).to_array());
-    let mut out = [0.0; 8];
-    for (j, w) in words.iter().enumerate() {
-        // Rotate (x, y) by q quarter turns (exact: swaps and negations).
-        [out[2 * j], out[2 * j + 1]] = match (w >> 22) & 3 {
-            0 => [x[j], y[j]],
-            1 => [-y[j], x[j]],
-            2 => [-x[j], -y[j]],
-            _ => [y[j], -x[j]],
-        };
-    }
-    out
+    let (x, y) = ((cos - sin) * splat(FRAC_1_SQRT_2) * r, (cos + sin) * splat(FRAC_1_SQRT_2) * r);
+    // Rotate (x, y) by q quarter turns, branch-free (q is random: a branch
+    // would be mispredicted half the time): q odd swaps, (−y, x) and (y, −x);
+    // the first is negated for q in {1, 2}, the second for q in {2, 3}
+    // (sign flips, exact).
+    let q = u32x4::new(words.map(|w| ((w >> 22) & 3) as u32));
+    let sign = |flip: u32x4| wide::bytemuck::cast::<u32x4, f32x4>(flip & u32x4::splat(0x8000_0000));
+    let (low, high): (u32x4, u32x4) = (q & u32x4::ONE, q >> 1);
+    let odd: f32x4 = wide::bytemuck::cast(low.simd_eq(u32x4::ONE));
+    let (first, second) = (odd.bitselect(y, x) ^ sign((low ^ high).simd_eq(u32x4::ONE)), odd.bitselect(x, y) ^ sign(high.simd_eq(u32x4::ONE)));
+    let (first, second) = (first.to_array(), second.to_array());
+    std::array::from_fn(|k| if k % 2 == 0 { first[k / 2] } else { second[k / 2] })
 }
 
 #[cfg(test)]
