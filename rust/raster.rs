@@ -723,7 +723,7 @@ fn specular_cutoff(m: &Material) -> f32 {
 /// error below 2e-7 + 1.5e-7·|α log₂ x| (tested against f64); `α log₂ x`
 /// is clamped to [−126, 127], x below f32::MIN_POSITIVE taken as it.
 #[inline(always)]
-fn pow4(x: f32x4, alpha: f32) -> f32x4 {
+pub(crate) fn pow4(x: f32x4, alpha: f32) -> f32x4 {
     let splat = f32x4::splat;
     // log₂ x = e + ln(m)/ln 2 with x = m·2^e, m in [√½, √2):
     // ln m = 2 atanh s, s = (m − 1)/(m + 1), |s| < 0.172.
