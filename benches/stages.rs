@@ -10,7 +10,7 @@ use nrdepth::generate::{generate_clips, noisy_u8, ClipWorker, GeneratorConfig};
 use nrdepth::geometry::{View, CAMERA_Z};
 use nrdepth::mesh::grid_triangles;
 use nrdepth::raster::{Frame, Light, LightKind, Material, Rasterizer, Scene, Shading, Texture};
-use nrdepth::textures::{procedural, TextureFamily};
+use nrdepth::textures::{procedural, TextureFamily, FAMILIES};
 use nrdepth::{synthesize, SurfaceConfig};
 
 fn still_surface(grid: usize) -> Vec<[f32; 3]> {
@@ -71,8 +71,9 @@ fn bench(c: &mut Criterion) {
         })
     });
     let mut tex = Texture::default();
-    g.bench_function("texture_fractal_256", |b| b.iter(|| procedural(TextureFamily::Fractal, 5, 256, &mut tex)));
-    g.bench_function("texture_cells_256", |b| b.iter(|| procedural(TextureFamily::Cells, 5, 256, &mut tex)));
+    for family in FAMILIES {
+        g.bench_function(format!("texture_{}_256", family.name()), |b| b.iter(|| procedural(family, 5, 256, &mut tex)));
+    }
 
     for shading in [Shading::Phong, Shading::Gouraud] {
         let config = GeneratorConfig { shading, ..GeneratorConfig::default() };
