@@ -282,7 +282,8 @@ fn cells_texels(cells: usize, radius: f32, walls: bool, features: &[(f32, f32, f
                 table.push([i as f32 + ox, (py - y) * (py - y), tone]);
             }
         }
-        let entry = |i: i64, di: usize, dj: usize| table[(i - first) as usize * 3 + di * 3 + dj];
+        // Neighbour (ci + di − 1, cj + dj − 1); the table starts at cell first − 1.
+        let entry = |i: i64, di: usize, dj: usize| table[((i - first) as usize + di) * 3 + dj];
         for group in cols.chunks(4) {
             let x = f32x4::new(std::array::from_fn(|l| coord(group[l.min(group.len() - 1)])));
             let ci = x.to_array().map(cell_of);
@@ -491,6 +492,72 @@ mod tests {
             }
         }
         out
+    }
+
+    #[test]
+    fn four_lane_families_follow_their_texel_formulas() {
+        // Stripes, Plaid, Weave and marble evaluated four texels at a time
+        // against their formulas texel by texel: coordinates in f32 as the
+        // lanes compute them, sines and powers in f64. Column lists with a
+        // gap and a partial last group check which noise value and which
+        // coordinate each lane reads.
+        let (size, rows, cols): (usize, Vec<usize>, Vec<usize>) = (96, (0..96).step_by(5).collect(), (2..40).chain(43..93).collect());
+        let coord = |x: usize| (x as f32 + 0.5) / size as f32;
+        let pi = std::f64::consts::PI;
+        let smooth = |e0: f64, e1: f64, x: f64| {
+            let t = ((x - e0) / (e1 - e0)).clamp(0.0, 1.0);
+            t * t * (3.0 - 2.0 * t)
+        };
+        let mut checked = [0usize; 4];
+        for family in [TextureFamily::Fractal, TextureFamily::Stripes, TextureFamily::Plaid, TextureFamily::Weave] {
+            for seed in 0..12 {
+                let pattern = Pattern::draw(family, size, &mut SplitMix64::new(hash(seed, &[family as u64])));
+                let (mut out, mut noise) = (Vec::new(), Vec::new());
+                pattern.evaluate(size, &rows, &cols, &mut out, &mut noise);
+                let texels = rows.iter().flat_map(|&y| cols.iter().map(move |&x| (coord(x), coord(y))));
+                let (expected, tolerance): (Vec<f64>, f64) = match &pattern {
+                    Pattern::Fractal { noise: fbm, marble: Some(k) } => {
+                        fbm.evaluate(size, &rows, &cols, &mut noise);
+                        (noise.iter().map(|&v| (0.5 + 0.5 * ((k * std::f32::consts::TAU * v) as f64).sin()).max(0.0).powf(0.7)).collect(), 1e-4)
+                    }
+                    Pattern::Fractal { .. } => continue,
+                    Pattern::Stripes { waves, warp, noise: fbm } => {
+                        fbm.evaluate(size, &rows, &cols, &mut noise);
+                        let value = |k: usize, (x, y): (f32, f32)| waves.iter().map(|&(fx, fy, ph, a)| a as f64 * ((std::f32::consts::TAU * (fx * x + fy * y) + ph + warp * 6.0 * noise[k]) as f64).sin()).sum();
+                        (texels.enumerate().map(|(k, p)| value(k, p)).collect(), 1e-5)
+                    }
+                    Pattern::Plaid { rotation: (c, s), freq, checks, duty, levels, soft } => {
+                        let value = |(x, y): (f32, f32)| {
+                            let (u, w) = (c * x + s * y, -s * x + c * y);
+                            let a = smooth(-*soft as f64, *soft as f64, ((std::f32::consts::TAU * freq * u) as f64).sin() - duty[0] as f64);
+                            let b = smooth(-*soft as f64, *soft as f64, ((std::f32::consts::TAU * freq * w) as f64).sin() - duty[1] as f64);
+                            let [l0, l1, l2] = levels.map(f64::from);
+                            if *checks { a * b + (1.0 - a) * (1.0 - b) } else { l2 * (l0 * a + l1 * b) + (1.0 - l2) * a * b }
+                        };
+                        (texels.map(value).collect(), 1e-4)
+                    }
+                    Pattern::Weave { threads, twill, tones: (warp_tone, weft_tone), fibres } => {
+                        fibres.evaluate(size, &rows, &cols, &mut noise);
+                        let value = |k: usize, (x, y): (f32, f32)| {
+                            let (u, w) = (x * *threads as f32, y * *threads as f32);
+                            let (iu, iw) = (u.floor(), w.floor());
+                            let warp_on_top = if *twill { (iu as i64 + iw as i64).rem_euclid(4) < 2 } else { (iu as i64 + iw as i64).rem_euclid(2) == 0 };
+                            let (across, tone) = if warp_on_top { (u - iu, warp_tone) } else { (w - iw, weft_tone) };
+                            *tone as f64 * (pi * across as f64).sin().max(0.0).sqrt() * (0.75 + 0.5 * noise[k] as f64)
+                        };
+                        // √ of a sine near 0 magnifies its last bits.
+                        (texels.enumerate().map(|(k, p)| value(k, p)).collect(), 1e-3)
+                    }
+                    Pattern::Cells { .. } => unreachable!(),
+                };
+                assert_eq!(out.len(), expected.len());
+                for (k, (&v, e)) in out.iter().zip(expected).enumerate() {
+                    assert!((v as f64 - e).abs() <= tolerance, "{family:?} seed {seed} texel {k}: {v} vs {e}");
+                }
+                checked[[TextureFamily::Fractal, TextureFamily::Stripes, TextureFamily::Plaid, TextureFamily::Weave].iter().position(|&f| f == family).unwrap()] += 1;
+            }
+        }
+        assert!(checked.iter().all(|&n| n > 0), "families checked: {checked:?}");
     }
 
     #[test]
