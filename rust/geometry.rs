@@ -11,9 +11,9 @@
 //! (row 0 at the top). Subsample (a, b) of an s×s supersampling grid sits at
 //! offsets `((b + ½)/s, (a + ½)/s)` inside the pixel.
 
-use wide::f32x4;
 
 use crate::error::{InvalidArgument, Result};
+use crate::lanes::Lanes8;
 
 /// Default camera plane: the undeformed patch (z = 0) is 2 units in front of it.
 pub const CAMERA_Z: f32 = 2.0;
@@ -72,7 +72,7 @@ impl View {
 }
 
 /// A triangle prepared for many vertical-line tests: the per-triangle part of
-/// `vertical_hit` computed once. `hit` and `hits4` perform exactly the
+/// `vertical_hit` computed once. `hit` and `hits` perform exactly the
 /// arithmetic of `vertical_hit`, so results are bit-identical.
 #[derive(Clone, Copy, Debug)]
 pub struct TriangleSetup {
@@ -130,16 +130,18 @@ impl TriangleSetup {
         (w[0] >= 0.0 && w[1] >= 0.0 && w[2] >= 0.0).then(|| self.interpolate(w))
     }
 
-    /// [`hit`](Self::hit) at four x of the row y = `py`, given `row(py)`, at
-    /// once (SIMD, the same IEEE operations lane by lane): `(inside, z, λb,
+    /// [`hit`](Self::hit) at eight points at once (SIMD, the same IEEE
+    /// operations lane by lane): lane i at x = `px[i]` on the row whose
+    /// [`row`](Self::row) values are `row[k][i]`. Returns `(inside, z, λb,
     /// λc)`, `inside` a lane mask; the other lanes hold the plane's values there.
     #[inline(always)]
-    pub fn hits4(&self, row: [f32; 3], px: f32x4) -> (f32x4, f32x4, f32x4, f32x4) {
-        let splat = f32x4::splat;
-        let w0 = splat(row[0]) - splat(self.bc[1]) * (px - splat(self.b[0]));
-        let w1 = splat(row[1]) - splat(self.ca[1]) * (px - splat(self.c[0]));
-        let w2 = splat(row[2]) - splat(self.ab[1]) * (px - splat(self.a[0]));
-        let inside = w0.simd_ge(f32x4::ZERO) & w1.simd_ge(f32x4::ZERO) & w2.simd_ge(f32x4::ZERO);
+    pub(crate) fn hits<L: Lanes8>(&self, row: [L; 3], px: L) -> (L, L, L, L) {
+        let splat = L::splat;
+        let w0 = row[0] - splat(self.bc[1]) * (px - splat(self.b[0]));
+        let w1 = row[1] - splat(self.ca[1]) * (px - splat(self.c[0]));
+        let w2 = row[2] - splat(self.ab[1]) * (px - splat(self.a[0]));
+        let zero = splat(0.0);
+        let inside = w0.simd_ge(zero) & w1.simd_ge(zero) & w2.simd_ge(zero);
         let inv_area = splat(self.inv_area);
         let (l0, l1, l2) = (w0 * inv_area, w1 * inv_area, w2 * inv_area);
         (inside, l0 * splat(self.a[2]) + l1 * splat(self.b[2]) + l2 * splat(self.c[2]), l1, l2)

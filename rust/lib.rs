@@ -8,6 +8,7 @@ pub mod error;
 pub mod generate;
 pub mod geometry;
 pub mod image_io;
+mod lanes;
 pub mod mesh;
 pub mod params;
 pub mod raster;

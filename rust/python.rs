@@ -502,14 +502,17 @@ fn generate_clips<'py>(
         .filter(|&l| l <= MAX_VALUES)
         .ok_or_else(|| PyValueError::new_err(format!("n: {n} clips exceed {MAX_VALUES} pixels per call; generate in smaller batches")))?;
     let bank = textures.as_deref().map(|dir| texture_bank(dir, config.texture_size)).transpose()?;
-    let (video, depth, params) = parallel(py, || {
-        let (mut video, mut depth) = (vec![0u8; len], vec![0f32; len]);
-        generate::generate_clips(&config, bank.as_deref(), seed, start, n, &mut video, &mut depth).map(|p| (video, depth, p))
-    })?
-    .map_err(value_error)?;
+    // numpy's allocator backs large arrays with transparent huge pages where
+    // the kernel offers them (`madvise`): a batch's first touch of its output
+    // then costs a few page faults, not one per 4 KiB.
+    let (video, depth) = (PyArray1::<u8>::zeros(py, len, false), PyArray1::<f32>::zeros(py, len, false));
+    let params = {
+        let (mut video, mut depth) = (video.readwrite(), depth.readwrite());
+        let (video, depth) = (video.as_slice_mut()?, depth.as_slice_mut()?);
+        parallel(py, || generate::generate_clips(&config, bank.as_deref(), seed, start, n, video, depth))?.map_err(value_error)?
+    };
     let (t, s) = (config.frames, config.size);
-    let video = PyArray1::from_vec(py, video).reshape([n, t, s, s])?.into_any();
-    let depth = PyArray1::from_vec(py, depth).reshape([n, t, s, s])?.into_any();
+    let (video, depth) = (video.reshape([n, t, s, s])?.into_any(), depth.reshape([n, t, s, s])?.into_any());
     let params = PyList::new(py, params.iter().map(|p| clip_to_dict(py, p, bank.as_deref())).collect::<PyResult<Vec<_>>>()?)?;
     Ok((video, depth, params))
 }

@@ -38,9 +38,13 @@ use wide::{f32x4, i32x4, u32x4};
 
 use crate::error::{InvalidArgument, Result};
 use crate::geometry::{check_mesh, TriangleSetup, View};
+use crate::lanes::{Lanes8, Pair4, HALF};
+#[cfg(target_arch = "x86_64")]
+use crate::lanes::Avx8;
 
-/// Sample points tested at once (SIMD lanes).
-const LANES: usize = 4;
+/// Sample points of a row processed at once (SIMD lanes): a visibility
+/// test's half, the shading's four-lane vectors.
+const LANES: usize = HALF;
 /// Largest supersampling factor per axis.
 pub const MAX_SUPERSAMPLE: usize = 8;
 /// Relative size below which a specular term is dropped.
@@ -290,18 +294,24 @@ pub struct Scene<'a> {
 /// was hit), triangle and a two-component attribute interpolated there: the
 /// texture coordinates (u, v) on the subsample grid, the barycentric weights
 /// (λb, λc) on the pixel-centre grid. Only z is reset: the rest is read only
-/// where z is finite. `LANES − 1` padding samples at the end let a group of
-/// lanes start at any sample.
+/// where z is finite. Sample (row, col) is at `row · stride + col`: each row
+/// is padded with `LANES − 1` samples, so that a group of lanes can start at
+/// any sample of it, and a padding row below the last lets a scan test the
+/// row below its last one.
 #[derive(Default)]
 struct Samples {
+    rows: usize,
+    cols: usize,
+    stride: usize,
     z: Vec<f32>,
     triangle: Vec<u32>,
     attribute: [Vec<f32>; 2],
 }
 
 impl Samples {
-    fn reset(&mut self, len: usize) {
-        let padded = len + LANES - 1;
+    fn reset(&mut self, rows: usize, cols: usize) {
+        (self.rows, self.cols, self.stride) = (rows, cols, cols + LANES - 1);
+        let padded = (rows + 1) * self.stride;
         self.z.clear();
         self.z.resize(padded, f32::NEG_INFINITY);
         self.triangle.resize(padded, 0);
@@ -309,44 +319,55 @@ impl Samples {
     }
 
     #[inline(always)]
+    fn index(&self, row: usize, col: usize) -> usize {
+        row * self.stride + col
+    }
+
+    #[inline(always)]
     fn is_hit(&self, i: usize) -> bool {
         self.z[i] > f32::NEG_INFINITY
     }
 
-    /// The `groups` consecutive groups of `LANES` samples from `i`: one
-    /// bounds check a row of groups, not one a buffer and group.
+    /// The `groups` consecutive groups of `HALF` samples from (`row`, `col`),
+    /// each with the group below it: the bounds are checked once a row pair
+    /// and buffer, not once a group.
     #[inline(always)]
-    fn groups(&mut self, i: usize, groups: usize) -> impl Iterator<Item = Group<'_>> {
-        let n = groups * LANES;
+    fn pair_groups(&mut self, row: usize, col: usize, groups: usize) -> impl Iterator<Item = PairGroup<'_>> {
+        let (start, stride, n) = (self.index(row, col), self.stride, groups * HALF);
+        fn halves<T>(values: &mut [T], start: usize, stride: usize, n: usize) -> impl Iterator<Item = [&mut [T; HALF]; 2]> {
+            let (upper, lower) = values[start..start + stride + n].split_at_mut(stride);
+            upper[..n].as_chunks_mut().0.iter_mut().zip(lower[..n].as_chunks_mut().0.iter_mut()).map(|(a, b)| [a, b])
+        }
         let [u, v] = &mut self.attribute;
-        let z = self.z[i..i + n].as_chunks_mut().0.iter_mut();
-        let triangle = self.triangle[i..i + n].as_chunks_mut().0.iter_mut();
-        let (u, v) = (u[i..i + n].as_chunks_mut().0.iter_mut(), v[i..i + n].as_chunks_mut().0.iter_mut());
-        z.zip(triangle).zip(u.zip(v)).map(|((z, triangle), (u, v))| Group { z, triangle, attribute: [u, v] })
+        let (z, triangle) = (halves(&mut self.z, start, stride, n), halves(&mut self.triangle, start, stride, n));
+        let (u, v) = (halves(u, start, stride, n), halves(v, start, stride, n));
+        z.zip(triangle).zip(u.zip(v)).map(|((z, triangle), (u, v))| PairGroup { z, triangle, attribute: [u, v] })
     }
 }
 
-/// `LANES` consecutive samples of a grid.
-struct Group<'a> {
-    z: &'a mut [f32; LANES],
-    triangle: &'a mut [u32; LANES],
-    attribute: [&'a mut [f32; LANES]; 2],
+/// `HALF` consecutive samples of a grid row and the `HALF` below them.
+struct PairGroup<'a> {
+    z: [&'a mut [f32; HALF]; 2],
+    triangle: [&'a mut [u32; HALF]; 2],
+    attribute: [[&'a mut [f32; HALF]; 2]; 2],
 }
 
-impl Group<'_> {
+impl PairGroup<'_> {
     /// Keep triangle `t`'s hits (z, attribute) in the lanes `inside` where
-    /// they are the highest so far (and not behind the camera). The other
-    /// lanes are written back unchanged.
+    /// they are the highest so far (and not behind the camera); lanes
+    /// `0..HALF` are the upper row's samples. The other lanes are written
+    /// back unchanged.
     #[inline(always)]
-    fn keep(self, t: u32, inside: f32x4, z: f32x4, camera_z: f32, attribute: impl FnOnce() -> [f32x4; 2]) {
-        let old = f32x4::new(*self.z);
+    fn keep<L: Lanes8>(self, t: u32, inside: L, z: L, camera_z: f32, attribute: impl FnOnce() -> [L; 2]) {
+        let [z_upper, z_lower] = self.z;
+        let old = L::load(z_upper, z_lower);
         // Branch-free: a lane that keeps nothing is rewritten with its own value.
-        let higher = inside & z.simd_gt(old) & z.simd_le(f32x4::splat(camera_z));
-        *self.z = higher.bitselect(z, old).to_array();
-        let triangle: u32x4 = wide::bytemuck::cast::<f32x4, u32x4>(higher).bitselect(u32x4::splat(t), u32x4::new(*self.triangle));
-        *self.triangle = triangle.to_array();
-        for (values, new) in self.attribute.into_iter().zip(attribute()) {
-            *values = higher.bitselect(new, f32x4::new(*values)).to_array();
+        let higher = inside & z.simd_gt(old) & z.simd_le(L::splat(camera_z));
+        higher.select(z, old).store(z_upper, z_lower);
+        let [t_upper, t_lower] = self.triangle;
+        higher.select(L::splat_bits(t), L::load_bits(t_upper, t_lower)).store_bits(t_upper, t_lower);
+        for ([upper, lower], new) in self.attribute.into_iter().zip(attribute()) {
+            higher.select(new, L::load(upper, lower)).store(upper, lower);
         }
     }
 }
@@ -426,10 +447,10 @@ impl Rasterizer {
         }
         let band = &mut self.band;
         let visible = Prepared { vertices, triangles, uv, normals: &[], lit: &[], screen: &self.screen, scene };
-        band.centres.reset(height * width);
-        band.subsamples.reset(height * s * width * s);
+        band.centres.reset(height, width);
+        band.subsamples.reset(height * s, width * s);
         visibility_band(&visible, 0, height, band);
-        shaded_vertices(band, triangles, s, width, vertices.len(), &mut self.shaded);
+        shaded_vertices(band, triangles, s, vertices.len(), &mut self.shaded);
         vertex_normals(vertices, triangles, Some(&self.shaded), &mut self.normals);
         self.lit.clear();
         if scene.shading == Shading::Gouraud {
@@ -456,31 +477,31 @@ fn baseline_only() -> bool {
 /// give the same bits; AVX2 code is only encoded better (three-operand VEX
 /// instructions, fewer register copies).
 macro_rules! with_avx2 {
-    ($(#[$doc:meta])* fn $name:ident($($arg:ident: $ty:ty),*) => $pass:ident) => {
+    ($(#[$doc:meta])* fn $name:ident($($arg:ident: $ty:ty),*) => $avx2:expr, $baseline:expr) => {
         $(#[$doc])*
         fn $name($($arg: $ty),*) {
             #[cfg(target_arch = "x86_64")]
             if std::arch::is_x86_feature_detected!("avx2") && !baseline_only() {
                 #[target_feature(enable = "avx2")]
                 fn avx2($($arg: $ty),*) {
-                    $pass($($arg),*)
+                    $avx2($($arg),*)
                 }
                 // SAFETY: the CPU has AVX2 (detected just above).
                 return unsafe { avx2($($arg),*) };
             }
-            $pass($($arg),*)
+            $baseline($($arg),*)
         }
     };
 }
 
 with_avx2! {
     /// [`visibility_pass`], AVX2 where available.
-    fn visibility_band(p: &Prepared, row0: usize, rows: usize, band: &mut Band) => visibility_pass
+    fn visibility_band(p: &Prepared, row0: usize, rows: usize, band: &mut Band) => visibility_pass::<Avx8>, visibility_pass::<Pair4>
 }
 
 with_avx2! {
     /// [`shade_pass`], AVX2 where available.
-    fn shade_band(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], coverage: &mut [f32]) => shade_pass
+    fn shade_band(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], coverage: &mut [f32]) => shade_pass, shade_pass
 }
 
 /// Render the pixel rows `row0 ..` that `image` / `coverage` / `depth` cover.
@@ -488,8 +509,8 @@ fn render_band(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], co
     let s = p.scene.supersample;
     let width = p.scene.view.width;
     let rows = image.len() / width;
-    band.centres.reset(rows * width);
-    band.subsamples.reset(rows * s * width * s);
+    band.centres.reset(rows, width);
+    band.subsamples.reset(rows * s, width * s);
     visibility_band(p, row0, rows, band);
     shade_band(p, row0, band, image, coverage);
     write_depth(&band.centres, p.scene.view.camera_z, depth);
@@ -497,24 +518,26 @@ fn render_band(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], co
 
 /// Depth `camera_z − z` of the pixel centres, NaN where nothing was hit.
 fn write_depth(centres: &Samples, camera_z: f32, depth: &mut [f32]) {
-    depth.iter_mut().zip(&centres.z).for_each(|(d, &z)| *d = if z.is_finite() { camera_z - z } else { f32::NAN });
+    for (depth, z) in depth.chunks_exact_mut(centres.cols).zip(centres.z.chunks(centres.stride)) {
+        depth.iter_mut().zip(z).for_each(|(d, &z)| *d = if z.is_finite() { camera_z - z } else { f32::NAN });
+    }
 }
 
 /// Flag the corners of every triangle whose normal `shade_band` may read: the
 /// triangle at each covered pixel centre or, where the centre is background,
 /// those at the pixel's covered subsamples (a superset of the one it reads).
-fn shaded_vertices(band: &Band, triangles: &[[u32; 3]], s: usize, width: usize, vertex_count: usize, shaded: &mut Vec<bool>) {
+fn shaded_vertices(band: &Band, triangles: &[[u32; 3]], s: usize, vertex_count: usize, shaded: &mut Vec<bool>) {
     shaded.clear();
     shaded.resize(vertex_count, false);
     let mut flag = |t: u32| triangles[t as usize].iter().for_each(|&k| shaded[k as usize] = true);
     let (centres, subsamples) = (&band.centres, &band.subsamples);
-    for k in 0..centres.z.len() - (LANES - 1) {
+    for (row, col) in (0..centres.rows).flat_map(|row| (0..centres.cols).map(move |col| (row, col))) {
+        let k = centres.index(row, col);
         if centres.is_hit(k) {
             flag(centres.triangle[k]);
             continue;
         }
-        let (row, col) = (k / width, k % width);
-        for i in (0..s * s).map(|q| (row * s + q / s) * width * s + col * s + q % s).filter(|&i| subsamples.is_hit(i)) {
+        for i in (0..s * s).map(|q| subsamples.index(row * s + q / s, col * s + q % s)).filter(|&i| subsamples.is_hit(i)) {
             flag(subsamples.triangle[i]);
         }
     }
@@ -556,7 +579,7 @@ pub fn vertex_normals(vertices: &[[f32; 3]], triangles: &[[u32; 3]], wanted: Opt
 /// and pixel centres. `p.screen` holds the vertices in subsample space, where
 /// the centre of pixel (i, j) is ((j + ½)s, (i + ½)s).
 #[inline(always)]
-fn visibility_pass(p: &Prepared, row0: usize, rows: usize, band: &mut Band) {
+fn visibility_pass<L: Lanes8>(p: &Prepared, row0: usize, rows: usize, band: &mut Band) {
     let view = &p.scene.view;
     let (s, camera_z) = (p.scene.supersample, view.camera_z);
     let (cols, sf) = (view.width * s, s as f32);
@@ -588,17 +611,17 @@ fn visibility_pass(p: &Prepared, row0: usize, rows: usize, band: &mut Band) {
         let Some(setup) = TriangleSetup::new(a, b, c) else { continue };
         if subsamples {
             let [ta, tb, tc] = corners.map(|k| p.uv[k as usize]);
-            let texcoords = |lb: f32x4, lc: f32x4| {
-                let la = f32x4::ONE - lb - lc;
-                let splat = f32x4::splat;
+            let texcoords = |lb: L, lc: L| {
+                let la = L::splat(1.0) - lb - lc;
+                let splat = L::splat;
                 std::array::from_fn(|k| la * splat(ta[k]) + lb * splat(tb[k]) + lc * splat(tc[k]))
             };
             let (rows, columns) = ((row_lo as usize, row_hi as usize), (col_lo as usize, col_hi as usize));
-            scan_box(&setup, rows, columns, 1.0, |r| (r - row0 * s) * cols, &mut band.subsamples, t as u32, camera_z, texcoords);
+            scan_box(&setup, rows, columns, 1.0, row0 * s, &mut band.subsamples, t as u32, camera_z, texcoords);
         }
         if centres {
             let (rows, columns) = ((centre_row_lo as usize, centre_row_hi as usize), (centre_col_lo as usize, centre_col_hi as usize));
-            scan_box(&setup, rows, columns, sf, |i| (i - row0) * view.width, &mut band.centres, t as u32, camera_z, |lb, lc| [lb, lc]);
+            scan_box(&setup, rows, columns, sf, row0, &mut band.centres, t as u32, camera_z, |lb: L, lc: L| [lb, lc]);
         }
     }
 }
@@ -650,34 +673,40 @@ fn ceil4(x: f32x4) -> f32x4 {
 }
 
 /// Test the samples `rows` × `columns` (inclusive) of the grid of spacing
-/// `spacing` against triangle `t`, `LANES` columns at a time, and keep its
-/// hits where highest; `row_start(row)` is a row's first index in `samples`,
-/// `attribute(λb, λc)` the attribute of a hit.
+/// `spacing` against triangle `t`, two rows of `HALF` columns at a time
+/// (lanes), and keep its hits where highest; `samples` holds the grid's rows
+/// from `first_row`. `attribute(λb, λc)` is the attribute of a hit.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn scan_box(
+fn scan_box<L: Lanes8>(
     setup: &TriangleSetup,
     rows: (usize, usize),
     columns: (usize, usize),
     spacing: f32,
-    row_start: impl Fn(usize) -> usize,
+    first_row: usize,
     samples: &mut Samples,
     t: u32,
     camera_z: f32,
-    attribute: impl Fn(f32x4, f32x4) -> [f32x4; 2],
+    attribute: impl Fn(L, L) -> [L; 2],
 ) {
-    // Sample k sits at (k + ½)·spacing: exact in f32 for k < 2²³, as it is
-    // for the ray caster, whose arithmetic `hits4` repeats lane by lane.
-    let (lane, half, spacing_x4) = (f32x4::new([0.0, 1.0, 2.0, 3.0]), f32x4::splat(0.5), f32x4::splat(spacing));
-    for r in rows.0..=rows.1 {
-        let row = setup.row((r as u32 as f32 + 0.5) * spacing);
-        // The padding at the end of `samples` holds the last row's last group.
-        let groups = (columns.1 - columns.0) / LANES + 1;
-        for (g, group) in samples.groups(row_start(r) + columns.0, groups).enumerate() {
-            let col = columns.0 + g * LANES;
-            let px = (f32x4::splat(col as u32 as f32) + lane + half) * spacing_x4;
-            let (inside, z, lb, lc) = setup.hits4(row, px);
-            let in_box = lane.simd_le(f32x4::splat((columns.1 - col) as u32 as f32));
+    // Lane l tests column l % HALF of a group, in the upper row of the pair
+    // for l < HALF, in the lower for the others.
+    let column = L::new(std::array::from_fn(|l| (l % HALF) as f32));
+    let (half, spacing_lanes) = (L::splat(0.5), L::splat(spacing));
+    let groups = (columns.1 - columns.0) / HALF + 1;
+    for r in (rows.0..=rows.1).step_by(2) {
+        // Sample k sits at (k + ½)·spacing: exact in f32 for k < 2²³, as it
+        // is for the ray caster, whose arithmetic `hits` repeats lane by lane.
+        let [upper, lower] = [r, r + 1].map(|r| setup.row((r as u32 as f32 + 0.5) * spacing));
+        let row = [0, 1, 2].map(|k| L::halves(upper[k], lower[k]));
+        // Past the box's last row the lower row holds no lane inside and is
+        // written back unchanged (the padding row, below the grid's last).
+        let rows_in = L::halves(r as u32 as f32, (r + 1) as u32 as f32).simd_le(L::splat(rows.1 as u32 as f32));
+        for (g, group) in samples.pair_groups(r - first_row, columns.0, groups).enumerate() {
+            let col = columns.0 + g * HALF;
+            let px = (L::splat(col as u32 as f32) + column + half) * spacing_lanes;
+            let (inside, z, lb, lc) = setup.hits(row, px);
+            let in_box = column.simd_le(L::splat((columns.1 - col) as u32 as f32)) & rows_in;
             group.keep(t, inside & in_box, z, camera_z, || attribute(lb, lc));
         }
     }
@@ -793,7 +822,7 @@ fn shade_pass(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], cov
         albedo.fill(0.0);
         hits.fill(0.0);
         for a in 0..s {
-            let start = (pi * s + a) * cols;
+            let start = subsamples.index(pi * s + a, 0);
             for (c, (group, flags)) in texels.chunks_exact_mut(LANES).zip(covered.chunks_exact_mut(LANES)).enumerate() {
                 let i = start + c * LANES;
                 let hit = f32x4::new(lanes(&subsamples.z, i)).simd_gt(f32x4::splat(f32::NEG_INFINITY));
@@ -827,7 +856,7 @@ fn shade_pass(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], cov
         // (every pixel of a training clip), one at a time elsewhere.
         let mut pj = 0;
         while pj < width {
-            let k = pi * width + pj;
+            let k = centres.index(pi, pj);
             if pj + LANES <= width && f32x4::new(lanes(&centres.z, k)).simd_gt(f32x4::splat(f32::NEG_INFINITY)).all() {
                 let (diffuse, specular) = lighting4(p, &lights, min_rdv, point_lights, centres, k);
                 let (out, cov) = (&mut albedo[pj..pj + LANES], &mut hits[pj..pj + LANES]);
@@ -840,11 +869,12 @@ fn shade_pass(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], cov
             let lit_at = if centres.is_hit(k) {
                 Some((centres.triangle[k], [centres.attribute[0][k], centres.attribute[1][k]]))
             } else {
-                (0..s * s).map(|q| (pi * s + q / s) * cols + pj * s + q % s).find(|&i| subsamples.is_hit(i)).map(|i| {
+                (0..s * s).map(|q| (pi * s + q / s, pj * s + q % s)).find(|&(row, col)| subsamples.is_hit(subsamples.index(row, col))).map(|(row, col)| {
+                    let i = subsamples.index(row, col);
                     // Lit at the first covered subsample, with the visibility pass's own arithmetic: it hits again.
                     let t = subsamples.triangle[i];
                     let [a, b, c] = p.triangles[t as usize].map(|k| p.screen[k as usize]);
-                    let hit = TriangleSetup::new(a, b, c).and_then(|setup| setup.hit((i % cols) as f32 + 0.5, (row0 * s + i / cols) as f32 + 0.5));
+                    let hit = TriangleSetup::new(a, b, c).and_then(|setup| setup.hit(col as f32 + 0.5, (row0 * s + row) as f32 + 0.5));
                     (t, hit.map_or([0.0; 2], |(_, l)| [l[1], l[2]]))
                 })
             };
@@ -1304,7 +1334,7 @@ mod tests {
         let mut rng = crate::rng::SplitMix64::new(7);
         let mut centres = Samples::default();
         let n = 256;
-        centres.reset(n);
+        centres.reset(1, n);
         for i in 0..n {
             // Some weights outside the triangle: any plane point must agree.
             let w1 = rng.uniform(-0.2, 1.0) as f32;
