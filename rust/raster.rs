@@ -386,6 +386,10 @@ fn lanes<T: Copy>(values: &[T], i: usize) -> [T; LANES] {
 struct Band {
     /// Per vertex, the sides of the band it lies beyond (`visibility_band`).
     outside: Vec<u8>,
+    /// Per vertex, whether it is a corner of a triangle `visibility_band`
+    /// scanned: a superset of those whose normals `shade_band` reads (the
+    /// triangles that won a sample).
+    scanned: Vec<bool>,
     subsamples: Samples,
     centres: Samples,
     /// Albedo at each subsample of a row, 0 where it is background.
@@ -397,8 +401,6 @@ struct Band {
 /// Reusable buffers of one renderer; one per thread.
 #[derive(Default)]
 pub struct Rasterizer {
-    /// Vertices whose normal the shading reads (`shaded_vertices`).
-    shaded: Vec<bool>,
     normals: Vec<[f32; 3]>,
     lit: Vec<[f32; 2]>,
     screen: Vec<[f32; 3]>,
@@ -435,8 +437,8 @@ impl Rasterizer {
     /// Render `vertices` / `triangles` with texture coordinates `uv` into `frame`,
     /// on this thread. The caller validates the inputs (`check_render_inputs`).
     /// Normals (and Gouraud's vertex lighting) are computed after visibility,
-    /// only at the vertices of the triangles that light a pixel: the same sums
-    /// in the same order, so the same bits as `render`.
+    /// only at the corners of the triangles it scanned: the same sums in the
+    /// same order, so the same bits as `render`.
     pub fn render_into(&mut self, vertices: &[[f32; 3]], triangles: &[[u32; 3]], uv: &[[f32; 2]], scene: &Scene, frame: &mut Frame) {
         let s = scene.supersample;
         self.screen.clear();
@@ -450,11 +452,10 @@ impl Rasterizer {
         band.centres.reset(height, width);
         band.subsamples.reset(height * s, width * s);
         visibility_band(&visible, 0, height, band);
-        shaded_vertices(band, triangles, s, vertices.len(), &mut self.shaded);
-        vertex_normals(vertices, triangles, Some(&self.shaded), &mut self.normals);
+        vertex_normals(vertices, triangles, Some(&band.scanned), &mut self.normals);
         self.lit.clear();
         if scene.shading == Shading::Gouraud {
-            vertex_lighting(vertices, &self.normals, Some(&self.shaded), scene, &mut self.lit);
+            vertex_lighting(vertices, &self.normals, Some(&band.scanned), scene, &mut self.lit);
         }
         let prepared = Prepared { normals: &self.normals, lit: &self.lit, ..visible };
         shade_band(&prepared, 0, band, &mut frame.image, &mut frame.coverage);
@@ -523,26 +524,6 @@ fn write_depth(centres: &Samples, camera_z: f32, depth: &mut [f32]) {
     }
 }
 
-/// Flag the corners of every triangle whose normal `shade_band` may read: the
-/// triangle at each covered pixel centre or, where the centre is background,
-/// those at the pixel's covered subsamples (a superset of the one it reads).
-fn shaded_vertices(band: &Band, triangles: &[[u32; 3]], s: usize, vertex_count: usize, shaded: &mut Vec<bool>) {
-    shaded.clear();
-    shaded.resize(vertex_count, false);
-    let mut flag = |t: u32| triangles[t as usize].iter().for_each(|&k| shaded[k as usize] = true);
-    let (centres, subsamples) = (&band.centres, &band.subsamples);
-    for (row, col) in (0..centres.rows).flat_map(|row| (0..centres.cols).map(move |col| (row, col))) {
-        let k = centres.index(row, col);
-        if centres.is_hit(k) {
-            flag(centres.triangle[k]);
-            continue;
-        }
-        for i in (0..s * s).map(|q| subsamples.index(row * s + q / s, col * s + q % s)).filter(|&i| subsamples.is_hit(i)) {
-            flag(subsamples.triangle[i]);
-        }
-    }
-}
-
 /// Per-vertex unit normals: area-weighted sums of face normals, in triangle
 /// order. With `wanted`, only at the vertices it flags (the others are left
 /// unspecified): skipping the triangles with no wanted corner leaves the
@@ -588,6 +569,8 @@ fn visibility_pass<L: Lanes8>(p: &Prepared, row0: usize, rows: usize, band: &mut
     // band (one pixel of slack) a vertex lies beyond, and a triangle whose
     // three corners share a bit is out before any rounding.
     let beyond = [sub_lo - sf, sub_hi + sf, -sf, cols as f32 + sf];
+    band.scanned.clear();
+    band.scanned.resize(p.screen.len(), false);
     band.outside.clear();
     band.outside.extend(p.screen.iter().map(|v| u8::from(v[1] < beyond[0]) | u8::from(v[1] > beyond[1]) << 1 | u8::from(v[0] < beyond[2]) << 2 | u8::from(v[0] > beyond[3]) << 3));
     let grids = Grids {
@@ -609,6 +592,7 @@ fn visibility_pass<L: Lanes8>(p: &Prepared, row0: usize, rows: usize, band: &mut
             continue;
         }
         let Some(setup) = TriangleSetup::new(a, b, c) else { continue };
+        corners.iter().for_each(|&k| band.scanned[k as usize] = true);
         if subsamples {
             let [ta, tb, tc] = corners.map(|k| p.uv[k as usize]);
             let texcoords = |lb: L, lc: L| {
