@@ -11,7 +11,6 @@
 //! (row 0 at the top). Subsample (a, b) of an s×s supersampling grid sits at
 //! offsets `((b + ½)/s, (a + ½)/s)` inside the pixel.
 
-
 use crate::error::{InvalidArgument, Result};
 use crate::lanes::Lanes8;
 

@@ -19,11 +19,12 @@ use wide::{f32x4, u32x4};
 /// Lanes per half: the samples of one row a test covers.
 pub(crate) const HALF: usize = 4;
 
-/// Eight f32 lanes; lanes `0..HALF` and `HALF..8` are the two halves.
+/// Eight f32 lanes in two halves: lanes `0..HALF` (a test's upper row of
+/// samples) and `HALF..8` (its lower row).
 pub(crate) trait Lanes8: Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + BitAnd<Output = Self> {
     fn splat(v: f32) -> Self;
-    /// `low` in the first half's lanes, `high` in the second's.
-    fn halves(low: f32, high: f32) -> Self;
+    /// `upper` in the first half's lanes, `lower` in the second's.
+    fn halves(upper: f32, lower: f32) -> Self;
     fn new(values: [f32; 8]) -> Self;
     /// Mask of `self >= other`.
     fn simd_ge(self, other: Self) -> Self;
@@ -77,8 +78,8 @@ impl Lanes8 for Pair4 {
     }
 
     #[inline(always)]
-    fn halves(low: f32, high: f32) -> Self {
-        Self([f32x4::splat(low), f32x4::splat(high)])
+    fn halves(upper: f32, lower: f32) -> Self {
+        Self([f32x4::splat(upper), f32x4::splat(lower)])
     }
 
     #[inline(always)]
@@ -175,8 +176,8 @@ mod avx {
         }
 
         #[inline(always)]
-        fn halves(low: f32, high: f32) -> Self {
-            Self(unsafe { _mm256_set_m128(_mm_set1_ps(high), _mm_set1_ps(low)) })
+        fn halves(upper: f32, lower: f32) -> Self {
+            Self(unsafe { _mm256_set_m128(_mm_set1_ps(lower), _mm_set1_ps(upper)) })
         }
 
         #[inline(always)]
