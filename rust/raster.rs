@@ -332,16 +332,35 @@ impl Samples {
     /// each with the group below it: the bounds are checked once a row pair
     /// and buffer, not once a group.
     #[inline(always)]
-    fn pair_groups(&mut self, row: usize, col: usize, groups: usize) -> impl Iterator<Item = PairGroup<'_>> {
+    fn row_pair(&mut self, row: usize, col: usize, groups: usize) -> RowPair<'_> {
         let (start, stride, n) = (self.index(row, col), self.stride, groups * HALF);
-        fn halves<T>(values: &mut [T], start: usize, stride: usize, n: usize) -> impl Iterator<Item = [&mut [T; HALF]; 2]> {
+        fn halves<T>(values: &mut [T], start: usize, stride: usize, n: usize) -> [&mut [[T; HALF]]; 2] {
             let (upper, lower) = values[start..start + stride + n].split_at_mut(stride);
-            upper[..n].as_chunks_mut().0.iter_mut().zip(lower[..n].as_chunks_mut().0.iter_mut()).map(|(a, b)| [a, b])
+            [upper[..n].as_chunks_mut().0, lower.as_chunks_mut().0]
         }
         let [u, v] = &mut self.attribute;
         let (z, triangle) = (halves(&mut self.z, start, stride, n), halves(&mut self.triangle, start, stride, n));
-        let (u, v) = (halves(u, start, stride, n), halves(v, start, stride, n));
-        z.zip(triangle).zip(u.zip(v)).map(|((z, triangle), (u, v))| PairGroup { z, triangle, attribute: [u, v] })
+        RowPair { z, triangle, attribute: [halves(u, start, stride, n), halves(v, start, stride, n)] }
+    }
+}
+
+/// Groups of `HALF` consecutive samples of a grid row and the `HALF` below
+/// them, as many in every slice.
+struct RowPair<'a> {
+    z: [&'a mut [[f32; HALF]]; 2],
+    triangle: [&'a mut [[u32; HALF]]; 2],
+    attribute: [[&'a mut [[f32; HALF]]; 2]; 2],
+}
+
+impl RowPair<'_> {
+    /// Group `g` (indexing, not iterator adaptors: a zip of eight chunk
+    /// iterators cost ~40 instructions a group).
+    #[inline(always)]
+    fn group(&mut self, g: usize) -> PairGroup<'_> {
+        let [zu, zl] = &mut self.z;
+        let [tu, tl] = &mut self.triangle;
+        let [[uu, ul], [vu, vl]] = &mut self.attribute;
+        PairGroup { z: [&mut zu[g], &mut zl[g]], triangle: [&mut tu[g], &mut tl[g]], attribute: [[&mut uu[g], &mut ul[g]], [&mut vu[g], &mut vl[g]]] }
     }
 }
 
@@ -686,7 +705,9 @@ fn scan_box<L: Lanes8>(
         // Past the box's last row the lower row holds no lane inside and is
         // written back unchanged (the padding row, below the grid's last).
         let rows_in = L::halves(r as u32 as f32, (r + 1) as u32 as f32).simd_le(L::splat(rows.1 as u32 as f32));
-        for (g, group) in samples.pair_groups(r - first_row, columns.0, groups).enumerate() {
+        let mut pair = samples.row_pair(r - first_row, columns.0, groups);
+        for g in 0..groups {
+            let group = pair.group(g);
             let col = columns.0 + g * HALF;
             let px = (L::splat(col as u32 as f32) + column + half) * spacing_lanes;
             let (inside, z, lb, lc) = setup.hits(row, px);
