@@ -16,6 +16,44 @@ use std::ops::{Add, BitAnd, Mul, Sub};
 
 use wide::{f32x4, u32x4};
 
+/// Whether tests hold the dispatched passes to their baseline build
+/// ([`tests::both_builds`]).
+#[cfg(test)]
+static BASELINE_ONLY: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+#[inline(always)]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+pub(crate) fn baseline_only() -> bool {
+    #[cfg(test)]
+    return BASELINE_ONLY.load(std::sync::atomic::Ordering::Relaxed);
+    #[cfg(not(test))]
+    false
+}
+
+/// A hot pass compiled twice: for the baseline target and, chosen at run
+/// time where the CPU has it, for AVX2. Rust never contracts a multiply and
+/// an add into an FMA, so both run the same IEEE operations and give the
+/// same bits; AVX2 code is only encoded better (three-operand VEX
+/// instructions, eight-lane vectors, fewer register copies).
+macro_rules! with_avx2 {
+    ($(#[$doc:meta])* fn $name:ident($($arg:ident: $ty:ty),*) => $avx2:expr, $baseline:expr) => {
+        $(#[$doc])*
+        fn $name($($arg: $ty),*) {
+            #[cfg(target_arch = "x86_64")]
+            if std::arch::is_x86_feature_detected!("avx2") && !$crate::lanes::baseline_only() {
+                #[target_feature(enable = "avx2")]
+                fn avx2($($arg: $ty),*) {
+                    $avx2($($arg),*)
+                }
+                // SAFETY: the CPU has AVX2 (detected just above).
+                return unsafe { avx2($($arg),*) };
+            }
+            $baseline($($arg),*)
+        }
+    };
+}
+pub(crate) use with_avx2;
+
 /// Lanes per half: the samples of one row a test covers.
 pub(crate) const HALF: usize = 4;
 
@@ -242,8 +280,20 @@ mod avx {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+
+    /// `f()` from the baseline build of every dispatched pass, then from the
+    /// build the CPU gets; one caller at a time, so each pair compares the
+    /// two builds (other tests running meanwhile see the same bits either way).
+    pub(crate) fn both_builds<T>(f: impl Fn() -> T) -> (T, T) {
+        static LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+        let _one_at_a_time = LOCK.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        BASELINE_ONLY.store(true, std::sync::atomic::Ordering::Relaxed);
+        let baseline = f();
+        BASELINE_ONLY.store(false, std::sync::atomic::Ordering::Relaxed);
+        (baseline, f())
+    }
 
     /// Values that expose rounding, signed zeros, subnormals, infinities and NaN.
     const VALUES: [f32; 8] = [1.0 / 3.0, -0.0, 0.0, 7.5e-39, f32::INFINITY, -2.5, f32::NAN, 1e30];

@@ -38,7 +38,7 @@ use wide::{f32x4, i32x4, u32x4};
 
 use crate::error::{InvalidArgument, Result};
 use crate::geometry::{check_mesh, TriangleSetup, View};
-use crate::lanes::{Lanes8, Pair4, HALF};
+use crate::lanes::{with_avx2, Lanes8, Pair4, HALF};
 #[cfg(target_arch = "x86_64")]
 use crate::lanes::Avx8;
 
@@ -480,38 +480,6 @@ impl Rasterizer {
         shade_band(&prepared, 0, band, &mut frame.image, &mut frame.coverage);
         write_depth(&band.centres, scene.view.camera_z, &mut frame.depth);
     }
-}
-
-// Tests can hold the passes to their baseline build (`baseline_only`).
-#[cfg(all(test, target_arch = "x86_64"))]
-use tests::baseline_only;
-#[cfg(all(not(test), target_arch = "x86_64"))]
-#[inline(always)]
-fn baseline_only() -> bool {
-    false
-}
-
-/// The two hot passes, compiled twice: for the baseline target and, chosen
-/// at run time where the CPU has it, for AVX2. Rust never contracts a
-/// multiply and an add into an FMA, so both run the same IEEE operations and
-/// give the same bits; AVX2 code is only encoded better (three-operand VEX
-/// instructions, fewer register copies).
-macro_rules! with_avx2 {
-    ($(#[$doc:meta])* fn $name:ident($($arg:ident: $ty:ty),*) => $avx2:expr, $baseline:expr) => {
-        $(#[$doc])*
-        fn $name($($arg: $ty),*) {
-            #[cfg(target_arch = "x86_64")]
-            if std::arch::is_x86_feature_detected!("avx2") && !baseline_only() {
-                #[target_feature(enable = "avx2")]
-                fn avx2($($arg: $ty),*) {
-                    $avx2($($arg),*)
-                }
-                // SAFETY: the CPU has AVX2 (detected just above).
-                return unsafe { avx2($($arg),*) };
-            }
-            $baseline($($arg),*)
-        }
-    };
 }
 
 with_avx2! {
@@ -1029,19 +997,10 @@ mod tests {
     use super::*;
     use crate::bvh::raycast_depth;
     use crate::geometry::CAMERA_Z;
+    use crate::lanes::tests::both_builds;
     use crate::mesh::grid_triangles;
     use crate::params::SurfaceConfig;
     use crate::synthesis::synthesize;
-
-    static BASELINE_ONLY: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
-
-    /// Whether the hot passes are held to their baseline build: one test
-    /// compares it with the AVX2 build (other tests running meanwhile see
-    /// the same bits either way).
-    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
-    pub(super) fn baseline_only() -> bool {
-        BASELINE_ONLY.load(std::sync::atomic::Ordering::Relaxed)
-    }
 
     fn white(n: usize) -> Texture {
         Texture::new(n, n, &vec![1.0; n * n]).unwrap()
@@ -1396,10 +1355,7 @@ mod tests {
             let view = View::new(21, 19, [-0.6, -0.5, 0.5, 0.6], CAMERA_Z).unwrap();
             let scene = Scene { view, supersample: s, lights: &lights, material, texture: &texture, shading };
             let bits = |frame: &Frame| [&frame.image, &frame.coverage, &frame.depth].map(|v| v.iter().map(|x| x.to_bits()).collect::<Vec<u32>>());
-            BASELINE_ONLY.store(true, std::sync::atomic::Ordering::Relaxed);
-            let baseline = render(&vertices, &triangles, &uv, &scene).unwrap();
-            BASELINE_ONLY.store(false, std::sync::atomic::Ordering::Relaxed);
-            let dispatched = render(&vertices, &triangles, &uv, &scene).unwrap();
+            let (baseline, dispatched) = both_builds(|| render(&vertices, &triangles, &uv, &scene).unwrap());
             assert!(baseline.coverage.iter().all(|&c| c == 1.0), "the view lies inside the surface");
             assert_eq!(bits(&baseline), bits(&dispatched), "{shading:?}");
         }
