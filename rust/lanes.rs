@@ -11,6 +11,11 @@
 //!
 //! Masks are lanes whose bits are all ones (true) or all zeros, as SIMD
 //! comparisons give them; u32 values travel in lanes as their bits.
+//!
+//! `with_avx2!` compiles a hot pass twice, for the baseline target and for
+//! AVX2, and picks one at run time: `raster`'s passes and `synthesis`'s
+//! direct sums (whose plain loops LLVM vectorises eight lanes wide there).
+//! Tests compare the two builds through `tests::both_builds`.
 
 use std::ops::{Add, BitAnd, Mul, Sub};
 
