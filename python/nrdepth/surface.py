@@ -21,8 +21,10 @@ move independently). The exact formulas:
   ``t = frame / (frames − 1)``.
 
 Frequencies below 1e-4 of the strongest are dropped. The computation is in the
-Rust core (rustfft, rayon); every draw comes from a seed and the same seed gives
-the same bytes whatever the thread count.
+Rust core (rayon): the inverse transform is an FFT (rustfft) or, for a sparse
+spectrum, the sums over its frequencies done directly, whichever an operation
+count of the spectrum says is cheaper. Every draw comes from a seed and the
+same seed gives the same bytes whatever the thread count or CPU.
 """
 
 from __future__ import annotations
