@@ -329,8 +329,8 @@ impl Samples {
     }
 
     /// The `groups` consecutive groups of `HALF` samples from (`row`, `col`),
-    /// each with the group below it: the bounds are checked once a row pair
-    /// and buffer, not once a group.
+    /// each with the group below it: the row pair's bounds are checked once
+    /// a buffer, and a group needs one index check (the compiler keeps one).
     #[inline(always)]
     fn row_pair(&mut self, row: usize, col: usize, groups: usize) -> RowPair<'_> {
         let (start, stride, n) = (self.index(row, col), self.stride, groups * HALF);
