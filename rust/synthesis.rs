@@ -374,7 +374,7 @@ impl Synthesizer {
         if self.transform == Transform::Direct {
             let direct = &mut self.direct;
             direct.values.clear();
-            direct.values.extend(direct.terms.iter().map(|&(i, mirrored, _)| spectrum(i as usize)[mirrored as usize]));
+            direct.values.extend((0..n_entries).flat_map(spectrum));
             sum_directly(direct, &self.twiddle, &self.active_rows, m);
             let padded = direct.padded;
             for (q, field) in [(Some(a), &direct.fields[0]), (b, &direct.fields[1])] {
@@ -472,16 +472,18 @@ const CHUNK: usize = 32;
 struct DirectSums {
     /// Output columns rounded up to whole chunks.
     padded: usize,
-    /// The spectrum's terms `(entry, mirrored, offset of the column's wave
+    /// The spectrum's terms `(index in values, offset of the column's wave
     /// in waves)`, grouped by row slot; row slot r's are `row_start[r] ..
     /// row_start[r + 1]`.
-    terms: Vec<(u32, bool, usize)>,
+    terms: Vec<(usize, usize)>,
     row_start: Vec<usize>,
+    /// Where the counting sort puts each row slot's next term.
+    next: Vec<usize>,
     /// e^{2πi k x/M} at x < padded for each column k the terms use, split re / im.
     waves: [Vec<f32>; 2],
     /// Per column k, the offset of its wave (usize::MAX: none yet).
     wave_offset: Vec<usize>,
-    /// The terms' values for the current pair of fields, in `terms` order.
+    /// The current pair of fields' `Z(k)` and `Z(−k)` of each entry, in turn.
     values: Vec<Complex32>,
     /// `R(row slot, x)`, split re / im; per row slot, `row · y mod M` and
     /// the twiddle of output row y.
@@ -504,17 +506,18 @@ impl DirectSums {
         // Terms in row-slot order: count, then place (a counting sort).
         self.row_start.clear();
         self.row_start.resize(n_rows + 1, 0);
-        let entries = || (0..synth.amplitude.len()).flat_map(|i| [(i, false, synth.rows_k[i], synth.cols_k[i]), (i, true, synth.rows_mirror[i], synth.cols_mirror[i])]);
-        for (_, _, row, _) in entries() {
+        // Term 2i is entry i's Z(k), term 2i + 1 its Z(−k), as in `values`.
+        let entries = || (0..synth.amplitude.len()).flat_map(|i| [(2 * i, synth.rows_k[i], synth.cols_k[i]), (2 * i + 1, synth.rows_mirror[i], synth.cols_mirror[i])]);
+        for (_, row, _) in entries() {
             self.row_start[synth.row_slot[row] + 1] += 1;
         }
         for r in 0..n_rows {
             self.row_start[r + 1] += self.row_start[r];
         }
-        let mut next = self.row_start.clone();
+        self.next.clone_from(&self.row_start);
         self.terms.clear();
-        self.terms.resize(self.row_start[n_rows], (0, false, 0));
-        for (i, mirrored, row, col) in entries() {
+        self.terms.resize(self.row_start[n_rows], (0, 0));
+        for (value, row, col) in entries() {
             if self.wave_offset[col] == usize::MAX {
                 self.wave_offset[col] = self.waves[0].len();
                 // The exact angle 2π(k·x mod M)/M: no phase drift along the row.
@@ -524,8 +527,8 @@ impl DirectSums {
                     self.waves[1].push(w.im);
                 }
             }
-            let slot = &mut next[synth.row_slot[row]];
-            self.terms[*slot] = (i as u32, mirrored, self.wave_offset[col]);
+            let slot = &mut self.next[synth.row_slot[row]];
+            self.terms[*slot] = (value, self.wave_offset[col]);
             *slot += 1;
         }
         for buffer in self.row_sums.iter_mut() {
@@ -559,11 +562,11 @@ fn sum_lanes(d: &mut DirectSums, twiddle: &[Complex32], active_rows: &[usize], m
     let chunk = |v: &[f32], at: usize| -> [f32; CHUNK] { v[at..at + CHUNK].try_into().expect("a whole chunk") };
     let DirectSums { padded, terms, row_start, waves, values, row_sums, row_phases, row_twiddles, fields, .. } = d;
     for (r, bounds) in row_start.windows(2).enumerate() {
-        let (row_terms, row_values) = (&terms[bounds[0]..bounds[1]], &values[bounds[0]..bounds[1]]);
+        let row_terms = &terms[bounds[0]..bounds[1]];
         for x in (0..*padded).step_by(CHUNK) {
             let mut acc = [[0.0; CHUNK]; 2];
-            for (&(_, _, offset), &z) in row_terms.iter().zip(row_values) {
-                multiply_add(&mut acc, z, &chunk(&waves[0], offset + x), &chunk(&waves[1], offset + x));
+            for &(value, offset) in row_terms {
+                multiply_add(&mut acc, values[value], &chunk(&waves[0], offset + x), &chunk(&waves[1], offset + x));
             }
             let at = r * *padded + x;
             row_sums[0][at..at + CHUNK].copy_from_slice(&acc[0]);
