@@ -9,12 +9,20 @@ fractal texture and adds noise: the work `generate_clips` does, written the
 way one would in numpy.
 
     python benchmarks/bench_generate.py [--clips 256] [--reference-clips 3]
+        [--repeats 1] [--set KEY=VALUE ...]
+
+`--repeats N` times N calls and reports their median (and range): this
+machine's speed swings from one call to the next. `--set` changes a field of
+nrdepth's GeneratorConfig (e.g. `--set supersample=1`); the reference pipeline
+always does the default work.
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
 import os
+import statistics
 import time
 
 import numpy as np
@@ -146,17 +154,37 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--clips", type=int, default=256)
     parser.add_argument("--reference-clips", type=int, default=3)
+    parser.add_argument("--repeats", type=int, default=1, help="timed calls of generate_clips (median reported)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="a GeneratorConfig field for nrdepth's side")
     args = parser.parse_args()
+    if args.clips < 1 or args.reference_clips < 1 or args.repeats < 1:
+        parser.error("--clips, --reference-clips and --repeats must be >= 1")
+    overrides = {}
+    for item in args.set:
+        key, sep, value = item.partition("=")
+        if not sep:
+            parser.error(f"--set: expected KEY=VALUE, got {item!r}")
+        try:
+            overrides[key] = ast.literal_eval(value)
+        except (ValueError, SyntaxError):
+            overrides[key] = value  # a bare word, e.g. shading=gouraud
+    try:
+        config = nrdepth.GeneratorConfig(**overrides)
+    except (TypeError, ValueError) as error:
+        parser.error(f"--set: {error}")
 
     # Warm up with a call of the timed size: the thread pool, and the
     # process's first touch of that much fresh memory, which a virtual
     # machine backs page by page (here up to ~3 ms a MB the first time, a
-    # cost a long generation job pays once). The timed call is the steady state.
-    nrdepth.generate_clips(args.clips, seed=0)
-    start = time.perf_counter()
-    clips = nrdepth.generate_clips(args.clips, seed=1)
-    ours = args.clips / (time.perf_counter() - start)
-    redraws = sum(p["redraws"] for p in clips.params)
+    # cost a long generation job pays once). The timed calls are the steady state.
+    nrdepth.generate_clips(args.clips, seed=0, config=config)
+    rates, redraws = [], 0
+    for repeat in range(args.repeats):
+        start = time.perf_counter()
+        clips = nrdepth.generate_clips(args.clips, seed=1 + repeat, config=config)
+        rates.append(args.clips / (time.perf_counter() - start))
+        redraws += sum(p["redraws"] for p in clips.params)
+    ours = statistics.median(rates)
 
     start = time.perf_counter()
     for seed in range(args.reference_clips):
@@ -164,8 +192,10 @@ def main() -> None:
     reference = args.reference_clips / (time.perf_counter() - start)
 
     threads = os.environ.get("RAYON_NUM_THREADS", str(os.cpu_count()))
-    print(f"default config: 16 frames, 64×64, grid 64, supersample 2; threads: {threads}")
-    print(f"nrdepth.generate_clips     {ours:9.1f} clips/s  ({args.clips} clips, {redraws} redraws)")
+    changed = ", ".join(f"{k}={v!r}" for k, v in overrides.items()) or "none"
+    print(f"default config: 16 frames, 64×64, grid 64, supersample 2; changed for nrdepth: {changed}; threads: {threads}")
+    spread = f", median of {args.repeats} calls, {min(rates):.1f}–{max(rates):.1f}" if args.repeats > 1 else ""
+    print(f"nrdepth.generate_clips     {ours:9.1f} clips/s  ({args.clips} clips{spread}, {redraws} redraws)")
     print(f"numpy reference pipeline   {reference:9.2f} clips/s  ({args.reference_clips} clips)")
     print(f"ratio                      {ours / reference:9.1f}×")
     print(f"153,600 clips (the paper's database) would take {153600 / ours / 60:.1f} min")
