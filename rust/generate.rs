@@ -28,6 +28,17 @@ use crate::textures::{procedural_region, TextureBank, TextureFamily, FAMILIES};
 
 pub const MAX_CLIP_SIZE: usize = 1024;
 
+/// Half-width of the default light-azimuth prior about image-up: 70°.
+///
+/// Relief z lit from azimuth a renders exactly as −z lit from a + π (normals
+/// and lights mirror together under the orthographic camera), so the sign of
+/// the relief is observable only if no light set and its mirror are both
+/// likely. Any half-width below 90° keeps every mirrored light outside the
+/// prior; 70° leaves 40° between the prior and its mirror, so the two
+/// readings stay well apart after blur and noise, while covering most of the
+/// upper half-plane that ceiling lights and sky come from in real footage.
+pub const LIGHT_PRIOR_HALF_WIDTH: f64 = 70.0 * std::f64::consts::PI / 180.0;
+
 /// Every range a clip is drawn from.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GeneratorConfig {
@@ -45,6 +56,12 @@ pub struct GeneratorConfig {
     pub window_offset: Range,
     /// Number of lights, inclusive.
     pub light_count: (usize, usize),
+    /// Azimuth of each light direction in image coordinates, radians: 0 is
+    /// image-up (toward row 0, world +y), +π/2 image-right (world +x). The
+    /// default, ±70° about image-up, is the light-from-above prior that makes
+    /// the relief's sign observable (`LIGHT_PRIOR_HALF_WIDTH`); (−π, π) is
+    /// uniform. Any interval of at most 2π inside [−2π, 2π].
+    pub light_azimuth: Range,
     /// Elevation of each light direction above the surface plane, radians.
     pub light_elevation: Range,
     /// Sum of the lights' intensities (split at random between them).
@@ -80,6 +97,7 @@ impl Default for GeneratorConfig {
             window_width: Range::new(0.8, 1.2),
             window_offset: Range::new(-0.1, 0.1),
             light_count: (1, 3),
+            light_azimuth: Range::new(-LIGHT_PRIOR_HALF_WIDTH, LIGHT_PRIOR_HALF_WIDTH),
             light_elevation: Range::new(0.5, 1.45),
             light_intensity: Range::new(0.7, 1.1),
             point_light_probability: 0.3,
@@ -119,6 +137,11 @@ impl GeneratorConfig {
         let (lo, hi) = self.light_count;
         if !(1..=16).contains(&lo) || !(lo..=16).contains(&hi) {
             return Err(InvalidArgument::new("config.light_count", format!("expected 1 <= lo <= hi <= 16, got ({lo}, {hi})")));
+        }
+        // Any interval of at most one turn inside ±2π, so that one around image-down (say (π − w, π + w)) needs no wrap.
+        check_range("config.light_azimuth", self.light_azimuth, -std::f64::consts::TAU, std::f64::consts::TAU)?;
+        if self.light_azimuth.hi - self.light_azimuth.lo > std::f64::consts::TAU {
+            return Err(InvalidArgument::new("config.light_azimuth", format!("expected an interval of at most 2π, got ({}, {})", self.light_azimuth.lo, self.light_azimuth.hi)));
         }
         check_range("config.light_elevation", self.light_elevation, 0.0, std::f64::consts::FRAC_PI_2)?;
         check_range("config.light_intensity", self.light_intensity, 0.0, 100.0)?;
@@ -181,9 +204,10 @@ fn draw_clip(config: &GeneratorConfig, bank: Option<&TextureBank>, rng: &mut Spl
     let lights = shares
         .iter()
         .map(|share| {
-            let azimuth = rng.uniform(0.0, std::f64::consts::TAU);
+            let azimuth = rng.uniform(config.light_azimuth.lo, config.light_azimuth.hi);
             let elevation = rng.uniform(config.light_elevation.lo, config.light_elevation.hi);
-            let dir = [elevation.cos() * azimuth.cos(), elevation.cos() * azimuth.sin(), elevation.sin()];
+            // Azimuth 0 is image-up = world +y, clockwise on screen toward +x.
+            let dir = [elevation.cos() * azimuth.sin(), elevation.cos() * azimuth.cos(), elevation.sin()];
             let point = rng.unit() < config.point_light_probability;
             let distance = rng.uniform(config.point_light_distance.lo, config.point_light_distance.hi);
             let (kind, scale) = if point { (LightKind::Point, distance) } else { (LightKind::Directional, 1.0) };
@@ -537,6 +561,69 @@ mod tests {
         }
     }
 
+    /// Azimuth of a light in image coordinates (0 = image-up, +π/2 = image-right).
+    fn azimuth(light: &Light) -> f64 {
+        (light.vector[0] as f64).atan2(light.vector[1] as f64)
+    }
+
+    #[test]
+    fn a_relief_and_its_mirror_under_mirrored_lights_render_alike() {
+        // The ambiguity the light prior breaks: z ↦ −z with every directional
+        // light's azimuth turned by π gives the same image, to rounding.
+        let config = GeneratorConfig { point_light_probability: 0.0, light_azimuth: Range::new(-std::f64::consts::PI, std::f64::consts::PI), ..small() };
+        let (_, _, params) = run(&config, 21, 0, 4);
+        let worker = ClipWorker::new(&config);
+        let mut largest_change = 0.0f32;
+        for p in &params {
+            let TextureChoice::Procedural { family, seed } = p.texture else { unreachable!() };
+            let mut texture = Texture::default();
+            crate::textures::procedural(family, seed, config.texture_size, &mut texture);
+            let mirrored: Vec<Light> = p.lights.iter().map(|l| Light { vector: [-l.vector[0], -l.vector[1], l.vector[2]], ..*l }).collect();
+            let view = View::new(config.size, config.size, p.window, CAMERA_Z).unwrap();
+            let scene = Scene { view, supersample: config.supersample, lights: &p.lights, material: p.material, texture: &texture, shading: config.shading };
+            let scene_mirrored = Scene { lights: &mirrored, ..scene };
+            let positions = crate::synthesis::synthesize(&p.surface, config.frames, config.grid).unwrap();
+            for frame in positions.chunks_exact(config.grid * config.grid * 3) {
+                let vertices: Vec<[f32; 3]> = frame.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+                let negated: Vec<[f32; 3]> = vertices.iter().map(|v| [v[0], v[1], -v[2]]).collect();
+                let a = crate::raster::render(&vertices, &worker.triangles, &worker.uv, &scene).unwrap();
+                let b = crate::raster::render(&negated, &worker.triangles, &worker.uv, &scene_mirrored).unwrap();
+                let c = crate::raster::render(&negated, &worker.triangles, &worker.uv, &scene).unwrap();
+                for ((x, y), z) in a.image.iter().zip(&b.image).zip(&c.image) {
+                    assert!((x - y).abs() < 1e-4, "mirrored relief and lights: {x} vs {y}");
+                    largest_change = largest_change.max((x - z).abs());
+                }
+            }
+        }
+        // Without the mirrored lights the negated relief does look different.
+        assert!(largest_change > 0.05, "the relief's sign shows nowhere: {largest_change}");
+    }
+
+    #[test]
+    fn the_default_prior_lights_from_above_and_excludes_every_mirrored_light() {
+        let config = small();
+        let (lo, hi) = (config.light_azimuth.lo, config.light_azimuth.hi);
+        assert!(hi - lo < std::f64::consts::PI, "a prior wider than π holds some light and its mirror");
+        let mut rng = SplitMix64::new(5);
+        let (mut lights, mut mirrors_inside, mut left, mut right) = (0, 0, 0, 0);
+        for _ in 0..2000 {
+            for light in draw_clip(&config, None, &mut rng).unwrap().lights {
+                let a = azimuth(&light);
+                assert!((lo - 1e-6..=hi + 1e-6).contains(&a), "azimuth {a} outside ({lo}, {hi})");
+                let mirrored = (a + std::f64::consts::PI + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+                mirrors_inside += usize::from((lo..=hi).contains(&mirrored));
+                lights += 1;
+                (left, right) = (left + usize::from(a < -0.5), right + usize::from(a > 0.5));
+            }
+        }
+        assert_eq!(mirrors_inside, 0);
+        assert!(lights > 3000 && left > lights / 5 && right > lights / 5, "{lights} lights, {left} left, {right} right");
+        // The uniform setting stays one field away and does reach below.
+        let uniform = GeneratorConfig { light_azimuth: Range::new(-std::f64::consts::PI, std::f64::consts::PI), ..small() };
+        let below = (0..500).flat_map(|_| draw_clip(&uniform, None, &mut rng).unwrap().lights).filter(|l| azimuth(l).abs() > 2.0).count();
+        assert!(below > 100, "{below}");
+    }
+
     #[test]
     fn bad_config_is_named() {
         let mut config = small();
@@ -546,5 +633,9 @@ mod tests {
         let mut config = small();
         config.light_count = (3, 2);
         assert_eq!(config.validate().unwrap_err().name, "config.light_count");
+        for azimuth in [Range::new(1.0, -1.0), Range::new(-7.0, 0.0), Range::new(-4.0, 4.0)] {
+            let config = GeneratorConfig { light_azimuth: azimuth, ..small() };
+            assert!(config.validate().unwrap_err().name.starts_with("config.light_azimuth"), "{azimuth:?}");
+        }
     }
 }

@@ -386,6 +386,7 @@ fn generator_config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<GeneratorConfig
         window_width: range("window_width")?,
         window_offset: range("window_offset")?,
         light_count: (light_count.0.max(0) as usize, light_count.1.max(0) as usize),
+        light_azimuth: range("light_azimuth")?,
         light_elevation: range("light_elevation")?,
         light_intensity: range("light_intensity")?,
         point_light_probability: field(d, "config", "point_light_probability")?,
@@ -420,6 +421,7 @@ fn default_generator_config(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     set_ranges(&d, &[
         ("window_width", c.window_width),
         ("window_offset", c.window_offset),
+        ("light_azimuth", c.light_azimuth),
         ("light_elevation", c.light_elevation),
         ("light_intensity", c.light_intensity),
         ("point_light_distance", c.point_light_distance),

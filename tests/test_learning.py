@@ -5,9 +5,18 @@ import pytest
 import torch
 
 import nrdepth
-from nrdepth.losses import aligned_clip_loss, aligned_loss, gbr_loss, get_loss, tr_sc_loss
-from nrdepth.metrics import flat_baseline, mae_sn
-from nrdepth.model import UNet3D, count_parameters
+from nrdepth.losses import (
+    aligned_both_signed_loss,
+    aligned_clip_loss,
+    aligned_clip_signed_loss,
+    aligned_loss,
+    aligned_signed_loss,
+    gbr_loss,
+    get_loss,
+    tr_sc_loss,
+)
+from nrdepth.metrics import flat_baseline, mae_sn, relief_signs, sign_rates
+from nrdepth.model import UNet2p1D, UNet3D, count_parameters
 
 
 def smooth_depth(seed, shape=(2, 4, 24, 24)):
@@ -60,6 +69,53 @@ def test_aligned_clip_loss_forgives_one_gbr_per_clip_but_not_one_per_frame():
     assert aligned_clip_loss(per_frame, z).item() > 1e-2
 
 
+def test_signed_losses_forgive_a_gbr_with_positive_lambda_only():
+    z = smooth_depth(9)
+    flat = torch.zeros_like(z)
+    for loss_fn in (aligned_signed_loss, aligned_clip_signed_loss, aligned_both_signed_loss):
+        assert loss_fn(gbr(z, 1.5, -0.7, 3.0, 2.0), z).item() < 1e-8
+        # A mirrored relief scores worse than a flat prediction: twice its loss (ρ = −1).
+        mirrored = loss_fn(gbr(z, 1.5, -0.7, -3.0, 2.0), z).item()
+        assert mirrored == pytest.approx(2 * loss_fn(flat, z).item(), rel=1e-6)
+        assert loss_fn(flat, z).item() > 0.05
+
+
+def test_the_per_frame_signed_loss_is_the_unconstrained_one_where_the_sign_is_right():
+    z = smooth_depth(10)
+    pred = z + 0.5 * smooth_depth(11)
+    assert aligned_signed_loss(pred, z).item() == pytest.approx(aligned_loss(pred, z, ridge=0.0).item(), rel=1e-6)
+    assert aligned_clip_signed_loss(gbr(z, 0.4, -0.2, 2.0, 1.0), z).item() < 1e-8
+
+
+def test_the_clip_signed_loss_asks_for_one_gbr_per_clip():
+    z = smooth_depth(12)
+    per_frame = torch.stack([gbr(z[:, k], 0.3 * k, -0.1 * k, 1.0 + k, k) for k in range(z.shape[1])], dim=1)
+    assert aligned_signed_loss(per_frame, z).item() < 1e-8
+    assert aligned_clip_signed_loss(per_frame, z).item() > 1e-2
+
+
+def test_a_wrong_sign_gets_a_gradient_that_turns_it():
+    z = smooth_depth(13).float()
+    pred = (-z).clone().requires_grad_(True)
+    for loss_fn in (aligned_signed_loss, aligned_clip_signed_loss):
+        loss = loss_fn(pred, z)
+        (grad,) = torch.autograd.grad(loss, pred)
+        # A small step against the gradient moves the prediction toward +z.
+        stepped = loss_fn(pred.detach() - 1e-2 * grad / grad.norm() * z.norm(), z)
+        assert stepped.item() < loss.item()
+        assert torch.sum(-grad * z).item() > 0
+
+
+def test_sign_rates_count_correct_frames_and_flips():
+    gt = smooth_depth(14, (1, 6, 16, 16))[0].numpy()
+    assert sign_rates(gt, gt) == {"sign_correct": 1.0, "flip": 0.0}
+    assert sign_rates(-gt, gt) == {"sign_correct": 0.0, "flip": 0.0}
+    flipped = gt.copy()
+    flipped[2] *= -1
+    assert list(relief_signs(flipped, gt)) == [1, 1, -1, 1, 1, 1]
+    assert sign_rates(flipped, gt) == {"sign_correct": pytest.approx(5 / 6), "flip": 1.0}
+
+
 def test_masks_exclude_flat_and_planar_regions():
     z = smooth_depth(4)
     planar = z.clone()
@@ -71,7 +127,7 @@ def test_masks_exclude_flat_and_planar_regions():
     assert tr_sc_loss(pred, planar).item() < 1e-12
 
 
-@pytest.mark.parametrize("name", ["gbr", "tr_sc", "aligned", "aligned_clip"])
+@pytest.mark.parametrize("name", ["gbr", "tr_sc", "aligned", "aligned_clip", "aligned_signed", "aligned_clip_signed", "aligned_both_signed"])
 def test_losses_have_finite_gradients_on_flat_input(name):
     loss_fn = get_loss(name)
     pred = torch.zeros(2, 4, 16, 16, requires_grad=True)
@@ -141,6 +197,24 @@ def test_unet_shapes_and_parameter_count():
     assert count_parameters(model) == 3_042_849
     with pytest.raises(ValueError, match="^video:"):
         model(torch.zeros(1, 1, 15, 64, 64))
+
+
+def test_unet2p1d_shapes_and_exposure_invariance():
+    torch.manual_seed(0)
+    model = UNet2p1D(width=8, stem_width=4)
+    video = torch.rand(2, 1, 6, 32, 40)
+    out = model(video)
+    assert out.shape == (2, 1, 6, 16, 20)
+    # The input is standardised per clip: gain and offset of the exposure
+    # change nothing but through the 1e-3 floor on the standard deviation.
+    exposure = (model(0.5 * video + 0.2) - out).abs().max().item()
+    content = (model(video.flip(-2)) - out).abs().max().item()
+    assert exposure < 0.02 * content, (exposure, content)
+    assert count_parameters(UNet2p1D()) < count_parameters(UNet3D()) / 8
+    with pytest.raises(ValueError, match="^video:"):
+        model(torch.zeros(1, 1, 4, 30, 32))
+    with pytest.raises(ValueError, match="^width:"):
+        UNet2p1D(width=0)
 
 
 def test_a_small_unet_overfits_a_few_generated_clips():

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from pathlib import Path
@@ -36,7 +37,10 @@ def _shard(text: str) -> tuple:
 def _generator_config(args: argparse.Namespace):
     from .generate import GeneratorConfig
 
-    return GeneratorConfig(frames=args.frames, size=args.size, grid=args.grid, textures=args.textures)
+    extra = {}
+    if args.light_azimuth is not None:
+        extra["light_azimuth"] = args.light_azimuth
+    return GeneratorConfig(frames=args.frames, size=args.size, grid=args.grid, textures=args.textures, **extra)
 
 
 def _generate(args: argparse.Namespace) -> int:
@@ -64,7 +68,7 @@ def _train(args: argparse.Namespace) -> int:
     from .train import TrainConfig, train
 
     config = TrainConfig(
-        loss=args.loss, base=args.base, batch_size=args.batch_size, steps_per_epoch=args.steps, epochs=args.epochs,
+        loss=args.loss, arch=args.arch, base=args.base, schedule=args.schedule, batch_size=args.batch_size, steps_per_epoch=args.steps, epochs=args.epochs,
         lr=args.lr, seed=args.seed, data=args.data, generator=_generator_config(args),
         validation_clips=args.validation_clips, workers=args.workers, device=args.device, compile=args.compile,
     )
@@ -80,6 +84,16 @@ def _evaluate(args: argparse.Namespace) -> int:
     summary = evaluate(args.model, args.data, args.out, clips=args.clips, config=_generator_config(args), device=args.device)
     print(format_summary(summary))
     return 0
+
+
+def _azimuth(text: str) -> tuple:
+    if text == "uniform":
+        return (-math.pi, math.pi)
+    try:
+        lo, hi = (math.radians(float(v)) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected LO,HI in degrees from image-up or 'uniform', got {text!r}") from None
+    return lo, hi
 
 
 def _roi(text: str) -> tuple:
@@ -176,6 +190,8 @@ def _add_generator_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--frames", type=int, default=16, help="frames per clip")
     p.add_argument("--size", type=int, default=64, help="image side in pixels")
     p.add_argument("--grid", type=int, default=64, help="mesh vertices per side")
+    p.add_argument("--light-azimuth", type=_azimuth, default=None, metavar="LO,HI",
+                   help="light azimuths in degrees from image-up, clockwise (default: -70,70, light from above); 'uniform' for all")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -203,13 +219,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("train", help="train the depth network (online generation or a dataset); resumes in OUT")
     p.add_argument("out", help="run folder: config, checkpoints, weights, metrics")
-    p.add_argument("--loss", default="gbr", help="gbr | tr_sc | aligned | aligned_clip")
+    p.add_argument("--loss", default="gbr", help="gbr | tr_sc | aligned | aligned_clip | aligned_signed | aligned_clip_signed | aligned_both_signed (default: gbr)")
+    p.add_argument("--arch", default="unet3d", help="unet3d (the paper's) | unet2p1d (factorised, ~15x cheaper) (default: unet3d)")
+    p.add_argument("--schedule", default="cosine", help="cosine | constant (a campaign: --epochs may grow on resume) (default: cosine)")
     p.add_argument("--epochs", type=int, default=20)
     p.add_argument("--steps", type=int, default=500, help="steps per epoch")
     p.add_argument("--max-epochs", type=int, default=None, help="epochs to run in this call (resume later)")
     p.add_argument("--batch-size", type=int, default=8)
     p.add_argument("--lr", type=float, default=1e-3)
-    p.add_argument("--base", type=int, default=16, help="width of the first network stage")
+    p.add_argument("--base", type=int, default=None, help="width of the first network stage (default: the architecture's, 16 / 24)")
     p.add_argument("--data", default=None, help="dataset folder; default: fresh clips every step")
     p.add_argument("--validation-clips", type=int, default=64)
     p.add_argument("--workers", type=int, default=2, help="DataLoader worker processes")

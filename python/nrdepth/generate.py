@@ -25,6 +25,7 @@ Interval = Tuple[float, float]
 _RANGES = (
     "window_width",
     "window_offset",
+    "light_azimuth",
     "light_elevation",
     "light_intensity",
     "point_light_distance",
@@ -57,6 +58,13 @@ class GeneratorConfig:
     window_offset: Interval = _DEFAULT["window_offset"]
     """Offset of the window centre from the patch centre (x and y each)."""
     light_count: Tuple[int, int] = _DEFAULT["light_count"]
+    light_azimuth: Interval = _DEFAULT["light_azimuth"]
+    """Azimuth of a light in image coordinates: 0 is image-up (toward row 0),
+    +π/2 image-right. The default ±70° about image-up is a light-from-above
+    prior: under an orthographic camera a relief and its mirror image under
+    mirrored lights (azimuth + π) render identically, so only a prior that
+    excludes the mirrored lights makes convex and concave distinguishable.
+    ``(-math.pi, math.pi)`` draws uniformly (the sign is then unobservable)."""
     light_elevation: Interval = _DEFAULT["light_elevation"]
     """Elevation of a light above the surface plane."""
     light_intensity: Interval = _DEFAULT["light_intensity"]

@@ -17,6 +17,16 @@ second. With ``H = ∇²z`` and ``‖H‖_F = sqrt(z_xx² + 2 z_xy² + z_yy²)``
 - ``aligned_clip`` (ours): the same with one GBR for the whole clip, which
   asks the frames to agree with each other (temporal consistency: the
   first-frame alignment of MAE-SN) instead of leaving each frame its own GBR.
+- ``aligned_signed``, ``aligned_clip_signed`` (ours, for data whose relief
+  sign is observable: the generator's light-from-above prior): the same fits
+  with λ ≥ 0. After each group's best plane is removed (weighted by
+  1/var(target frame)), the least-squares residual is ``S_gg (1 − ρ²)`` with
+  ρ the weighted correlation of prediction and target; the signed losses are
+  ``S_gg (1 − ρ|ρ|)``: equal to the unconstrained loss where ρ ≥ 0 and worse
+  than a flat prediction where ρ < 0, with a gradient that turns the sign
+  (the hard constraint λ ≥ 0 would score every wrong sign as flat, with no
+  gradient at all). ``aligned_both_signed`` is their mean: local shape frame
+  by frame, and one reading and plane motion for the whole clip.
 
 The invariant losses average over pixels where the target's invariant is
 defined: ``‖H_gt‖_F`` above ``MASK_RATIO`` × that frame's mean (flat and
@@ -30,7 +40,18 @@ from typing import Callable, Dict
 
 import torch
 
-__all__ = ["gbr_loss", "tr_sc_loss", "aligned_loss", "aligned_clip_loss", "LOSSES", "get_loss", "derivatives"]
+__all__ = [
+    "gbr_loss",
+    "tr_sc_loss",
+    "aligned_loss",
+    "aligned_clip_loss",
+    "aligned_signed_loss",
+    "aligned_clip_signed_loss",
+    "aligned_both_signed_loss",
+    "LOSSES",
+    "get_loss",
+    "derivatives",
+]
 
 MASK_RATIO = 1e-2
 _EPS = 1e-12
@@ -127,11 +148,59 @@ def aligned_clip_loss(pred: torch.Tensor, target: torch.Tensor, ridge: float = 1
     return _aligned(pred, target, per_clip=True, ridge=ridge)
 
 
+def _signed(pred: torch.Tensor, target: torch.Tensor, per_clip: bool) -> torch.Tensor:
+    pred, target = _frames("pred", pred), _frames("target", target)
+    if pred.shape != target.shape:
+        raise ValueError(f"pred: expected the shape of target {tuple(target.shape)}, got {tuple(pred.shape)}")
+    b, t, h, w = pred.shape
+    groups, frames = (b, t) if per_clip else (b * t, 1)
+    ys, xs = torch.meshgrid(torch.linspace(-1, 1, h, dtype=pred.dtype, device=pred.device), torch.linspace(-1, 1, w, dtype=pred.dtype, device=pred.device), indexing="ij")
+    plane = torch.stack([xs.reshape(-1), ys.reshape(-1), torch.ones_like(xs).reshape(-1)], -1).repeat(frames, 1)  # (P, 3)
+    # Weight 1/(var(target frame) · pixels per frame): the weighted sum of
+    # squares of a group is the sum over its frames of MSE / variance.
+    weight = 1.0 / (target.reshape(b * t, h * w).var(1, unbiased=False).clamp_min(1e-12) * h * w)
+    weight = weight.reshape(groups, frames, 1).expand(groups, frames, h * w).reshape(groups, frames * h * w)
+    p = pred.reshape(groups, frames * h * w)
+    p = (p - p.mean(1, keepdim=True)) / (p.std(1, keepdim=True) + 1e-8)  # scale-free, as in _aligned
+    g = target.reshape(groups, frames * h * w)
+    weighted_plane = plane * weight.unsqueeze(-1)  # (G, P, 3)
+    normal = plane.T @ weighted_plane + 1e-9 * torch.eye(3, dtype=pred.dtype, device=pred.device)  # (G, 3, 3)
+
+    def off_plane(v: torch.Tensor) -> torch.Tensor:
+        coeffs = torch.linalg.solve(normal, (weighted_plane.transpose(1, 2) @ v.unsqueeze(-1)))
+        return v - (plane @ coeffs).squeeze(-1)
+
+    p, g = off_plane(p), off_plane(g)
+    s_gg, s_pp, s_pg = (weight * g * g).sum(1), (weight * p * p).sum(1), (weight * p * g).sum(1)
+    rho = s_pg / (s_pp * s_gg).clamp_min(1e-30).sqrt()  # clamped: finite gradients for flat frames
+    return (s_gg * (1 - rho * rho.abs())).sum() / (b * t)
+
+
+def aligned_signed_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Ours, sign-aware: :func:`aligned_loss` with λ ≥ 0 (a wrong relief sign
+    scores worse than a flat frame, and its gradient turns it)."""
+    return _signed(pred, target, per_clip=False)
+
+
+def aligned_clip_signed_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Ours, sign-aware, one GBR (α, β, λ ≥ 0, τ) for the whole clip: one
+    reading of the relief and the plane's motion over the clip."""
+    return _signed(pred, target, per_clip=True)
+
+
+def aligned_both_signed_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Ours: the mean of :func:`aligned_signed_loss` and :func:`aligned_clip_signed_loss`."""
+    return 0.5 * (_signed(pred, target, per_clip=False) + _signed(pred, target, per_clip=True))
+
+
 LOSSES: Dict[str, Callable[[torch.Tensor, torch.Tensor], torch.Tensor]] = {
     "gbr": gbr_loss,
     "tr_sc": tr_sc_loss,
     "aligned": aligned_loss,
     "aligned_clip": aligned_clip_loss,
+    "aligned_signed": aligned_signed_loss,
+    "aligned_clip_signed": aligned_clip_signed_loss,
+    "aligned_both_signed": aligned_both_signed_loss,
 }
 
 

@@ -14,11 +14,11 @@ is useful only below it. Pure numpy, float64.
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Dict, Literal
 
 import numpy as np
 
-__all__ = ["mae_sn", "flat_baseline", "gbr_fit", "gbr_align"]
+__all__ = ["mae_sn", "flat_baseline", "gbr_fit", "gbr_align", "relief_signs", "sign_rates"]
 
 Align = Literal["frame", "first"]
 
@@ -83,3 +83,17 @@ def flat_baseline(gt: np.ndarray, align: Align = "frame") -> float:
     """MAE-SN of a flat (constant) prediction: the trivial baseline."""
     gt = _check("gt", gt)
     return mae_sn(np.zeros_like(gt), gt, align)
+
+
+def relief_signs(pred: np.ndarray, gt: np.ndarray) -> np.ndarray:
+    """Sign (+1, −1, or 0 for a flat prediction) of λ in each frame's
+    least-squares GBR fit of pred onto gt, both (T, H, W): int8 (T,)."""
+    pred, gt = _check_pair(pred, gt, "frame")
+    return np.array([np.sign(gbr_fit(p, g)[2]) for p, g in zip(pred, gt)], dtype=np.int8)
+
+
+def sign_rates(pred: np.ndarray, gt: np.ndarray) -> Dict[str, float]:
+    """``sign_correct``: the fraction of frames whose fitted λ is positive;
+    ``flip``: 1.0 if the sign of λ changes inside the clip, else 0.0."""
+    signs = relief_signs(pred, gt)
+    return {"sign_correct": float(np.mean(signs > 0)), "flip": float(len(set(signs[signs != 0].tolist())) > 1)}

@@ -23,6 +23,7 @@ import hashlib
 import json
 import math
 import os
+import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Dict, Iterator, Optional, Tuple, Union
@@ -33,10 +34,12 @@ import torch.distributed as dist
 
 from .generate import GeneratorConfig, generate_clips
 from .losses import get_loss
-from .metrics import flat_baseline, mae_sn
-from .model import UNet3D
+from .metrics import flat_baseline, mae_sn, sign_rates
+from .model import ARCHITECTURES, build_model
+from .model.io import DEFAULT_MODEL, load_model, predict_depth, resolve_device, save_model
+from .surface import _check_int, _check_seed
 
-__all__ = ["TrainConfig", "train", "load_model", "save_model", "predict_depth"]
+__all__ = ["TrainConfig", "train", "load_model", "save_model", "predict_depth", "DEFAULT_MODEL", "resolve_device"]
 
 VALIDATION_SEED_OFFSET = 1_000_003
 
@@ -44,9 +47,13 @@ VALIDATION_SEED_OFFSET = 1_000_003
 @dataclass
 class TrainConfig:
     loss: str = "gbr"
-    """One of nrdepth.losses.LOSSES: gbr, tr_sc, aligned, aligned_clip."""
-    base: int = 16
-    """Width of the network's first stage."""
+    """One of nrdepth.losses.LOSSES: gbr, tr_sc, aligned, aligned_clip,
+    aligned_signed, aligned_clip_signed, aligned_both_signed."""
+    arch: str = "unet3d"
+    """One of nrdepth.model.ARCHITECTURES: unet3d (the paper's), unet2p1d."""
+    base: Optional[int] = None
+    """Width of the network's first stage (UNet3D's ``base``, UNet2p1D's
+    ``width``); None: the architecture's default."""
     batch_size: int = 8
     steps_per_epoch: int = 500
     epochs: int = 20
@@ -63,20 +70,43 @@ class TrainConfig:
     amp: bool = True
     """bfloat16 autocast on CUDA (ignored on the CPU)."""
     compile: bool = False
+    schedule: str = "cosine"
+    """Learning rate over the run: ``cosine`` (from lr to 0 over all epochs)
+    or ``constant`` (a campaign of open length: a resume may raise ``epochs``)."""
 
     def __post_init__(self) -> None:
         get_loss(self.loss)
-        for name in ("base", "batch_size", "steps_per_epoch", "epochs", "validation_clips"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        if self.schedule not in ("cosine", "constant"):
+            raise ValueError(f"schedule: expected 'cosine' or 'constant', got {self.schedule!r}")
+        if self.arch not in ARCHITECTURES:
+            raise ValueError(f"arch: expected one of {sorted(ARCHITECTURES)}, got {self.arch!r}")
+        for name in ("batch_size", "steps_per_epoch", "epochs", "validation_clips") + (("base",) if self.base is not None else ()):
+            value = _check_int(name, getattr(self, name))
+            if value < 1:
                 raise ValueError(f"{name}: expected a positive int, got {value!r}")
-        if not (isinstance(self.lr, (int, float)) and math.isfinite(self.lr) and self.lr > 0):
+            setattr(self, name, value)
+        if isinstance(self.lr, bool) or not (isinstance(self.lr, (int, float, np.floating)) and math.isfinite(self.lr) and self.lr > 0):
             raise ValueError(f"lr: expected a positive number, got {self.lr!r}")
+        self.lr = float(self.lr)
+        self.seed = _check_seed("seed", self.seed)
+        self.workers = _check_int("workers", self.workers)
         if self.workers < 0:
             raise ValueError(f"workers: expected >= 0, got {self.workers}")
         if isinstance(self.generator, dict):
             self.generator = GeneratorConfig.from_dict(self.generator)
+        if not isinstance(self.generator, GeneratorConfig):
+            raise TypeError(f"generator: expected a GeneratorConfig, got {type(self.generator).__name__}")
+        if self.data is not None:
+            self.data = os.fspath(self.data)
+            if not os.path.isdir(self.data):
+                raise ValueError(f"data: not a dataset folder: {self.data}")
         resolve_device(self.device)
+
+    def model_config(self) -> Dict[str, Any]:
+        """The constructor arguments of this run's network."""
+        if self.base is None:
+            return {}
+        return {"base": self.base} if self.arch == "unet3d" else {"width": self.base}
 
     def as_dict(self) -> Dict[str, Any]:
         d = asdict(self)
@@ -84,14 +114,14 @@ class TrainConfig:
         return d
 
 
-def resolve_device(device: str) -> torch.device:
-    if device == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    if not isinstance(device, str) or not (device == "cpu" or device.startswith("cuda")):
-        raise ValueError(f"device: expected auto, cpu, cuda or cuda:N, got {device!r}")
-    if device.startswith("cuda") and not torch.cuda.is_available():
-        raise ValueError(f"device: {device} requested but CUDA is not available here")
-    return torch.device(device)
+    def resumable_as(self, saved: Dict[str, Any]) -> bool:
+        """Whether a run saved with config ``saved`` (a dict) may continue
+        under this config: the same but for fields that do not change what
+        is computed (workers, device) and, with a constant schedule, epochs
+        (it only moves the end)."""
+        free = ("workers", "device") + (("epochs",) if self.schedule == "constant" else ())
+        mine = json.loads(json.dumps(self.as_dict()))
+        return {k: v for k, v in mine.items() if k not in free} == {k: v for k, v in saved.items() if k not in free}
 
 
 def to_tensors(video: np.ndarray, depth: np.ndarray) -> Tuple[torch.Tensor, torch.Tensor]:
@@ -149,33 +179,17 @@ def validation_set(config: TrainConfig) -> Tuple[np.ndarray, np.ndarray]:
     return clips.video, clips.depth
 
 
-def predict_depth(model: torch.nn.Module, video: np.ndarray, batch_size: int = 8, device: Optional[torch.device] = None) -> np.ndarray:
-    """Network depth (n, T, H/2, W/2) float32 of videos (n, T, H, W), uint8 or
-    float in [0, 1]. Inputs go in channels-last 3D layout, which a model laid
-    out the same way (``reconstruct``'s) runs ≈ 1.4× faster on the CPU."""
-    device = device or next(model.parameters()).device
-    was_training = model.training
-    model.eval()
-    out = []
-    with torch.inference_mode():
-        for i in range(0, len(video), batch_size):
-            v = torch.from_numpy(np.ascontiguousarray(video[i : i + batch_size])).float()
-            if video.dtype == np.uint8:
-                v = v.div_(255.0)
-            v = v.unsqueeze(1).to(device).contiguous(memory_format=torch.channels_last_3d)
-            out.append(model(v)[:, 0].float().cpu().numpy())
-    model.train(was_training)
-    return np.concatenate(out)
-
-
 def evaluate_depth(pred: np.ndarray, depth_half: np.ndarray) -> Dict[str, float]:
-    """Mean MAE-SN (both alignments) of predictions and of the flat baseline."""
-    scores: Dict[str, list] = {k: [] for k in ("frame", "first", "flat_frame", "flat_first")}
+    """Mean MAE-SN (both alignments) of predictions and of the flat baseline,
+    the sign-correct rate (frames) and the in-clip flip rate (clips)."""
+    scores: Dict[str, list] = {k: [] for k in ("frame", "first", "flat_frame", "flat_first", "sign_correct", "flip")}
     for p, g in zip(pred, depth_half):
         scores["frame"].append(mae_sn(p, g, "frame"))
         scores["first"].append(mae_sn(p, g, "first"))
         scores["flat_frame"].append(flat_baseline(g, "frame"))
         scores["flat_first"].append(flat_baseline(g, "first"))
+        for k, v in sign_rates(p, g).items():
+            scores[k].append(v)
     return {k: float(np.mean(v)) for k, v in scores.items()}
 
 
@@ -183,46 +197,6 @@ def _atomic_save(obj: Any, path: Path) -> None:
     tmp = path.with_name(path.name + ".partial")
     torch.save(obj, tmp)
     os.replace(tmp, path)
-
-
-DEFAULT_MODEL = Path(__file__).with_name("weights") / "default.safetensors"
-"""The shipped default model (weights; its architecture, training loss and
-held-out scores are in ``default.json`` beside it)."""
-
-
-def save_model(model: torch.nn.Module, path: Union[str, os.PathLike], extra: Optional[Dict[str, Any]] = None) -> None:
-    """Weights as safetensors at ``path`` and the architecture as JSON beside it."""
-    from safetensors.torch import save_file
-
-    path = Path(path)
-    module = getattr(model, "module", model)
-    module = getattr(module, "_orig_mod", module)
-    tmp = path.with_name(path.name + ".partial")
-    save_file({k: v.detach().cpu().contiguous() for k, v in module.state_dict().items()}, str(tmp))
-    os.chmod(tmp, 0o644)  # safetensors writes 0600; weights are meant to be shared and packaged
-    os.replace(tmp, path)
-    meta = {"architecture": "UNet3D", "config": module.config, **(extra or {})}
-    path.with_suffix(".json").write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
-
-
-def load_model(path: Optional[Union[str, os.PathLike]] = None, device: str = "cpu") -> UNet3D:
-    """A UNet3D from ``model.safetensors`` (and the ``model.json`` beside it),
-    a run folder holding them, or, with ``path=None``, the default model that
-    ships in the package (:data:`DEFAULT_MODEL`)."""
-    from safetensors.torch import load_file
-
-    path = DEFAULT_MODEL if path is None else Path(path)
-    if path.is_dir():
-        path = path / "model.safetensors"
-    meta_path = path.with_suffix(".json")
-    if not path.exists() or not meta_path.exists():
-        raise ValueError(f"path: expected {path} and {meta_path}")
-    meta = json.loads(meta_path.read_text())
-    if meta.get("architecture") != "UNet3D":
-        raise ValueError(f"path: unknown architecture {meta.get('architecture')!r} in {meta_path}")
-    model = UNet3D(**meta["config"])
-    model.load_state_dict(load_file(str(path)))
-    return model.to(resolve_device(device)).eval()
 
 
 def _weights_digest(model: torch.nn.Module) -> str:
@@ -256,25 +230,38 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
     rank, world = (dist.get_rank(), dist.get_world_size()) if distributed else (0, 1)
     leader = rank == 0
     if leader:
-        out.mkdir(parents=True, exist_ok=True)
+        last = out / "last.pt"
         saved = out / "config.json"
-        if saved.exists() and json.loads(saved.read_text()) != json.loads(json.dumps(config.as_dict())):
-            raise ValueError(f"out: {out} holds a run with another config; use a new folder")
-        saved.write_text(json.dumps(config.as_dict(), indent=2, sort_keys=True) + "\n")
+        if saved.exists():
+            try:
+                previous = json.loads(saved.read_text())
+            except ValueError as e:
+                raise ValueError(f"{saved}: not valid JSON ({e})") from None
+            if not config.resumable_as(previous):
+                raise ValueError(f"out: {out} holds a run with another config; use a new folder (only workers, device, and epochs with a constant schedule, may change on a resume)")
+        out.mkdir(parents=True, exist_ok=True)
+        _atomic_write_text(saved, json.dumps(config.as_dict(), indent=2, sort_keys=True) + "\n")
 
     torch.manual_seed(config.seed)
-    model = UNet3D(base=config.base).to(device)
+    model = build_model(config.arch, **config.model_config()).to(device)
     optimiser = torch.optim.Adam(model.parameters(), lr=config.lr)
     total = config.epochs * config.steps_per_epoch
-    schedule = torch.optim.lr_scheduler.LambdaLR(optimiser, lambda s: 0.5 * (1 + math.cos(math.pi * min(s, total) / total)))
-    state = {"epoch": 0, "best": math.inf}
+    if config.schedule == "cosine":
+        schedule = torch.optim.lr_scheduler.LambdaLR(optimiser, lambda s: 0.5 * (1 + math.cos(math.pi * min(s, total) / total)))
+    else:
+        schedule = torch.optim.lr_scheduler.LambdaLR(optimiser, lambda s: 1.0)
+    state: Dict[str, Any] = {"epoch": 0, "best": math.inf, "seconds": 0.0}
     last = out / "last.pt"
     if last.exists():
-        checkpoint = torch.load(last, map_location=device, weights_only=False)
+        checkpoint = _load_checkpoint(last, device)
         model.load_state_dict(checkpoint["model"])
         optimiser.load_state_dict(checkpoint["optimiser"])
         schedule.load_state_dict(checkpoint["schedule"])
-        state = checkpoint["state"]
+        state = {"seconds": 0.0, **checkpoint["state"]}
+        if leader and "row" in checkpoint:
+            # A run killed after last.pt but before the epoch's other files
+            # finishes them now, from the checkpoint: the same bytes.
+            _finish_epoch(out, model, checkpoint, config)
     net: torch.nn.Module = model
     if distributed:
         net = torch.nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None)
@@ -301,6 +288,7 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
         steps = range(first, first + config.steps_per_epoch)
         bar = _bar(len(steps), f"epoch {epoch + 1}/{config.epochs}", progress and leader)
         losses = []
+        started = time.perf_counter()
         for step, (video, target) in zip(steps, _batches(data, range(first * world + rank, (first + len(steps)) * world, world), config.workers)):
             video, target = video.to(device, non_blocking=True), target.to(device, non_blocking=True)
             optimiser.zero_grad(set_to_none=True)
@@ -317,6 +305,7 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
         if bar is not None:
             bar.close()
         state["epoch"] = epoch + 1
+        state["seconds"] += time.perf_counter() - started
         in_sync = True
         if distributed:
             digest = _weights_digest(model)
@@ -326,19 +315,19 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
         if not leader:
             continue
         scores = evaluate_depth(predict_depth(model, video_val, config.batch_size, device), depth_val_half)
-        row = {"epoch": epoch + 1, "step": (epoch + 1) * config.steps_per_epoch, "lr": schedule.get_last_lr()[0],
+        row = {"epoch": epoch + 1, "step": (epoch + 1) * config.steps_per_epoch,
+               "clips_seen": (epoch + 1) * config.steps_per_epoch * config.batch_size * world,
+               "train_seconds": round(state["seconds"], 1), "lr": schedule.get_last_lr()[0],
                "train_loss": float(np.mean(losses)), "first_step_loss": losses[0], "last_step_loss": losses[-1],
-               **{f"val_mae_sn_{k}": v for k, v in scores.items()}, "ranks_in_sync": in_sync}
+               **{f"val_mae_sn_{k}" if k in ("frame", "first", "flat_frame", "flat_first") else f"val_{k}": v for k, v in scores.items()},
+               "ranks_in_sync": in_sync}
         improved = scores["frame"] < state["best"]
         if improved:
             state["best"] = scores["frame"]
-        checkpoint = {"model": model.state_dict(), "optimiser": optimiser.state_dict(), "schedule": schedule.state_dict(), "state": state}
+        checkpoint = {"model": model.state_dict(), "optimiser": optimiser.state_dict(), "schedule": schedule.state_dict(), "state": state,
+                      "row": row, "improved": improved, "scores": scores}
         _atomic_save(checkpoint, last)
-        if improved:
-            _atomic_save(checkpoint, out / "best.pt")
-            save_model(model, out / "model.safetensors", {"loss": config.loss, "validation": scores, "epoch": epoch + 1})
-        # After the checkpoint: a run killed in between repeats no row on resume.
-        _append_csv(out / "metrics.csv", row)
+        _finish_epoch(out, model, checkpoint, config)
         if writer is not None:
             for k, v in row.items():
                 if isinstance(v, float):
@@ -352,15 +341,50 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
     return summary
 
 
-def _append_csv(path: Path, row: Dict[str, Any]) -> None:
-    new = not path.exists()
-    with path.open("a", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(row))
-        if new:
-            w.writeheader()
-        w.writerow(row)
+def _load_checkpoint(path: Path, device: torch.device) -> Dict[str, Any]:
+    try:
+        checkpoint = torch.load(path, map_location=device, weights_only=False)
+    except Exception as e:  # torch raises many types for a damaged file
+        raise ValueError(f"{path}: not a readable checkpoint ({type(e).__name__}: {e}); remove it to restart the run") from None
+    if not isinstance(checkpoint, dict) or not {"model", "optimiser", "schedule", "state"} <= set(checkpoint):
+        raise ValueError(f"{path}: not an nrdepth checkpoint; remove it to restart the run")
+    return checkpoint
+
+
+def _finish_epoch(out: Path, model: torch.nn.Module, checkpoint: Dict[str, Any], config: TrainConfig) -> None:
+    """Every file an epoch writes after ``last.pt``, from its checkpoint;
+    idempotent, so a resume after a kill at any point redoes what is missing
+    and gives the bytes an uninterrupted run gives."""
+    row, epoch = checkpoint["row"], checkpoint["row"]["epoch"]
+    if checkpoint["improved"]:
+        _atomic_save(checkpoint, out / "best.pt")
+        save_model(model, out / "model.safetensors", {"loss": config.loss, "validation": checkpoint["scores"], "epoch": epoch})
+    _write_metrics_row(out / "metrics.csv", row)
+
+
+def _write_metrics_row(path: Path, row: Dict[str, Any]) -> None:
+    """Rows of earlier epochs kept, this epoch's written once (the file is
+    rewritten atomically, so a kill leaves the old file or the new one)."""
+    rows = []
+    if path.exists():
+        with path.open(newline="") as f:
+            rows = [r for r in csv.DictReader(f) if r.get("epoch") and int(r["epoch"]) < row["epoch"]]
+    fields = list(row) + [k for r in rows for k in r if k not in row]
+    fields = list(dict.fromkeys(fields))
+    tmp = path.with_name(path.name + ".partial")
+    with tmp.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields)
+        w.writeheader()
+        w.writerows(rows + [row])
         f.flush()
         os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def _atomic_write_text(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + ".partial")
+    tmp.write_text(text)
+    os.replace(tmp, path)
 
 
 def _bar(total: int, desc: str, enabled: bool):

@@ -1,0 +1,132 @@
+"""A U-Net of factorised (2+1)D convolutions, built for the cost of a CPU:
+a grayscale video patch (B, 1, T, H, W) to its depth at half spatial
+resolution (B, 1, T, H/2, W/2), as :class:`UNet3D`, at a fraction of its work.
+
+Where :class:`UNet3D` spends its FLOPs, and what this network does instead:
+
+- the output is at half resolution, so after one cheap full-resolution
+  convolution (``stem_width`` channels) a stride-2 convolution brings the
+  video to H/2 × W/2 before any context module;
+- every 3×3×3 kernel is factorised into a spatial 1×3×3 and a temporal
+  3×1×1 convolution, each followed by a leaky ReLU ((2+1)D: fewer weights
+  and FLOPs, one more non-linearity), inside residual blocks;
+- the context module (atrous spatial pyramid pooling, dilations 1, 2, 4) runs
+  on the coarsest level, behind a 1×1×1 bottleneck, and its branches are
+  spatial only;
+- time keeps its full length at every level (16 frames cost little at
+  H/8), so no temporal detail is pooled away.
+
+Levels (``width`` = w, default 24)::
+
+    stem     1×3×3 conv 1 → stem_width, 3×3 stride 2 conv → w   T, H/2, W/2
+    level1   Block(w) × 2                                       T, H/2, W/2
+    level2   stride-2 1×3×3 conv w → 2w, Block(2w) × 2          T, H/4, W/4
+    level3   stride-2 1×3×3 conv 2w → 4w, Block(4w), context    T, H/8, W/8
+    up2      ×2 upsample, 1×1×1 conv 4w → 2w, + level2, Block   T, H/4, W/4
+    up1      ×2 upsample, 1×1×1 conv 2w → w,  + level1, Block   T, H/2, W/2
+    head     1×1×1 conv w → 1, linear
+
+The input is standardised per clip (zero mean, unit standard deviation over
+the patch) inside the network: depth does not depend on exposure, and
+reconstruction sees videos of any brightness. H and W must be divisible by 8;
+T is free.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Dict, Sequence
+
+import torch
+from torch import nn
+
+from .parts import NEGATIVE_SLOPE
+
+
+def _act() -> nn.Module:
+    return nn.LeakyReLU(NEGATIVE_SLOPE, inplace=True)
+
+
+def spatial(cin: int, cout: int, stride: int = 1, dilation: int = 1) -> nn.Conv3d:
+    """A 1×3×3 convolution (space only)."""
+    return nn.Conv3d(cin, cout, (1, 3, 3), stride=(1, stride, stride), padding=(0, dilation, dilation), dilation=(1, dilation, dilation))
+
+
+def temporal(cin: int, cout: int) -> nn.Conv3d:
+    """A 3×1×1 convolution (time only)."""
+    return nn.Conv3d(cin, cout, (3, 1, 1), padding=(1, 0, 0))
+
+
+class Block(nn.Module):
+    """Residual (2+1)D block: x + temporal(act(spatial(x))), then act."""
+
+    def __init__(self, width: int) -> None:
+        super().__init__()
+        self.spatial, self.temporal, self.act = spatial(width, width), temporal(width, width), _act()
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.act(x + self.temporal(self.act(self.spatial(x))))
+
+
+class SpatialContext(nn.Module):
+    """ASPP behind a bottleneck: 1×1×1 to ``width // 2``, parallel 1×3×3
+    convolutions at the given dilations, concatenated, fused by a 1×1×1
+    convolution back to ``width`` and added to the input."""
+
+    def __init__(self, width: int, rates: Sequence[int]) -> None:
+        super().__init__()
+        inner = max(width // 2, 1)
+        self.reduce = nn.Sequential(nn.Conv3d(width, inner, 1), _act())
+        self.branches = nn.ModuleList(nn.Sequential(spatial(inner, inner, dilation=r), _act()) for r in rates)
+        self.fuse = nn.Conv3d(inner * len(rates), width, 1)
+        self.act = _act()
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        reduced = self.reduce(x)
+        return self.act(x + self.fuse(torch.cat([branch(reduced) for branch in self.branches], dim=1)))
+
+
+class UpMerge(nn.Module):
+    """Spatial ×2 upsampling (nearest), a 1×1×1 convolution to the skip's
+    width, added to the skip connection, then a block."""
+
+    def __init__(self, cin: int, cout: int) -> None:
+        super().__init__()
+        self.project, self.block = nn.Conv3d(cin, cout, 1), Block(cout)
+
+    def forward(self, x: torch.Tensor, skip: torch.Tensor) -> torch.Tensor:
+        x = nn.functional.interpolate(x, size=skip.shape[2:], mode="nearest")
+        return self.block(self.project(x) + skip)
+
+
+class UNet2p1D(nn.Module):
+    def __init__(self, width: int = 24, stem_width: int = 8, rates: Sequence[int] = (1, 2, 4)) -> None:
+        super().__init__()
+        for name, value in (("width", width), ("stem_width", stem_width)):
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"{name}: expected a positive int, got {value!r}")
+        rates = tuple(rates)
+        if not rates or any(isinstance(r, bool) or not isinstance(r, int) or r < 1 for r in rates):
+            raise ValueError(f"rates: expected positive ints, got {rates!r}")
+        self.config: Dict[str, Any] = {"width": width, "stem_width": stem_width, "rates": list(rates)}
+        w = width
+        self.stem = nn.Sequential(spatial(1, stem_width), _act(), spatial(stem_width, w, stride=2), _act())
+        self.level1 = nn.Sequential(Block(w), Block(w))
+        self.level2 = nn.Sequential(spatial(w, 2 * w, stride=2), _act(), Block(2 * w), Block(2 * w))
+        self.level3 = nn.Sequential(spatial(2 * w, 4 * w, stride=2), _act(), Block(4 * w), SpatialContext(4 * w, rates))
+        self.up2 = UpMerge(4 * w, 2 * w)
+        self.up1 = UpMerge(2 * w, w)
+        self.head = nn.Conv3d(w, 1, 1)
+
+    def forward(self, video: torch.Tensor) -> torch.Tensor:
+        if video.dim() != 5 or video.shape[1] != 1:
+            raise ValueError(f"video: expected (B, 1, T, H, W), got {tuple(video.shape)}")
+        h, w = video.shape[3:]
+        if h % 8 or w % 8:
+            raise ValueError(f"video: expected H and W divisible by 8, got H={h}, W={w}")
+        flat = video.flatten(1)
+        mean, std = flat.mean(1), flat.std(1)
+        x = (video - mean.view(-1, 1, 1, 1, 1)) / (std.view(-1, 1, 1, 1, 1) + 1e-3)
+        l1 = self.level1(self.stem(x))
+        l2 = self.level2(l1)
+        l3 = self.level3(l2)
+        return self.head(self.up1(self.up2(l3, l2), l1))
