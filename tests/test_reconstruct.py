@@ -138,7 +138,7 @@ def test_cli_reconstructs_an_image_folder(tmp_path, tiny_model):
         ("empty file", ["--device", "cpu"], "input: cannot decode"),
         ("empty folder", ["--device", "cpu"], "input: folder"),
         ("missing", ["--device", "cpu"], "input: .* does not exist"),
-        ("roi", ["--device", "cpu", "--roi", "30,0,20,20"], "--roi: expected X,Y,W,H inside the 40×48 frame"),
+        ("roi", ["--device", "cpu", "--roi", "30,0,20,20"], "--roi: expected x, y, width, height inside the 40×48 frame"),
         ("frames", ["--device", "cpu", "--frames", "20:30"], "--frames: selects no frame"),
         ("device", ["--device", "tpu"], "device: expected auto, cpu, cuda or cuda:N"),
     ],

@@ -115,40 +115,42 @@ def _frames(text: str) -> slice:
 
 
 def _reconstruct(args: argparse.Namespace) -> int:
-    from .train import load_model, resolve_device
+    from .model.io import load_model, resolve_device
     from .stitch import reconstruct
-    from .videoio import PLY_RELIEF, read_video, save_reconstruction
+    from .videoio import PLY_RELIEF, check_output_folder, read_video, save_reconstruction, select
 
     # Everything that can be refused is checked before any work or writing.
     device = resolve_device(args.device)
-    model = load_model(args.model, device=str(device))
+    if args.model is not None and not Path(args.model).exists():
+        raise ValueError(f"--model: {args.model} not found")
+    try:
+        model = load_model(args.model, device=str(device))
+    except ValueError as e:
+        raise ValueError(f"--model: {e}") from None
+    ply_relief = PLY_RELIEF if args.ply_relief is None else args.ply_relief
+    if not (math.isfinite(ply_relief) and ply_relief > 0):
+        raise ValueError(f"--ply-relief: expected a positive finite number, got {ply_relief}")
     out = Path(args.out) if args.out is not None else Path(Path(args.input).stem + "_depth")
-    if out.exists() and not args.overwrite and (out.is_file() or any(out.iterdir())):
-        raise ValueError(f"--out: {out} exists and is not empty (pass --overwrite)")
+    try:
+        check_output_folder(out, args.overwrite, inputs=(args.input,))
+    except ValueError as e:
+        raise ValueError(f"--{e}") from None
     video = read_video(args.input, name="input")
-    frames = video.frames
-    if args.frames is not None:
-        if args.frames.step is not None and args.frames.step <= 0:
-            raise ValueError(f"--frames: expected a positive step, got {args.frames.step}")
-        frames = frames[args.frames]
-        if len(frames) == 0:
-            raise ValueError(f"--frames: selects no frame of the input's {len(video.frames)}")
-    if args.roi is not None:
-        x, y, w, h = args.roi
-        height, width = frames.shape[1:]
-        if w < 1 or h < 1 or x < 0 or y < 0 or x + w > width or y + h > height:
-            raise ValueError(f"--roi: expected X,Y,W,H inside the {width}×{height} frame, got {x},{y},{w},{h}")
-        frames = frames[:, y : y + h, x : x + w]
+    try:
+        frames = select(video.frames, args.frames, args.roi)
+    except ValueError as e:
+        raise ValueError(f"--{e}") from None
     start = time.perf_counter()
     bar = None
     if not args.quiet:
         from tqdm import tqdm
 
-        bar = tqdm(desc="patches", unit="patch")
+        from .stitch import patch_layout
+
+        bar = tqdm(total=len(patch_layout(frames.shape).origins), desc="patches", unit="patch")
 
     def progress(done: int, total: int) -> None:
         if bar is not None:
-            bar.total = total
             bar.update(done - bar.n)
 
     depth = reconstruct(frames, model, batch_size=args.batch_size, device=str(device), progress=progress)
@@ -157,8 +159,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
     if bar is not None:
         bar.close()
     seconds = time.perf_counter() - start
-    save_reconstruction(out, frames, depth, fps=video.fps, png16=args.png16, ply=args.ply, ply_relief=PLY_RELIEF if args.ply_relief is None else args.ply_relief,
-                        overwrite=args.overwrite)
+    save_reconstruction(out, frames, depth, fps=video.fps, png16=args.png16, ply=args.ply, ply_relief=ply_relief, overwrite=args.overwrite)
     t, h, w = depth.shape
     print(f"wrote {out}: depth of {t} frames of {w}×{h} in {seconds:.1f} s on {device} "
           f"(depth.npz, depth.mp4, side_by_side.mp4{', png16/' if args.png16 else ''}{', ply/' if args.ply else ''})")
@@ -258,7 +259,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--png16", action="store_true", help="also write 16-bit PNG depth frames")
     p.add_argument("--ply", action="store_true", help="also write a PLY point cloud per frame")
     p.add_argument("--ply-relief", type=float, default=None,
-                   help="PLY depth standard deviation in frame widths (default: nrdepth.videoio.PLY_RELIEF, as the training surfaces)")
+                   help="PLY depth standard deviation in frame widths (default: 0.073, as the training surfaces)")
     p.add_argument("--flip", action="store_true", help="negate the depth (the convex/concave reading is ambiguous)")
     p.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -280,14 +281,34 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+VALUE_MAY_START_WITH_DASH = ("--roi", "--frames", "--light-azimuth")
+"""Options whose value can begin with '-' (a negative number): argparse would
+take ``--roi -10,0,9,9`` for two options, so such pairs are joined with '='."""
+
+
+def _join_dash_values(argv: Sequence[str]) -> list:
+    joined, i = [], 0
+    while i < len(argv):
+        if argv[i] in VALUE_MAY_START_WITH_DASH and i + 1 < len(argv) and argv[i + 1].startswith("-") and argv[i + 1][1:2].isdigit():
+            joined.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            joined.append(argv[i])
+            i += 1
+    return joined
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(_join_dash_values(sys.argv[1:] if argv is None else list(argv)))
     try:
         return args.run(args)
     except (ValueError, TypeError, OSError) as e:
         print(f"nrdepth {args.command}: error: {e}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"nrdepth {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -27,6 +27,7 @@ import numpy as np
 
 from . import __version__
 from .generate import GeneratorConfig, generate_clips
+from .surface import _check_int, _check_seed
 
 __all__ = ["write_dataset", "ClipStore", "SPLITS"]
 
@@ -82,22 +83,26 @@ def write_dataset(
     """
     import h5py
 
+    # Everything is validated before the first byte is written.
     config = GeneratorConfig() if config is None else config
-    if not isinstance(clips, int) or clips < 1:
-        raise ValueError(f"clips: expected a positive integer, got {clips!r}")
-    if not isinstance(shard_size, int) or shard_size < 1:
-        raise ValueError(f"shard_size: expected a positive integer, got {shard_size!r}")
-    index, count = shard
-    if not (isinstance(index, int) and isinstance(count, int) and 0 <= index < count):
+    if not isinstance(config, GeneratorConfig):
+        raise TypeError(f"config: expected a GeneratorConfig or None, got {type(config).__name__}")
+    clips, shard_size, batch = (_positive(name, v) for name, v in (("clips", clips), ("shard_size", shard_size), ("batch", batch)))
+    seed = _check_seed("seed", seed)
+    try:
+        index, count = (_check_int("shard", v) for v in shard)
+    except (TypeError, ValueError):
+        raise ValueError(f"shard: expected (i, N) with 0 <= i < N, got {shard!r}") from None
+    if not 0 <= index < count:
         raise ValueError(f"shard: expected (i, N) with 0 <= i < N, got {shard!r}")
-    if batch < 1:
-        raise ValueError(f"batch: expected a positive integer, got {batch}")
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    if out.is_file():
+        raise ValueError(f"out: {out} is a file; expected a dataset folder")
     manifest = _manifest(clips, seed, config, shard_size)
     path = out / MANIFEST
+    out.mkdir(parents=True, exist_ok=True)
     if path.exists():
-        existing = json.loads(path.read_text())
+        existing = _read_manifest(path)
         expected = json.loads(json.dumps(manifest))  # tuples become lists, as on disk
         keys = ("format", "clips", "seed", "shard_size", "config")
         if any(existing.get(k) != expected[k] for k in keys):
@@ -105,7 +110,7 @@ def write_dataset(
     else:
         _write_json_atomic(path, manifest)
 
-    todo = [k for k in range(manifest["shards"]) if k % count == index and not (out / shard_name(k)).exists()]
+    todo = [k for k in range(manifest["shards"]) if k % count == index and not _shard_complete(out / shard_name(k), min(shard_size, clips - k * shard_size))]
     total = sum(min(shard_size, clips - k * shard_size) for k in todo)
     bar = _Bar(total, progress)
     for k in todo:
@@ -129,6 +134,38 @@ def write_dataset(
         os.replace(tmp, final)
     bar.close()
     return path
+
+
+def _positive(name: str, value: Any) -> int:
+    value = _check_int(name, value)
+    if value < 1:
+        raise ValueError(f"{name}: expected a positive integer, got {value}")
+    return value
+
+
+def _read_manifest(path: Path) -> Dict[str, Any]:
+    try:
+        manifest = json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError) as e:
+        raise ValueError(f"{path}: not valid JSON ({e}); is it an nrdepth dataset?") from None
+    missing = [k for k in ("format", "clips", "seed", "shard_size", "split", "config") if not isinstance(manifest, dict) or k not in manifest]
+    if missing:
+        raise ValueError(f"{path}: not an nrdepth dataset manifest (missing {', '.join(missing)})")
+    return manifest
+
+
+def _shard_complete(path: Path, clips: int) -> bool:
+    """Whether the shard file exists and holds its ``clips`` clips (a damaged
+    or truncated file counts as missing, and is written again)."""
+    import h5py
+
+    if not path.exists():
+        return False
+    try:
+        with h5py.File(path, "r") as f:
+            return int(f.attrs["clips"]) == clips and all(f[k].shape[0] == clips for k in ("video", "depth", "params"))
+    except (OSError, KeyError, ValueError):
+        return False
 
 
 class _Bar:
@@ -166,7 +203,7 @@ class ClipStore:
         path = self.root / MANIFEST
         if not path.exists():
             raise ValueError(f"root: no {MANIFEST} in {self.root}; is it an nrdepth dataset?")
-        self.manifest: Dict[str, Any] = json.loads(path.read_text())
+        self.manifest: Dict[str, Any] = _read_manifest(path)
         if split is not None and split not in SPLITS:
             raise ValueError(f"split: expected one of {SPLITS} or None, got {split!r}")
         self.split = split
@@ -180,6 +217,9 @@ class ClipStore:
 
     def clip_index(self, i: int) -> int:
         """Global clip index of the i-th clip of this store."""
+        if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
+            raise TypeError(f"index: expected an int, got {type(i).__name__}")
+        i = int(i)
         if not -len(self) <= i < len(self):
             raise IndexError(f"clip {i} out of range for {len(self)} clips")
         return self.first + (i % len(self))
@@ -193,7 +233,10 @@ class ClipStore:
             path = self.root / shard_name(k)
             if not path.exists():
                 raise FileNotFoundError(f"{path} is missing: run `nrdepth generate` again on {self.root} to finish the dataset")
-            self._files[k] = h5py.File(path, "r")
+            try:
+                self._files[k] = h5py.File(path, "r")
+            except OSError as e:
+                raise ValueError(f"{path}: not a readable shard ({e}); delete it and run `nrdepth generate` again on {self.root}") from None
         return self._files[k]
 
     def __getitem__(self, i: int) -> Tuple[np.ndarray, np.ndarray, Dict[str, Any]]:

@@ -1,5 +1,6 @@
 """Held-out evaluation of a model: per-clip MAE-SN (both alignments) beside
-the flat baseline, as in the paper's table "synthetic_data".
+the flat baseline, as in the paper's table "synthetic_data", and the relief's
+sign-correct rate (frames) and in-clip flip rate (clips).
 
 Predictions are at the network's half resolution; the ground truth is brought
 to it by 2×2 means. Data: a dataset folder's test split, or, without one,
@@ -18,8 +19,8 @@ import numpy as np
 import torch
 
 from .generate import GeneratorConfig, generate_clips
-from .metrics import flat_baseline, mae_sn
-from .train import load_model, predict_depth, resolve_device
+from .metrics import flat_baseline, mae_sn, sign_rates
+from .model.io import load_model, predict_depth, resolve_device
 
 __all__ = ["evaluate", "TEST_SEED"]
 
@@ -58,9 +59,10 @@ def evaluate(
             "mae_sn_first": mae_sn(p, g, "first"),
             "flat_frame": flat_baseline(g, "frame"),
             "flat_first": flat_baseline(g, "first"),
+            **sign_rates(p, g),
         })
     summary: Dict[str, Any] = {"clips": len(rows), "model": str(model), "data": str(data) if data else f"generated, seed {TEST_SEED}"}
-    for key in ("mae_sn_frame", "mae_sn_first", "flat_frame", "flat_first"):
+    for key in ("mae_sn_frame", "mae_sn_first", "flat_frame", "flat_first", "sign_correct", "flip"):
         values = np.array([r[key] for r in rows])
         summary[key] = {"mean": float(values.mean()), "std": float(values.std())}
     if out is not None:
@@ -82,4 +84,5 @@ def format_summary(summary: Dict[str, Any]) -> str:
         f"{'':26s}{'model':>18s}{'flat baseline':>20s}",
         f"{'align each frame':26s}{s['mae_sn_frame']['mean']:>9.4f} ± {s['mae_sn_frame']['std']:.4f}{s['flat_frame']['mean']:>11.4f} ± {s['flat_frame']['std']:.4f}",
         f"{'alignment from 1st frame':26s}{s['mae_sn_first']['mean']:>9.4f} ± {s['mae_sn_first']['std']:.4f}{s['flat_first']['mean']:>11.4f} ± {s['flat_first']['std']:.4f}",
+        f"relief sign correct in {100 * s['sign_correct']['mean']:.1f} % of frames; it flips inside {100 * s['flip']['mean']:.1f} % of clips",
     ])

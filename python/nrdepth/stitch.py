@@ -15,8 +15,9 @@ then removes the per-frame GBR flicker.
 
 from __future__ import annotations
 
+import math
 import os
-from typing import Callable, Iterator, NamedTuple, Optional, Tuple, Union
+from typing import Any, Callable, Iterator, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
 
@@ -39,12 +40,31 @@ class PatchLayout(NamedTuple):
     """int64 (N, 3): (t, y, x) of every patch in padded coordinates."""
 
 
+MAX_PATCHES = 2**24
+"""Most patches a layout may hold (its origins alone take 8 bytes × 3 each)."""
+MAX_VOXELS = 2**34
+"""Largest padded video a layout may describe (the stitcher keeps float32 sums of it)."""
+
+
+def _sizes(name: str, value: Any) -> Tuple[int, int, int]:
+    try:
+        items = tuple(value)
+    except TypeError:
+        raise TypeError(f"{name}: expected three integers, got {type(value).__name__}") from None
+    if len(items) != 3 or any(isinstance(v, bool) or not isinstance(v, (int, np.integer)) for v in items):
+        raise ValueError(f"{name}: expected three integers, got {value!r}")
+    return tuple(int(v) for v in items)  # type: ignore[return-value]
+
+
 def patch_layout(shape: Tuple[int, int, int], patch: Tuple[int, int, int] = PATCH) -> PatchLayout:
     """Padding and patch origins for a (T, H, W) video."""
-    shape = tuple(int(v) for v in shape)  # type: ignore[assignment]
-    patch = tuple(int(v) for v in patch)  # type: ignore[assignment]
-    if len(shape) != 3 or len(patch) != 3:
-        raise ValueError(f"shape: expected (T, H, W) and patch (Lt, Ls, Ls), got {shape} and {patch}")
+    shape, patch = _sizes("shape", shape), _sizes("patch", patch)
+    if min(shape) >= 1 and min(patch) >= 1:
+        hops = [max(p // 2, 1) for p in patch]
+        count = math.prod(s // h + 2 for s, h in zip(shape, hops))
+        voxels = math.prod(s + p for s, p in zip(shape, patch))
+        if count > MAX_PATCHES or voxels > MAX_VOXELS:
+            raise ValueError(f"shape: {shape} with patch {patch} would need about {count:,} patches over {voxels:,} voxels (at most {MAX_PATCHES:,} and {MAX_VOXELS:,})")
     pad, padded, origins = _core.patch_layout(shape, patch)
     return PatchLayout(shape, patch, tuple(pad), tuple(padded), np.asarray(origins, dtype=np.int64).reshape(-1, 3))  # type: ignore[arg-type]
 
@@ -64,6 +84,11 @@ def stitch(patches: np.ndarray, coarse: np.ndarray, layout: PatchLayout) -> np.n
         raise ValueError(f"coarse: expected the layout's shape {layout.shape}, got {coarse.shape}")
     if tuple(patches.shape[1:]) != tuple(layout.patch):
         raise ValueError(f"patches: expected patches of {layout.patch}, got {patches.shape[1:]}")
+    expected = patch_layout(layout.shape, layout.patch)
+    if (tuple(layout.pad), tuple(layout.padded)) != (expected.pad, expected.padded) or not np.array_equal(np.asarray(layout.origins), expected.origins):
+        raise ValueError(f"layout: not the layout of a {layout.shape} video in {layout.patch} patches; build it with patch_layout(shape)")
+    if len(patches) != len(expected.origins):
+        raise ValueError(f"patches: expected one patch per origin of the layout ({len(expected.origins)}), got {len(patches)}")
     stitcher = _core.Stitcher(np.ascontiguousarray(coarse, dtype=np.float32), layout.patch)
     stitcher.add(np.ascontiguousarray(patches, dtype=np.float32), np.ascontiguousarray(layout.origins, dtype=np.int64))
     return stitcher.finish()
@@ -99,11 +124,16 @@ def reconstruct(
     device: str = "auto",
     progress: Optional[Callable[[int, int], None]] = None,
     temporal: bool = True,
+    roi: Optional[Tuple[int, int, int, int]] = None,
+    frames: Optional[slice] = None,
 ) -> np.ndarray:
-    """Depth video float32 (T, H, W) of a grayscale video (T, H, W) (uint8, or
-    float in [0, 1]) with a trained model: a module, a ``model.safetensors``
-    path or run folder, or ``None`` for the default model shipped in the
-    package. Videos smaller than a patch are padded (symmetrically).
+    """Depth video float32 (T, H, W) of a video (T, H, W) or colour video
+    (T, H, W, 3) (uint8, or float in [0, 1]; colour becomes luma, ITU-R
+    BT.601, as ``nrdepth reconstruct`` does) with a trained model: a module, a
+    ``model.safetensors`` path or run folder, or ``None`` for the default
+    model shipped in the package. ``frames`` (a slice) and ``roi`` (x, y,
+    width, height in pixels) select the part of the video to reconstruct.
+    Videos smaller than a patch are padded (symmetrically).
     ``progress(done, total)`` is called as patches are predicted.
     ``temporal`` applies :func:`temporal_align` to the stitched video (the
     paper's method is ``temporal=False``). Depth is defined up to one GBR
@@ -118,17 +148,17 @@ def reconstruct(
     not of its (8× overlapping) patches."""
     import torch
 
-    from .train import resolve_device
+    from .model.io import resolve_device
+    from .videoio import select, to_gray
 
-    video = np.asarray(video)
-    if video.ndim != 3 or min(video.shape) < 1:
-        raise ValueError(f"video: expected a grayscale video (T, H, W), got shape {video.shape}")
-    if video.dtype != np.uint8 and video.dtype.kind != "f":
-        raise TypeError(f"video: expected uint8 or float frames, got dtype {video.dtype}")
-    if video.dtype.kind == "f" and not np.isfinite(video).all():
-        raise ValueError("video: expected finite values")
-    if not isinstance(batch_size, int) or batch_size < 1:
+    video = select(to_gray(video, "video"), frames, roi)
+    if isinstance(batch_size, bool) or not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
         raise ValueError(f"batch_size: expected a positive integer, got {batch_size!r}")
+    batch_size = int(batch_size)
+    if progress is not None and not callable(progress):
+        raise TypeError(f"progress: expected a callable progress(done, total) or None, got {type(progress).__name__}")
+    if model is not None and not isinstance(model, (str, os.PathLike, torch.nn.Module)):
+        raise TypeError(f"model: expected None, a path to model.safetensors or its folder, or a torch.nn.Module, got {type(model).__name__}")
     dev = resolve_device(device)
     net = model.to(dev).eval() if isinstance(model, torch.nn.Module) else inference_model(model, dev)
     layout = patch_layout(video.shape)
@@ -153,7 +183,7 @@ def inference_model(model: Union[None, str, "os.PathLike[str]"], device: "torch.
     ``device`` in the channels-last 3D layout (≈ 1.4× faster on the CPU)."""
     import torch
 
-    from .train import load_model
+    from .model.io import load_model
 
     return load_model(model, device=str(device)).to(memory_format=torch.channels_last_3d)
 
@@ -166,7 +196,7 @@ def coarse_depth(video: np.ndarray, net: "torch.nn.Module", batch_size: int, dev
     """The coarse pass of :func:`reconstruct`: the whole video (T, H, W)
     resized to the patch side, in 16-frame windows (the last one mirrored),
     through the network, and its depth resized back: float32 (T, H, W)."""
-    from .train import predict_depth
+    from .model.io import predict_depth
 
     lt, ls, _ = PATCH
     t, h, w = video.shape
@@ -187,7 +217,7 @@ def patch_depths(
     """The fine pass of :func:`reconstruct`: for ``chunk`` patches at a time of
     the symmetrically padded video, their origins (n, 3) and depths
     (n, 16, 64, 64) (the network's half-resolution output upsampled)."""
-    from .train import predict_depth
+    from .model.io import predict_depth
 
     lt, ls, _ = PATCH
     back = [layout.padded[a] - layout.shape[a] - layout.pad[a] for a in range(3)]

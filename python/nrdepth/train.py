@@ -173,6 +173,8 @@ def validation_set(config: TrainConfig) -> Tuple[np.ndarray, np.ndarray]:
         from .dataset import ClipStore
 
         store = ClipStore(config.data, "validation")
+        if len(store) == 0:
+            raise ValueError(f"data: the validation split of {config.data} is empty (it is 10 % of the clips, rounded down: write at least 10)")
         items = [store[i] for i in range(min(len(store), config.validation_clips))]
         return np.stack([v for v, _, _ in items]), np.stack([d for _, d, _ in items])
     clips = generate_clips(config.validation_clips, seed=config.seed + VALIDATION_SEED_OFFSET, config=config.generator)
@@ -229,8 +231,13 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
         dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
     rank, world = (dist.get_rank(), dist.get_world_size()) if distributed else (0, 1)
     leader = rank == 0
+    # The data is opened (and refused if bad) before anything is written.
+    data = StoredBatches(config.data, config.seed, config.batch_size) if config.data else OnlineBatches(config.generator, config.seed, config.batch_size)
+    video_val, depth_val = validation_set(config) if leader else (None, None)
+    depth_val_half = torch.nn.functional.avg_pool2d(torch.from_numpy(depth_val).float(), 2).numpy() if leader else None
     if leader:
-        last = out / "last.pt"
+        if out.is_file():
+            raise ValueError(f"out: {out} is a file; expected a run folder")
         saved = out / "config.json"
         if saved.exists():
             try:
@@ -269,9 +276,6 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
         net = torch.compile(net)
     loss_fn = get_loss(config.loss)
     amp = config.amp and device.type == "cuda"
-    data = StoredBatches(config.data, config.seed, config.batch_size) if config.data else OnlineBatches(config.generator, config.seed, config.batch_size)
-    video_val, depth_val = validation_set(config) if leader else (None, None)
-    depth_val_half = torch.nn.functional.avg_pool2d(torch.from_numpy(depth_val).float(), 2).numpy() if leader else None
 
     writer = None
     if leader:

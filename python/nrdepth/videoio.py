@@ -14,6 +14,7 @@ input | depth MP4 and binary PLY point clouds.
 
 from __future__ import annotations
 
+import math
 import os
 from fractions import Fraction
 from pathlib import Path
@@ -33,6 +34,9 @@ __all__ = [
     "write_depth_png16",
     "write_ply",
     "save_reconstruction",
+    "check_output_folder",
+    "to_gray",
+    "select",
     "IMAGE_SUFFIXES",
 ]
 
@@ -52,22 +56,59 @@ class Video(NamedTuple):
     """Frame rate (25 where the source has none: image folders, arrays)."""
 
 
-def _to_gray_u8(array: np.ndarray, name: str) -> np.ndarray:
-    a = np.asarray(array)
-    if a.ndim == 4 and a.shape[-1] in (3, 4):
-        if a.dtype.kind == "f":
-            a = np.clip(a, 0.0, 1.0) * 255.0
-        a = a[..., :3].astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
-        a = np.rint(a).astype(np.uint8)
-    if a.ndim != 3 or min(a.shape) < 1:
-        raise ValueError(f"{name}: expected a video (T, H, W) or (T, H, W, 3), got shape {a.shape}")
-    if a.dtype == np.uint8:
-        return a
+LUMA = np.array([0.299, 0.587, 0.114], np.float32)
+"""ITU-R BT.601 luma weights (FFmpeg's ``gray``)."""
+
+
+def to_gray(video: np.ndarray, name: str = "video") -> np.ndarray:
+    """A video (T, H, W) or colour video (T, H, W, 3 or 4) as gray frames
+    (T, H, W): uint8 stays uint8 (colour → luma, rounded), floats become
+    float32 and must lie in [0, 1] (never clipped silently: 0..255 data must be
+    divided by 255 first)."""
+    a = np.asarray(video)
+    if a.dtype != np.uint8 and a.dtype.kind != "f":
+        raise TypeError(f"{name}: expected uint8 or float frames, got dtype {a.dtype}")
     if a.dtype.kind == "f":
         if not np.isfinite(a).all():
-            raise ValueError(f"{name}: expected finite values")
-        return np.rint(np.clip(a, 0.0, 1.0) * 255.0).astype(np.uint8)
-    raise TypeError(f"{name}: expected uint8 or float frames, got dtype {a.dtype}")
+            raise ValueError(f"{name}: expected finite values (found NaN or inf)")
+        if a.size and (a.min() < 0.0 or a.max() > 1.0):
+            hint = "; divide 0..255 data by 255" if a.max() > 1.0 else ""
+            raise ValueError(f"{name}: expected float frames in [0, 1], got values in [{a.min():.4g}, {a.max():.4g}]{hint}")
+    if a.ndim == 4 and a.shape[-1] in (3, 4):
+        luma = a[..., :3].astype(np.float32) @ LUMA
+        a = np.rint(luma).astype(np.uint8) if a.dtype == np.uint8 else luma
+    if a.ndim != 3 or min(a.shape) < 1:
+        raise ValueError(f"{name}: expected a video (T, H, W) or (T, H, W, 3), got shape {a.shape}")
+    return a if a.dtype == np.uint8 else a.astype(np.float32, copy=False)
+
+
+def _to_gray_u8(array: np.ndarray, name: str) -> np.ndarray:
+    a = to_gray(array, name)
+    return a if a.dtype == np.uint8 else np.rint(a * 255.0).astype(np.uint8)
+
+
+def select(video: np.ndarray, frames: Optional[slice] = None, roi: Optional[Tuple[int, int, int, int]] = None) -> np.ndarray:
+    """The frames (a slice with a positive step) and region (x, y, width,
+    height in pixels, inside the frame) of a video (T, H, W) to work on."""
+    if frames is not None:
+        if not isinstance(frames, slice):
+            raise TypeError(f"frames: expected a slice, got {type(frames).__name__}")
+        if frames.step is not None and frames.step <= 0:
+            raise ValueError(f"frames: expected a positive step, got {frames.step}")
+        count = len(video)
+        video = video[frames]
+        if len(video) == 0:
+            raise ValueError(f"frames: selects no frame of the video's {count}")
+    if roi is not None:
+        try:
+            x, y, w, h = (int(v) for v in roi if not isinstance(v, bool) and float(v) == int(v))
+        except (TypeError, ValueError):
+            raise ValueError(f"roi: expected four integers (x, y, width, height), got {roi!r}") from None
+        height, width = video.shape[1:3]
+        if w < 1 or h < 1 or x < 0 or y < 0 or x + w > width or y + h > height:
+            raise ValueError(f"roi: expected x, y, width, height inside the {width}×{height} frame, got {x},{y},{w},{h}")
+        video = video[:, y : y + h, x : x + w]
+    return video
 
 
 def _decode(path: Path, name: str) -> Tuple[list, float]:
@@ -195,6 +236,69 @@ def write_ply(path: PathLike, depth: np.ndarray, gray: np.ndarray, relief: float
         f.write(vertex.tobytes())
 
 
+MARKER = ".nrdepth-reconstruction"
+"""Written into every output folder: ``overwrite`` replaces only folders that hold it."""
+WRITTEN = {MARKER, "depth.npz", "depth.mp4", "side_by_side.mp4", "png16", "ply"}
+"""Every name :func:`save_reconstruction` writes into its folder."""
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _clean_stale(out: Path) -> None:
+    """Remove temporary folders beside ``out`` left by killed runs (dead
+    PIDs); an old result moved aside by a run killed mid-swap is put back
+    when nothing took its place."""
+    import shutil
+
+    if not out.parent.is_dir():
+        return
+    for p in out.parent.iterdir():
+        for kind in ("partial", "old"):
+            prefix = f".{out.name}.{kind}-"
+            if p.name.startswith(prefix) and p.name[len(prefix):].isdigit() and not _pid_alive(int(p.name[len(prefix):])):
+                if kind == "old" and not out.exists():
+                    os.replace(p, out)
+                else:
+                    shutil.rmtree(p, ignore_errors=True)
+
+
+def check_output_folder(out: PathLike, overwrite: bool = False, inputs: Tuple[PathLike, ...] = ()) -> Path:
+    """Refuse an output folder before any work: one that exists and is not
+    empty (without ``overwrite``); with ``overwrite``, one nrdepth did not
+    write (no marker file) or holding files it did not write; and always the
+    working folder, an ancestor of it, the home or root folder, or one that
+    contains (or is) an input. Returns ``out`` as a Path."""
+    out = Path(out)
+    where = out.resolve()
+    cwd = Path.cwd().resolve()
+    if where == cwd or where in cwd.parents or where in (Path.home().resolve(), Path(where.anchor)):
+        raise ValueError(f"out: refusing {out} (it is the working folder, an ancestor of it, or the home or root folder); name a new folder")
+    for i in inputs:
+        source = Path(i).resolve()
+        if source == where or where in source.parents:
+            raise ValueError(f"out: {out} contains the input {i}; name another folder")
+    _clean_stale(out)
+    if out.is_file():
+        raise ValueError(f"out: {out} is a file; expected a folder")
+    if out.exists() and any(out.iterdir()):
+        if not overwrite:
+            raise ValueError(f"out: {out} exists and is not empty (pass overwrite=True / --overwrite)")
+        if not (out / MARKER).exists():
+            raise ValueError(f"out: {out} was not written by nrdepth (no {MARKER}); --overwrite replaces only nrdepth's own output")
+        foreign = sorted(p.name for p in out.iterdir() if p.name not in WRITTEN)
+        if foreign:
+            raise ValueError(f"out: {out} holds files nrdepth did not write ({', '.join(foreign[:3])}{', …' if len(foreign) > 3 else ''}); move them first")
+    return out
+
+
 def save_reconstruction(
     out: PathLike,
     frames: np.ndarray,
@@ -211,21 +315,25 @@ def save_reconstruction(
     ``depth.mp4`` (colourised), ``side_by_side.mp4`` (input | depth), and
     optionally ``png16/depth_NNNN.png`` and ``ply/frame_NNNN.ply``. Everything
     is written into a temporary folder beside ``out`` and renamed at the end,
-    so an error or an interrupt leaves no partial output. ``ply_relief``: see
-    :func:`write_ply`."""
+    so an error or an interrupt leaves no partial output. With ``overwrite``
+    an old result is moved aside, the new one renamed in, then the old one
+    deleted: a kill at any point leaves one of the two at ``out`` (or aside,
+    put back by the next run). The folder is checked by
+    :func:`check_output_folder` first. ``ply_relief``: see :func:`write_ply`."""
     import shutil
 
-    out = Path(out)
     frames, depth = np.asarray(frames), np.asarray(depth, dtype=np.float32)
     if frames.dtype != np.uint8 or frames.ndim != 3 or depth.shape != frames.shape:
         raise ValueError(f"depth: expected float (T, H, W) matching uint8 frames {frames.shape}, got {depth.shape}")
-    if out.exists() and not overwrite and (out.is_file() or any(out.iterdir())):
-        raise ValueError(f"out: {out} exists and is not empty (pass overwrite=True / --overwrite)")
+    if isinstance(ply_relief, bool) or not isinstance(ply_relief, (int, float, np.floating)) or not (math.isfinite(ply_relief) and ply_relief > 0):
+        raise ValueError(f"ply_relief: expected a positive finite number, got {ply_relief!r}")
+    out = check_output_folder(out, overwrite)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.parent / f".{out.name}.partial-{os.getpid()}"
     shutil.rmtree(tmp, ignore_errors=True)  # left by a killed run of this pid
     tmp.mkdir()
     try:
+        (tmp / MARKER).write_text("written by nrdepth reconstruct; --overwrite replaces this folder\n")
         value_range = depth_range(depth)
         colour = colorize_depth(depth, value_range)
         extra = {"png16_range": np.array(write_depth_png16(tmp / "png16", depth), np.float32)} if png16 else {}
@@ -236,10 +344,12 @@ def save_reconstruction(
             (tmp / "ply").mkdir()
             for t in range(len(depth)):
                 write_ply(tmp / "ply" / f"frame_{t:04d}.ply", depth[t], frames[t], ply_relief)
+        aside = out.parent / f".{out.name}.old-{os.getpid()}"
         if out.exists():
-            shutil.rmtree(out) if out.is_dir() else out.unlink()
+            os.replace(out, aside)
         os.replace(tmp, out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+    shutil.rmtree(aside, ignore_errors=True)
     return out

@@ -1,0 +1,135 @@
+"""Learning curves: held-out MAE-SN (both alignments), sign-correct and flip
+rates of training runs against clips seen and against hours of training,
+beside the flat baseline and the paper's figures.
+
+Every ``nrdepth train`` run scores its validation clips (a generator seed no
+training batch uses) after each epoch into ``metrics.csv``; this script trains
+configurations side by side for the same wall-clock time and draws those rows.
+
+    # two configurations, 60 minutes each, side by side, one torch thread each
+    python benchmarks/learning_curves.py train --minutes 60 \\
+        runs/a="--arch unet2p1d --loss aligned_both_signed --steps 100" \\
+        runs/b="--arch unet3d --base 16 --loss aligned_both_signed --steps 25"
+    # curves of any runs (resumed runs included): CSV + PNG
+    python benchmarks/learning_curves.py plot runs/a runs/b -o docs/learning_curves
+
+``train`` passes ``--batch-size 8 --epochs 100000 --schedule constant
+--validation-clips 64 --workers 0 --device cpu --quiet`` unless the
+arguments given override them; a run stopped at the budget resumes where it
+stopped when started again (same folder).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import shlex
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Dict, List
+
+PAPER = {"frame": 0.3832, "first": 0.6133}
+"""The paper's ℓ_GBR network on its held-out synthetic clips (its Table 1)."""
+
+DEFAULTS = {"--batch-size": "8", "--epochs": "100000", "--schedule": "constant", "--validation-clips": "64", "--workers": "0", "--device": "cpu", "--quiet": None}
+
+
+def train(specs: List[str], minutes: float) -> None:
+    procs = []
+    for spec in specs:
+        out, _, extra = spec.partition("=")
+        given = shlex.split(extra)
+        defaults = [a for flag, value in DEFAULTS.items() if flag not in given for a in ([flag] if value is None else [flag, value])]
+        env = dict(os.environ, OMP_NUM_THREADS="1", RAYON_NUM_THREADS="1")
+        Path(out).mkdir(parents=True, exist_ok=True)
+        log = open(Path(out) / "train.log", "a")
+        procs.append(subprocess.Popen([sys.executable, "-m", "nrdepth", "train", out, *given, *defaults], env=env, stdout=log, stderr=subprocess.STDOUT))
+        print(f"started {out}: {' '.join(given + defaults)}")
+    deadline = time.monotonic() + 60 * minutes
+    while time.monotonic() < deadline and any(p.poll() is None for p in procs):
+        time.sleep(5)
+    for p in procs:
+        if p.poll() is None:
+            p.send_signal(signal.SIGINT)  # a run resumes from its last epoch
+    for p in procs:
+        p.wait()
+
+
+def rows(run: Path) -> List[Dict[str, float]]:
+    with (run / "metrics.csv").open(newline="") as f:
+        return [{k: float(v) for k, v in r.items() if k != "ranks_in_sync"} for r in csv.DictReader(f)]
+
+
+def plot(runs: List[Path], out: Path, labels: List[str]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out.parent.mkdir(parents=True, exist_ok=True)
+    table = {label: rows(run) for label, run in zip(labels, runs)}
+    fields = ["run", "epoch", "clips_seen", "train_seconds", "val_mae_sn_frame", "val_mae_sn_first", "val_mae_sn_flat_frame", "val_mae_sn_flat_first", "val_sign_correct", "val_flip"]
+    with out.with_suffix(".csv").open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields, extrasaction="ignore")
+        w.writeheader()
+        for label, rs in table.items():
+            for r in rs:
+                w.writerow({"run": label, **r})
+    figure, axes = plt.subplots(2, 3, figsize=(16, 9))
+    for col, (x_key, x_label, scale) in enumerate([("clips_seen", "clips seen", 1.0), ("train_seconds", "hours of training (one CPU thread each)", 1 / 3600)]):
+        for row, (align, title) in enumerate([("frame", "MAE-SN, each frame aligned"), ("first", "MAE-SN, alignment from the 1st frame")]):
+            ax = axes[row, col]
+            for label, rs in table.items():
+                ax.plot([r[x_key] * scale for r in rs], [r[f"val_mae_sn_{align}"] for r in rs], marker=".", label=label)
+            flat = [r[f"val_mae_sn_flat_{align}"] for rs in table.values() for r in rs]
+            ax.axhline(sum(flat) / len(flat), color="gray", linestyle="--", label="flat plane")
+            ax.axhline(PAPER[align], color="black", linestyle=":", label="paper (ℓ_GBR, 122,880 clips)")
+            ax.set_xlabel(x_label)
+            ax.set_title(title)
+            if col == 0:
+                ax.set_xscale("log")
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=8)
+    ax = axes[0, 2]
+    for label, rs in table.items():
+        ax.plot([r["clips_seen"] for r in rs], [100 * r["val_sign_correct"] for r in rs], marker=".", label=label)
+    ax.set_xscale("log"), ax.set_xlabel("clips seen"), ax.set_title("relief sign correct, % of frames"), ax.grid(alpha=0.3), ax.legend(fontsize=8)
+    ax = axes[1, 2]
+    for label, rs in table.items():
+        ax.plot([r["clips_seen"] for r in rs], [100 * r["val_flip"] for r in rs], marker=".", label=label)
+    ax.set_xscale("log"), ax.set_xlabel("clips seen"), ax.set_title("clips whose relief sign flips, %"), ax.grid(alpha=0.3), ax.legend(fontsize=8)
+    figure.suptitle("Held-out validation clips (64, generator seed + 1,000,003) after every epoch")
+    figure.tight_layout()
+    figure.savefig(out.with_suffix(".png"), dpi=80)
+    print(f"wrote {out.with_suffix('.csv')} and {out.with_suffix('.png')}")
+    for label, rs in table.items():
+        best = min(rs, key=lambda r: r["val_mae_sn_frame"])
+        last = rs[-1]
+        print(f"{label}: {len(rs)} epochs, {int(last['clips_seen'])} clips, {last['train_seconds'] / 3600:.2f} h; last {last['val_mae_sn_frame']:.4f} / {last['val_mae_sn_first']:.4f} "
+              f"(sign {100 * last['val_sign_correct']:.1f} %, flips {100 * last['val_flip']:.1f} %); best per frame {best['val_mae_sn_frame']:.4f} at {int(best['clips_seen'])} clips")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("train", help="train configurations side by side for the same wall-clock time")
+    p.add_argument("specs", nargs="+", metavar="OUT=ARGS", help="run folder and its nrdepth train arguments")
+    p.add_argument("--minutes", type=float, required=True)
+    p = sub.add_parser("plot", help="CSV and PNG of the runs' validation curves")
+    p.add_argument("runs", nargs="+", type=Path)
+    p.add_argument("-o", "--out", type=Path, default=Path("learning_curves"), help="output path without suffix (.csv and .png are written)")
+    p.add_argument("--labels", default=None, help="comma-separated labels (default: the folder names)")
+    args = parser.parse_args()
+    if args.command == "train":
+        train(args.specs, args.minutes)
+    else:
+        labels = args.labels.split(",") if args.labels else [r.name for r in args.runs]
+        plot(args.runs, args.out, labels)
+
+
+if __name__ == "__main__":
+    main()
