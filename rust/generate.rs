@@ -15,6 +15,8 @@
 //! to [0, 1] and quantised to u8. Depth is `camera_z − z` (`geometry`).
 //! Shapes: video (n, T, H, W) u8, depth (n, T, H, W) f32; H = W = `size`.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use rayon::prelude::*;
 
 use crate::error::{in_range, size_in, InvalidArgument, Result};
@@ -326,7 +328,17 @@ impl ClipWorker {
 
     /// Generate clip `index` into `video` / `depth` (T·H·W each).
     pub fn clip(&mut self, config: &GeneratorConfig, bank: Option<&TextureBank>, seed: u64, index: u64, video: &mut [u8], depth: &mut [f32]) -> Result<ClipParams> {
+        self.clip_until(config, bank, seed, index, video, depth, &AtomicBool::new(false))
+    }
+
+    /// [`clip`](Self::clip), giving up with an `interrupted` error as soon as
+    /// `cancel` is set (checked before every draw).
+    #[allow(clippy::too_many_arguments)]
+    pub fn clip_until(&mut self, config: &GeneratorConfig, bank: Option<&TextureBank>, seed: u64, index: u64, video: &mut [u8], depth: &mut [f32], cancel: &AtomicBool) -> Result<ClipParams> {
         for attempt in 0..=config.max_redraws {
+            if cancel.load(Ordering::Relaxed) {
+                return Err(interrupted());
+            }
             let mut rng = SplitMix64::new(hash(seed, &[index, attempt as u64]));
             let mut params = draw_clip(config, bank, &mut rng)?;
             if self.try_clip(config, bank, &params, video, depth)? {
@@ -371,10 +383,26 @@ impl ClipWorker {
     }
 }
 
+/// The error of work stopped by its `cancel` flag.
+pub fn interrupted() -> InvalidArgument {
+    InvalidArgument::new("interrupted", "stopped before the clips were complete")
+}
+
 /// Clips `start .. start + n` into `video` (n·T·H·W u8) and `depth` (same, f32),
 /// in parallel over clips.
 pub fn generate_clips(config: &GeneratorConfig, bank: Option<&TextureBank>, seed: u64, start: u64, n: usize, video: &mut [u8], depth: &mut [f32]) -> Result<Vec<ClipParams>> {
+    generate_clips_until(config, bank, seed, start, n, video, depth, &AtomicBool::new(false))
+}
+
+/// [`generate_clips`], giving up with an `interrupted` error soon after
+/// `cancel` is set (every clip checks it before each draw), so a caller can
+/// honour Ctrl-C during a long or hopeless batch.
+#[allow(clippy::too_many_arguments)]
+pub fn generate_clips_until(config: &GeneratorConfig, bank: Option<&TextureBank>, seed: u64, start: u64, n: usize, video: &mut [u8], depth: &mut [f32], cancel: &AtomicBool) -> Result<Vec<ClipParams>> {
     config.validate()?;
+    if n > 0 && start.checked_add(n as u64 - 1).is_none() {
+        return Err(InvalidArgument::new("start", format!("clips {start} .. {start} + {n} pass the last clip index 2**64 − 1")));
+    }
     let len = config.clip_pixels();
     if video.len() != n * len || depth.len() != n * len {
         return Err(InvalidArgument::new("out", format!("expected {} values per output, got {} and {}", n * len, video.len(), depth.len())));
@@ -386,7 +414,7 @@ pub fn generate_clips(config: &GeneratorConfig, bank: Option<&TextureBank>, seed
         .par_chunks_mut(len)
         .zip(depth.par_chunks_mut(len))
         .enumerate()
-        .map(|(i, (v, d))| with_worker(config, |worker| worker.clip(config, bank, seed, start + i as u64, v, d)))
+        .map(|(i, (v, d))| with_worker(config, |worker| worker.clip_until(config, bank, seed, start + i as u64, v, d, cancel)))
         .collect()
 }
 
@@ -622,6 +650,29 @@ mod tests {
         let uniform = GeneratorConfig { light_azimuth: Range::new(-std::f64::consts::PI, std::f64::consts::PI), ..small() };
         let below = (0..500).flat_map(|_| draw_clip(&uniform, None, &mut rng).unwrap().lights).filter(|l| azimuth(l).abs() > 2.0).count();
         assert!(below > 100, "{below}");
+    }
+
+    #[test]
+    fn a_cancelled_batch_stops_and_an_index_past_the_last_is_refused() {
+        // A window that never fits would redraw for a long time: cancel stops it.
+        let config = GeneratorConfig { window_width: Range::new(2.0, 2.0), window_offset: Range::new(1.0, 1.0), max_redraws: 1_000_000, ..small() };
+        let len = config.clip_pixels();
+        let cancel = AtomicBool::new(false);
+        let started = std::time::Instant::now();
+        let err = std::thread::scope(|s| {
+            s.spawn(|| {
+                std::thread::sleep(std::time::Duration::from_millis(50));
+                cancel.store(true, Ordering::Relaxed);
+            });
+            generate_clips_until(&config, None, 0, 0, 2, &mut vec![0; 2 * len], &mut vec![0.0; 2 * len], &cancel).unwrap_err()
+        });
+        assert_eq!(err.name, "interrupted");
+        assert!(started.elapsed().as_secs() < 10);
+        let config = small();
+        let len = config.clip_pixels();
+        let err = generate_clips(&config, None, 0, u64::MAX, 2, &mut vec![0; 2 * len], &mut vec![0.0; 2 * len]).unwrap_err();
+        assert_eq!(err.name, "start");
+        generate_clips(&config, None, 0, u64::MAX, 1, &mut vec![0; len], &mut vec![0.0; len]).unwrap();
     }
 
     #[test]

@@ -6,7 +6,10 @@
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, RecvTimeoutError};
 use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
@@ -47,6 +50,36 @@ fn pool() -> PyResult<Arc<ThreadPool>> {
 fn parallel<T: Send>(py: Python<'_>, f: impl FnOnce() -> T + Send) -> PyResult<T> {
     let pool = pool()?;
     Ok(py.detach(|| pool.install(f)))
+}
+
+/// [`parallel`] for long work that watches `cancel`: `f` runs on a helper
+/// thread while this (the calling, usually main) thread checks Python's
+/// signals every 50 ms; on Ctrl-C (or any signal handler raising) it sets
+/// `cancel`, waits for `f` to stop and raises the handler's exception.
+fn parallel_interruptible<T: Send>(py: Python<'_>, cancel: &AtomicBool, f: impl FnOnce() -> T + Send) -> PyResult<T> {
+    let pool = pool()?;
+    std::thread::scope(|scope| {
+        let (sender, mut receiver) = mpsc::channel();
+        scope.spawn(move || {
+            let _ = sender.send(pool.install(f));
+        });
+        loop {
+            // The receiver goes into the GIL-free closure and comes back (it is Send, not Sync).
+            let (result, back) = py.detach(move || (receiver.recv_timeout(Duration::from_millis(50)), receiver));
+            receiver = back;
+            match result {
+                Ok(value) => return Ok(value),
+                Err(RecvTimeoutError::Timeout) => {
+                    if let Err(signal) = py.check_signals() {
+                        cancel.store(true, Ordering::Relaxed);
+                        let _ = py.detach(move || receiver.recv());
+                        return Err(signal);
+                    }
+                }
+                Err(RecvTimeoutError::Disconnected) => return Err(PyRuntimeError::new_err("worker thread failed")),
+            }
+        }
+    })
 }
 
 fn value_error(e: InvalidArgument) -> PyErr {
@@ -511,7 +544,8 @@ fn generate_clips<'py>(
     let params = {
         let (mut video, mut depth) = (video.readwrite(), depth.readwrite());
         let (video, depth) = (video.as_slice_mut()?, depth.as_slice_mut()?);
-        parallel(py, || generate::generate_clips(&config, bank.as_deref(), seed, start, n, video, depth))?.map_err(value_error)?
+        let cancel = AtomicBool::new(false);
+        parallel_interruptible(py, &cancel, || generate::generate_clips_until(&config, bank.as_deref(), seed, start, n, video, depth, &cancel))?.map_err(value_error)?
     };
     let (t, s) = (config.frames, config.size);
     let (video, depth) = (video.reshape([n, t, s, s])?.into_any(), depth.reshape([n, t, s, s])?.into_any());

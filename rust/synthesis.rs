@@ -76,8 +76,16 @@ const TAG_RHO: u64 = 3;
 
 /// Validated (frames, grid).
 pub fn check_sizes(frames: i64, grid: i64) -> Result<(usize, usize)> {
-    Ok((size_in("frames", frames, 1, MAX_FRAMES)?, size_in("grid", grid, 2, MAX_GRID)?))
+    let (frames, grid) = (size_in("frames", frames, 1, MAX_FRAMES)?, size_in("grid", grid, 2, MAX_GRID)?);
+    if clip_len(frames, grid) > MAX_CLIP_VALUES {
+        let gib = clip_len(frames, grid) as f64 * 4.0 / (1u64 << 30) as f64;
+        return Err(InvalidArgument::new("grid", format!("frames × grid² × 3 = {frames} × {grid}² × 3 float32 values ({gib:.1} GiB) exceed {MAX_CLIP_VALUES} (8 GiB); use fewer frames or a smaller grid")));
+    }
+    Ok((frames, grid))
 }
+
+/// Most f32 values one synthesised clip may hold (8 GiB).
+pub const MAX_CLIP_VALUES: usize = 1 << 31;
 
 /// Number of f32 values of one clip: frames · grid · grid · 3.
 pub fn clip_len(frames: usize, grid: usize) -> usize {

@@ -14,7 +14,7 @@ is useful only below it. Pure numpy, float64.
 
 from __future__ import annotations
 
-from typing import Dict, Literal
+from typing import Dict, Literal, Tuple
 
 import numpy as np
 
@@ -56,6 +56,14 @@ def _check_pair(pred: np.ndarray, gt: np.ndarray, align: Align):
     return pred, gt
 
 
+def _unit_scale(a: np.ndarray) -> Tuple[np.ndarray, float]:
+    """``a`` divided by its largest magnitude, and that magnitude: least
+    squares and variances then work in units of order one whatever the data's
+    (a 1e-300-scale prediction would fall below lstsq's rank cut-off)."""
+    peak = float(np.abs(a).max())
+    return (a / peak, peak) if peak > 0 else (a, 1.0)
+
+
 def _aligned(pred: np.ndarray, gt: np.ndarray, align: Align) -> np.ndarray:
     first = gbr_fit(pred[0], gt[0])
     return np.stack([(_design(p) @ (first if align == "first" else gbr_fit(p, g))).reshape(g.shape) for p, g in zip(pred, gt)])
@@ -66,16 +74,23 @@ def gbr_align(pred: np.ndarray, gt: np.ndarray, align: Align = "frame") -> np.nd
     least-squares GBR of each frame (or of frame 0 for ``align="first"``):
     float64 (T, H, W), the depth MAE-SN scores. Useful to show a prediction in
     the ground truth's units."""
-    return _aligned(*_check_pair(pred, gt, align), align)
+    pred, gt = _check_pair(pred, gt, align)
+    gt, peak = _unit_scale(gt)
+    return _aligned(_unit_scale(pred)[0], gt, align) * peak
 
 
 def mae_sn(pred: np.ndarray, gt: np.ndarray, align: Align = "frame") -> float:
-    """MAE-SN of a predicted depth video against the ground truth, both (T, H, W)."""
+    """MAE-SN of a predicted depth video against the ground truth, both
+    (T, H, W). A constant ground-truth frame (standard deviation 0) has no
+    score: ``ValueError`` naming the frame."""
     pred, gt = _check_pair(pred, gt, align)
+    pred, gt = _unit_scale(pred)[0], _unit_scale(gt)[0]
     scores = []
-    for a, g in zip(_aligned(pred, gt, align), gt):
+    for t, (a, g) in enumerate(zip(_aligned(pred, gt, align), gt)):
         scale = g.std()
-        scores.append(np.abs(a - g).mean() / scale if scale > 0 else 0.0)
+        if not scale > 1e-12:
+            raise ValueError(f"gt: frame {t} is constant; MAE-SN divides by its standard deviation and is undefined there")
+        scores.append(np.abs(a - g).mean() / scale)
     return float(np.mean(scores))
 
 
@@ -89,6 +104,7 @@ def relief_signs(pred: np.ndarray, gt: np.ndarray) -> np.ndarray:
     """Sign (+1, −1, or 0 for a flat prediction) of λ in each frame's
     least-squares GBR fit of pred onto gt, both (T, H, W): int8 (T,)."""
     pred, gt = _check_pair(pred, gt, "frame")
+    pred, gt = _unit_scale(pred)[0], _unit_scale(gt)[0]
     return np.array([np.sign(gbr_fit(p, g)[2]) for p, g in zip(pred, gt)], dtype=np.int8)
 
 

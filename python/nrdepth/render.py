@@ -61,6 +61,10 @@ class Material:
     specular: float = 0.2
     shininess: float = 20.0
 
+    def __post_init__(self) -> None:
+        for name in ("ambient", "diffuse", "specular", "shininess"):
+            object.__setattr__(self, name, _float_tuple(f"material.{name}", (getattr(self, name),), 1)[0])
+
 
 class Render(NamedTuple):
     image: np.ndarray
