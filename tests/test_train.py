@@ -101,3 +101,64 @@ def test_training_from_a_stored_dataset(tmp_path):
     assert np.isfinite(summary["train_loss"]) and summary["val_mae_sn_flat_frame"] > 0
     # The stored run is as reproducible as the online one.
     assert train(tmp_path / "again", config, progress=False)["train_loss"] == summary["train_loss"]
+
+
+def _files(folder):
+    """What a run leaves that must not depend on interruptions: metrics rows
+    (but the wall-clock column) and the bytes of its weights."""
+    return (
+        [{k: v for k, v in r.items() if k != "train_seconds"} for r in rows(folder)],
+        (folder / "model.safetensors").read_bytes(),
+        (folder / "model.json").read_text(),
+        {k: v for k, v in torch.load(folder / "last.pt", weights_only=False)["model"].items()},
+    )
+
+
+def test_a_kill_at_every_write_point_resumes_to_the_uninterrupted_result(tmp_path, monkeypatch):
+    config = TrainConfig(loss="aligned_both_signed", arch="unet2p1d", **{**TINY, "base": 4})
+    train(tmp_path / "straight", config, progress=False)
+    expected = _files(tmp_path / "straight")
+    real_replace = os.replace
+    writes = {"count": 0}
+
+    def counting(src, dst):
+        writes["count"] += 1
+        real_replace(src, dst)
+
+    monkeypatch.setattr(os, "replace", counting)
+    train(tmp_path / "count", config, progress=False)
+    total = writes["count"]
+    assert total >= 2 * 4  # per epoch at least last.pt, metrics.csv and, when improved, best.pt and the model
+    for kill_at in range(1, total + 1):
+        folder = tmp_path / f"killed-{kill_at}"
+        writes["count"] = 0
+
+        def dying(src, dst, kill_at=kill_at):
+            writes["count"] += 1
+            if writes["count"] == kill_at:
+                raise KeyboardInterrupt(f"killed before write {kill_at}")
+            real_replace(src, dst)
+
+        monkeypatch.setattr(os, "replace", dying)
+        with pytest.raises(KeyboardInterrupt):
+            train(folder, config, progress=False)
+        monkeypatch.setattr(os, "replace", real_replace)
+        train(folder, config, progress=False)
+        got = _files(folder)
+        assert got[0] == expected[0], f"kill before write {kill_at}: metrics"
+        assert got[1] == expected[1] and got[2] == expected[2], f"kill before write {kill_at}: model"
+        assert all(torch.equal(got[3][k], expected[3][k]) for k in expected[3]), f"kill before write {kill_at}: last.pt"
+
+
+def test_a_resume_may_change_workers_device_and_with_a_constant_schedule_epochs_and_lr(tmp_path):
+    base = {**TINY, "epochs": 1}
+    train(tmp_path, TrainConfig(loss="aligned", schedule="constant", **base), progress=False)
+    train(tmp_path, TrainConfig(loss="aligned", schedule="constant", **{**base, "workers": 1, "epochs": 2, "lr": 1e-3}), progress=False)
+    (first, second) = rows(tmp_path)
+    assert float(first["lr"]) == TINY["lr"] and float(second["lr"]) == 1e-3
+    with pytest.raises(ValueError, match="^out:"):
+        train(tmp_path, TrainConfig(loss="aligned", schedule="constant", **{**base, "epochs": 3, "batch_size": 3}), progress=False)
+    cosine = tmp_path / "cosine"
+    train(cosine, TrainConfig(loss="aligned", **base), progress=False)
+    with pytest.raises(ValueError, match="^out:"):
+        train(cosine, TrainConfig(loss="aligned", **{**base, "epochs": 2}), progress=False)

@@ -72,7 +72,8 @@ class TrainConfig:
     compile: bool = False
     schedule: str = "cosine"
     """Learning rate over the run: ``cosine`` (from lr to 0 over all epochs)
-    or ``constant`` (a campaign of open length: a resume may raise ``epochs``)."""
+    or ``constant`` (a campaign of open length: a resume may change ``epochs``
+    and ``lr``)."""
 
     def __post_init__(self) -> None:
         get_loss(self.loss)
@@ -118,8 +119,8 @@ class TrainConfig:
         """Whether a run saved with config ``saved`` (a dict) may continue
         under this config: the same but for fields that do not change what
         is computed (workers, device) and, with a constant schedule, epochs
-        (it only moves the end)."""
-        free = ("workers", "device") + (("epochs",) if self.schedule == "constant" else ())
+        (it only moves the end) and lr (a campaign steps it down by hand)."""
+        free = ("workers", "device") + (("epochs", "lr") if self.schedule == "constant" else ())
         mine = json.loads(json.dumps(self.as_dict()))
         return {k: v for k, v in mine.items() if k not in free} == {k: v for k, v in saved.items() if k not in free}
 
@@ -264,6 +265,10 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
         model.load_state_dict(checkpoint["model"])
         optimiser.load_state_dict(checkpoint["optimiser"])
         schedule.load_state_dict(checkpoint["schedule"])
+        if config.schedule == "constant":  # lr may have been stepped down for this resume
+            schedule.base_lrs = [config.lr for _ in schedule.base_lrs]
+            for group in optimiser.param_groups:
+                group["lr"] = config.lr
         state = {"seconds": 0.0, **checkpoint["state"]}
         if leader and "row" in checkpoint:
             # A run killed after last.pt but before the epoch's other files
