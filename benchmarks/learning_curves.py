@@ -25,7 +25,6 @@ import argparse
 import csv
 import os
 import shlex
-import signal
 import subprocess
 import sys
 import time
@@ -54,7 +53,9 @@ def train(specs: List[str], minutes: float) -> None:
         time.sleep(5)
     for p in procs:
         if p.poll() is None:
-            p.send_signal(signal.SIGINT)  # a run resumes from its last epoch
+            # SIGTERM, not SIGINT: a background job may have SIGINT ignored. The
+            # run resumes from its last complete epoch (checkpoints are atomic).
+            p.terminate()
     for p in procs:
         p.wait()
 

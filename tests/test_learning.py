@@ -234,3 +234,20 @@ def test_a_small_unet_overfits_a_few_generated_clips():
         optimiser.step()
         losses.append(loss.item())
     assert np.mean(losses[-10:]) < 0.1 * np.mean(losses[:10]), (losses[:3], losses[-3:])
+
+
+def test_a_mask_scores_only_its_pixels():
+    gt = smooth_depth(15, (1, 3, 16, 16))[0].numpy()
+    pred = gbr(torch.from_numpy(gt), 0.2, -0.1, 2.0, 1.0).numpy()
+    mask = np.zeros(gt.shape, bool)
+    mask[:, 2:12, 3:14] = True
+    corrupted_gt = np.where(mask, gt, np.nan)
+    corrupted_pred = np.where(mask, pred, 1e6)  # what lies outside the mask must not matter
+    assert mae_sn(corrupted_pred, corrupted_gt, mask=mask) < 1e-10
+    assert mae_sn(corrupted_pred, corrupted_gt, "first", mask=mask) < 1e-10
+    inside = gt[:, 2:12, 3:14]
+    assert flat_baseline(corrupted_gt, mask=mask) == pytest.approx(flat_baseline(inside), rel=1e-9)
+    with pytest.raises(ValueError, match="^mask:"):
+        mae_sn(pred, gt, mask=mask[:, :4])
+    with pytest.raises(ValueError, match="^gt:"):
+        mae_sn(pred, corrupted_gt)

@@ -1,0 +1,103 @@
+"""Real videos: scores on ``phisft_R1`` (a real cloth video with per-frame
+depth ground truth) and pictures of it and of ``kinect_paper`` (no ground
+truth).
+
+phisft_R1: the 50 frames of ``derived_q4.npz`` (luma box-averaged 4×4, 270×480,
+ground-truth depth splatted into the same grid; its README), cropped to the
+cloth (``--crop``, default rows 110–218 and columns 106–214: 108×108 pixels
+inside the cloth's silhouette in every frame, at that grid's scale, no
+resizing). Scored over the crop's pixels with a ground-truth value, as the
+README asks: MAE-SN per frame and from the first frame, the relief's
+sign-correct rate (the camera looks along +z with y down, so depth grows away
+from it as nrdepth's does), and a flat plane scored the same way.
+
+    python benchmarks/bench_real.py [--model PATH] [--out docs]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+import nrdepth
+from nrdepth.metrics import flat_baseline, gbr_align, mae_sn, sign_rates
+from nrdepth.preview import save_png
+from nrdepth.videoio import colorize_depth, depth_range, read_video
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
+
+
+def crop_arg(text: str) -> tuple:
+    top, bottom, left, right = (int(v) for v in text.split(","))
+    return top, bottom, left, right
+
+
+def picture(columns: list, frames_shown: int = 4) -> np.ndarray:
+    """Rows of frames; each column a (T, H, W, 3) uint8 video."""
+    t = len(columns[0])
+    rows = []
+    for k in np.linspace(0, t - 1, frames_shown).round().astype(int):
+        rows.append(np.concatenate([np.pad(c[k], ((2, 2), (2, 2), (0, 0)), constant_values=255) for c in columns], axis=1))
+    return np.concatenate(rows, axis=0)
+
+
+def gray3(video: np.ndarray) -> np.ndarray:
+    return np.repeat(video[..., None], 3, axis=-1)
+
+
+def phisft(model, crop: tuple, out: Path) -> None:
+    data = np.load(DATA / "phisft_R1" / "derived_q4.npz")
+    top, bottom, left, right = crop
+    video = data["gray"][:, top:bottom, left:right]
+    truth = data["depth"][:, top:bottom, left:right]
+    mask = np.isfinite(truth)
+    start = time.perf_counter()
+    depth = nrdepth.reconstruct(video, model)
+    seconds = time.perf_counter() - start
+    ours = {a: mae_sn(depth, truth, a, mask=mask) for a in ("frame", "first")}
+    flat = {a: flat_baseline(truth, a, mask=mask) for a in ("frame", "first")}
+    signs = sign_rates(depth, truth, mask=mask)
+    t, h, w = video.shape
+    print(f"phisft_R1: {t} frames of {w}×{h} (rows {top}–{bottom}, columns {left}–{right} of the 270×480 grid), "
+          f"{mask.mean() * 100:.1f} % of pixels with ground truth; reconstructed in {seconds:.1f} s")
+    print(f"{'MAE-SN':26s}{'nrdepth':>10s}{'flat plane':>12s}{'ratio':>8s}")
+    for a, label in (("frame", "align each frame"), ("first", "alignment from 1st frame")):
+        print(f"{label:26s}{ours[a]:>10.4f}{flat[a]:>12.4f}{ours[a] / flat[a]:>8.3f}")
+    print(f"relief sign correct in {100 * signs['sign_correct']:.1f} % of frames (flips inside the video: {'yes' if signs['flip'] else 'no'})")
+    aligned = np.where(mask, gbr_align(depth, truth, "frame", mask=mask), np.nan)
+    value_range = depth_range(np.where(mask, truth, np.nanmedian(truth)))
+    colour = [colorize_depth(np.nan_to_num(d, nan=value_range[1]), value_range) for d in (truth, aligned)]
+    save_png(out / "phisft_R1.png", picture([gray3(video)] + colour))
+    print(f"wrote {out / 'phisft_R1.png'}: frames | ground truth | nrdepth (GBR-aligned per frame; far = blue, no ground truth = far)")
+
+
+def kinect(model, out: Path) -> None:
+    video = read_video(DATA / "kinect_paper").frames[:48, 24:440, 64:592]
+    start = time.perf_counter()
+    depth = nrdepth.reconstruct(video, model)
+    print(f"kinect_paper: {video.shape[0]} frames of {video.shape[2]}×{video.shape[1]} reconstructed in {time.perf_counter() - start:.1f} s")
+    save_png(out / "kinect_paper.png", picture([gray3(video), colorize_depth(depth, depth_range(depth))]))
+    print(f"wrote {out / 'kinect_paper.png'}: frames | nrdepth (one colour range for the video; near = yellow, far = blue)")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--model", default=None, help="model.safetensors or run folder (default: the shipped model)")
+    parser.add_argument("--crop", type=crop_arg, default=(110, 218, 106, 214), help="TOP,BOTTOM,LEFT,RIGHT of phisft_R1's 270×480 grid")
+    parser.add_argument("--out", type=Path, default=Path("docs"), help="folder for the pictures")
+    parser.add_argument("--skip-kinect", action="store_true")
+    args = parser.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+    model = nrdepth.model.load_model(args.model)
+    phisft(model, args.crop, args.out)
+    if not args.skip_kinect:
+        kinect(model, args.out)
+
+
+if __name__ == "__main__":
+    import nrdepth.model
+
+    main()
