@@ -6,8 +6,10 @@ import torch
 
 import nrdepth
 from nrdepth.losses import (
+    aligned_both_offsets_signed_loss,
     aligned_both_signed_loss,
     aligned_clip_loss,
+    aligned_clip_offsets_signed_loss,
     aligned_clip_signed_loss,
     aligned_loss,
     aligned_signed_loss,
@@ -94,10 +96,22 @@ def test_the_clip_signed_loss_asks_for_one_gbr_per_clip():
     assert aligned_clip_signed_loss(per_frame, z).item() > 1e-2
 
 
+def test_the_offsets_loss_forgives_a_depth_offset_per_frame_but_not_a_tilt():
+    z = smooth_depth(16)
+    offsets = torch.stack([gbr(z[:, k], 0.4, -0.2, 2.0, 3.0 * k) for k in range(z.shape[1])], dim=1)
+    assert aligned_clip_offsets_signed_loss(offsets, z).item() < 1e-8
+    assert aligned_clip_signed_loss(offsets, z).item() > 1e-2
+    tilts = torch.stack([gbr(z[:, k], 0.3 * k, 0.0, 2.0, 0.0) for k in range(z.shape[1])], dim=1)
+    assert aligned_clip_offsets_signed_loss(tilts, z).item() > 1e-2
+    mirrored = aligned_clip_offsets_signed_loss(-offsets, z).item()
+    assert mirrored == pytest.approx(2 * aligned_clip_offsets_signed_loss(torch.zeros_like(z), z).item(), rel=1e-6)
+    assert aligned_both_offsets_signed_loss(offsets, z).item() < 1e-8
+
+
 def test_a_wrong_sign_gets_a_gradient_that_turns_it():
     z = smooth_depth(13).float()
     pred = (-z).clone().requires_grad_(True)
-    for loss_fn in (aligned_signed_loss, aligned_clip_signed_loss):
+    for loss_fn in (aligned_signed_loss, aligned_clip_signed_loss, aligned_clip_offsets_signed_loss):
         loss = loss_fn(pred, z)
         (grad,) = torch.autograd.grad(loss, pred)
         # A small step against the gradient moves the prediction toward +z.
@@ -127,7 +141,7 @@ def test_masks_exclude_flat_and_planar_regions():
     assert tr_sc_loss(pred, planar).item() < 1e-12
 
 
-@pytest.mark.parametrize("name", ["gbr", "tr_sc", "aligned", "aligned_clip", "aligned_signed", "aligned_clip_signed", "aligned_both_signed"])
+@pytest.mark.parametrize("name", ["gbr", "tr_sc", "aligned", "aligned_clip", "aligned_signed", "aligned_clip_signed", "aligned_both_signed", "aligned_clip_offsets_signed", "aligned_both_offsets_signed"])
 def test_losses_have_finite_gradients_on_flat_input(name):
     loss_fn = get_loss(name)
     pred = torch.zeros(2, 4, 16, 16, requires_grad=True)

@@ -27,6 +27,10 @@ second. With ``H = ∇²z`` and ``‖H‖_F = sqrt(z_xx² + 2 z_xy² + z_yy²)``
   (the hard constraint λ ≥ 0 would score every wrong sign as flat, with no
   gradient at all). ``aligned_both_signed`` is their mean: local shape frame
   by frame, and one reading and plane motion for the whole clip.
+- ``aligned_clip_offsets_signed``, ``aligned_both_offsets_signed``: the clip
+  terms with a free depth offset per frame (one α, β, λ ≥ 0 for the clip, τ
+  per frame): motion along the optical axis is invisible to an orthographic
+  camera, so the clip's τ would ask for what no image shows.
 
 The invariant losses average over pixels where the target's invariant is
 defined: ``‖H_gt‖_F`` above ``MASK_RATIO`` × that frame's mean (flat and
@@ -48,6 +52,8 @@ __all__ = [
     "aligned_signed_loss",
     "aligned_clip_signed_loss",
     "aligned_both_signed_loss",
+    "aligned_clip_offsets_signed_loss",
+    "aligned_both_offsets_signed_loss",
     "LOSSES",
     "get_loss",
     "derivatives",
@@ -148,14 +154,20 @@ def aligned_clip_loss(pred: torch.Tensor, target: torch.Tensor, ridge: float = 1
     return _aligned(pred, target, per_clip=True, ridge=ridge)
 
 
-def _signed(pred: torch.Tensor, target: torch.Tensor, per_clip: bool) -> torch.Tensor:
+def _signed(pred: torch.Tensor, target: torch.Tensor, per_clip: bool, offsets: bool = False) -> torch.Tensor:
     pred, target = _frames("pred", pred), _frames("target", target)
     if pred.shape != target.shape:
         raise ValueError(f"pred: expected the shape of target {tuple(target.shape)}, got {tuple(pred.shape)}")
     b, t, h, w = pred.shape
     groups, frames = (b, t) if per_clip else (b * t, 1)
+    if offsets:
+        # A free depth offset per frame: each frame's mean is removed, and the
+        # shared plane needs no constant column (x and y have zero mean).
+        pred = pred - pred.mean((-2, -1), keepdim=True)
+        target = target - target.mean((-2, -1), keepdim=True)
     ys, xs = torch.meshgrid(torch.linspace(-1, 1, h, dtype=pred.dtype, device=pred.device), torch.linspace(-1, 1, w, dtype=pred.dtype, device=pred.device), indexing="ij")
-    plane = torch.stack([xs.reshape(-1), ys.reshape(-1), torch.ones_like(xs).reshape(-1)], -1).repeat(frames, 1)  # (P, 3)
+    columns = [xs.reshape(-1), ys.reshape(-1)] + ([] if offsets else [torch.ones_like(xs).reshape(-1)])
+    plane = torch.stack(columns, -1).repeat(frames, 1)  # (P, 2 or 3)
     # Weight 1/(var(target frame) · pixels per frame): the weighted sum of
     # squares of a group is the sum over its frames of MSE / variance.
     weight = 1.0 / (target.reshape(b * t, h * w).var(1, unbiased=False).clamp_min(1e-12) * h * w)
@@ -164,7 +176,7 @@ def _signed(pred: torch.Tensor, target: torch.Tensor, per_clip: bool) -> torch.T
     p = (p - p.mean(1, keepdim=True)) / (p.std(1, keepdim=True) + 1e-8)  # scale-free, as in _aligned
     g = target.reshape(groups, frames * h * w)
     weighted_plane = plane * weight.unsqueeze(-1)  # (G, P, 3)
-    normal = plane.T @ weighted_plane + 1e-9 * torch.eye(3, dtype=pred.dtype, device=pred.device)  # (G, 3, 3)
+    normal = plane.T @ weighted_plane + 1e-9 * torch.eye(plane.shape[1], dtype=pred.dtype, device=pred.device)  # (G, 3, 3)
 
     def off_plane(v: torch.Tensor) -> torch.Tensor:
         coeffs = torch.linalg.solve(normal, (weighted_plane.transpose(1, 2) @ v.unsqueeze(-1)))
@@ -193,6 +205,20 @@ def aligned_both_signed_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.
     return 0.5 * (_signed(pred, target, per_clip=False) + _signed(pred, target, per_clip=True))
 
 
+def aligned_clip_offsets_signed_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Ours: :func:`aligned_clip_signed_loss` with a free depth offset per
+    frame, i.e. one (α, β, λ ≥ 0) for the clip and one τ per frame. Under an
+    orthographic camera a surface's motion along the optical axis leaves no
+    trace in the images (the generator's ``drift_z``), so the clip-wide τ
+    asks the network for what it cannot see; the tilt's motion it can."""
+    return _signed(pred, target, per_clip=True, offsets=True)
+
+
+def aligned_both_offsets_signed_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Ours: the mean of :func:`aligned_signed_loss` and :func:`aligned_clip_offsets_signed_loss`."""
+    return 0.5 * (_signed(pred, target, per_clip=False) + _signed(pred, target, per_clip=True, offsets=True))
+
+
 LOSSES: Dict[str, Callable[[torch.Tensor, torch.Tensor], torch.Tensor]] = {
     "gbr": gbr_loss,
     "tr_sc": tr_sc_loss,
@@ -201,6 +227,8 @@ LOSSES: Dict[str, Callable[[torch.Tensor, torch.Tensor], torch.Tensor]] = {
     "aligned_signed": aligned_signed_loss,
     "aligned_clip_signed": aligned_clip_signed_loss,
     "aligned_both_signed": aligned_both_signed_loss,
+    "aligned_clip_offsets_signed": aligned_clip_offsets_signed_loss,
+    "aligned_both_offsets_signed": aligned_both_offsets_signed_loss,
 }
 
 
