@@ -61,7 +61,7 @@ def main() -> None:
     loss_fn = get_loss(args.loss)
     devices = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
     print(f"batch {args.batch} of 16×64×64, loss {args.loss}, torch threads {torch.get_num_threads()}; clip generator {generator:.1f} clips/s")
-    print(f"{'architecture':34s}{'params':>10s}{'GFLOP/patch':>13s}{'device':>8s}{'train/s':>10s}{'×ref':>7s}{'infer/s':>10s}{'×ref':>7s}")
+    print(f"{'architecture':54s}{'params':>10s}{'GFLOP/patch':>13s}{'device':>8s}{'train/s':>10s}{'×ref':>7s}{'infer/s':>10s}{'×ref':>7s}")
     for device in devices:
         reference: Dict[str, float] = {}
         for name, config in archs:
@@ -89,7 +89,7 @@ def main() -> None:
             if not reference:
                 reference = {"train": train_rate, "infer": infer_rate}
             label = f"{name}({', '.join(f'{k}={v}' for k, v in model.config.items())})"
-            print(f"{label:34s}{count_parameters(model):>10,}{flops / 1e9:>13.2f}{device:>8s}{train_rate:>10.2f}{train_rate / reference['train']:>6.1f}×"
+            print(f"{label:54s}{count_parameters(model):>10,}{flops / 1e9:>13.2f}{device:>8s}{train_rate:>10.2f}{train_rate / reference['train']:>6.1f}×"
                   f"{infer_rate:>10.2f}{infer_rate / reference['infer']:>6.1f}×")
 
 

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 import nrdepth
+from nrdepth.labels import titled, with_colour_bar
 from nrdepth.metrics import flat_baseline, gbr_align, mae_sn, sign_rates
 from nrdepth.preview import save_png
 from nrdepth.videoio import colorize_depth, depth_range, read_video
@@ -35,13 +36,14 @@ def crop_arg(text: str) -> tuple:
     return top, bottom, left, right
 
 
-def picture(columns: list, frames_shown: int = 4) -> np.ndarray:
-    """Rows of frames; each column a (T, H, W, 3) uint8 video."""
+def picture(columns: list, titles: list, frames_shown: int = 4) -> np.ndarray:
+    """Rows of frames under column titles, with a depth colour bar; each
+    column a (T, H, W, 3) uint8 video."""
     t = len(columns[0])
     rows = []
     for k in np.linspace(0, t - 1, frames_shown).round().astype(int):
         rows.append(np.concatenate([np.pad(c[k], ((2, 2), (2, 2), (0, 0)), constant_values=255) for c in columns], axis=1))
-    return np.concatenate(rows, axis=0)
+    return with_colour_bar(titled(np.concatenate(rows, axis=0), titles, columns[0].shape[2] + 4), "far", "near")
 
 
 def gray3(video: np.ndarray) -> np.ndarray:
@@ -70,7 +72,7 @@ def phisft(model, crop: tuple, out: Path) -> None:
     aligned = np.where(mask, gbr_align(depth, truth, "frame", mask=mask), np.nan)
     value_range = depth_range(np.where(mask, truth, np.nanmedian(truth)))
     colour = [colorize_depth(np.nan_to_num(d, nan=value_range[1]), value_range) for d in (truth, aligned)]
-    save_png(out / "phisft_R1.png", picture([gray3(video)] + colour))
+    save_png(out / "phisft_R1.png", picture([gray3(video)] + colour, ["frames", "ground truth", "nrdepth (gbr-aligned)"]))
     print(f"wrote {out / 'phisft_R1.png'}: frames | ground truth | nrdepth (GBR-aligned per frame; far = blue, no ground truth = far)")
 
 
@@ -79,7 +81,7 @@ def kinect(model, out: Path) -> None:
     start = time.perf_counter()
     depth = nrdepth.reconstruct(video, model)
     print(f"kinect_paper: {video.shape[0]} frames of {video.shape[2]}×{video.shape[1]} reconstructed in {time.perf_counter() - start:.1f} s")
-    save_png(out / "kinect_paper.png", picture([gray3(video), colorize_depth(depth, depth_range(depth))]))
+    save_png(out / "kinect_paper.png", picture([gray3(video), colorize_depth(depth, depth_range(depth))], ["frames", "nrdepth"]))
     print(f"wrote {out / 'kinect_paper.png'}: frames | nrdepth (one colour range for the video; near = yellow, far = blue)")
 
 

@@ -31,3 +31,29 @@ def test_unwritable_destination_is_a_clear_error(tmp_path, capsys):
     out = tmp_path / "missing-dir" / "sheet.png"
     assert main(["surfaces", str(out), "--clips", "1", "--frames", "2", "--grid", "8"]) == 2
     assert "cannot write" in capsys.readouterr().err
+
+
+def test_pictures_carry_readable_labels():
+    import numpy as np
+
+    from nrdepth.labels import text, titled, with_colour_bar
+
+    mask = text("ab 1", scale=2)
+    assert mask.shape == (14, 4 * 12) and mask.any()
+    assert not np.array_equal(text("a"), text("b")) and not text(" ").any()
+    picture = np.full((40, 60, 3), 128, np.uint8)
+    out = with_colour_bar(titled(picture, ["x", "y"], 30), "far", "near")
+    assert out.shape[0] == 40 + 22 and out.shape[1] > 60
+    assert (out[:22] == 0).any()  # the titles are drawn in black on the white band
+
+
+def test_help_shows_defaults():
+    import contextlib
+    import io
+
+    from nrdepth.cli import build_parser
+
+    buffer = io.StringIO()
+    with contextlib.redirect_stdout(buffer), contextlib.suppress(SystemExit):
+        build_parser().parse_args(["reconstruct", "--help"])
+    assert "(default: 8)" in buffer.getvalue() and "0.073" in buffer.getvalue()

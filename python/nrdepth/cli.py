@@ -171,8 +171,13 @@ def _demo(args: argparse.Namespace) -> int:
     from .evaluate import TEST_SEED
     from .preview import save_png
 
+    from tqdm import tqdm
+
+    from .stitch import patch_layout
+
     seed = TEST_SEED if args.seed is None else args.seed
-    result = run_demo(args.model, size=args.size, seed=seed, device=args.device)
+    with tqdm(total=len(patch_layout((16, args.size, args.size)).origins), desc="patches", unit="patch", disable=args.quiet) as bar:
+        result = run_demo(args.model, size=args.size, seed=seed, device=args.device, progress=lambda done, total: bar.update(done - bar.n))
     save_png(args.out, demo_picture(result))
     m, f = result["mae_sn"], result["flat"]
     t, h, w = result["video"].shape
@@ -195,10 +200,20 @@ def _add_generator_options(p: argparse.ArgumentParser) -> None:
                    help="light azimuths in degrees from image-up, clockwise (default: -70,70, light from above); 'uniform' for all")
 
 
+class _DefaultsFormatter(argparse.HelpFormatter):
+    """Shows an option's default after its help, unless the help says it or there is none."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if "default" in text or action.default in (None, False, argparse.SUPPRESS) or not action.option_strings:
+            return text
+        return f"{text} (default: {action.default})" if text else f"default: {action.default}"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="nrdepth", description=__doc__)
     parser.add_argument("--version", action="version", version=f"nrdepth {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=lambda **kw: argparse.ArgumentParser(formatter_class=_DefaultsFormatter, **kw))
 
     p = sub.add_parser("surfaces", help="synthesise deforming surfaces and write a picture of them")
     p.add_argument("out", nargs="?", default="surfaces.png", help="output PNG (default: surfaces.png)")
@@ -223,14 +238,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--loss", default="gbr", help="gbr | tr_sc | aligned | aligned_clip | aligned_signed | aligned_clip_signed | aligned_both_signed (default: gbr)")
     p.add_argument("--arch", default="unet3d", help="unet3d (the paper's) | unet2p1d (factorised, ~15x cheaper) (default: unet3d)")
     p.add_argument("--schedule", default="cosine", help="cosine | constant (a campaign: --epochs may grow on resume) (default: cosine)")
-    p.add_argument("--epochs", type=int, default=20)
+    p.add_argument("--epochs", type=int, default=20, help="epochs in the run")
     p.add_argument("--steps", type=int, default=500, help="steps per epoch")
     p.add_argument("--max-epochs", type=int, default=None, help="epochs to run in this call (resume later)")
-    p.add_argument("--batch-size", type=int, default=8)
-    p.add_argument("--lr", type=float, default=1e-3)
+    p.add_argument("--batch-size", type=int, default=8, help="clips per step")
+    p.add_argument("--lr", type=float, default=1e-3, help="Adam's learning rate")
     p.add_argument("--base", type=int, default=None, help="width of the first network stage (default: the architecture's, 16 / 24)")
     p.add_argument("--data", default=None, help="dataset folder; default: fresh clips every step")
-    p.add_argument("--validation-clips", type=int, default=64)
+    p.add_argument("--validation-clips", type=int, default=64, help="held-out clips scored after every epoch")
     p.add_argument("--workers", type=int, default=2, help="DataLoader worker processes")
     p.add_argument("--device", default="auto", help="auto | cpu | cuda | cuda:N")
     p.add_argument("--compile", action="store_true", help="torch.compile the network")
@@ -243,7 +258,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("data", nargs="?", default=None, help="dataset folder (its test split); default: fresh held-out clips")
     p.add_argument("-o", "--out", default=None, help="folder for per_clip.csv and summary.json")
     p.add_argument("--clips", type=int, default=256, help="clips to score")
-    p.add_argument("--device", default="auto")
+    p.add_argument("--device", default="auto", help="auto | cpu | cuda | cuda:N")
     _add_generator_options(p)
     p.set_defaults(run=_evaluate)
 
@@ -271,6 +286,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--size", type=int, default=256, help="video side in pixels")
     p.add_argument("--seed", type=int, default=None, help="generator seed (default: nrdepth.evaluate.TEST_SEED, held out)")
     p.add_argument("--device", default="auto", help="auto | cpu | cuda | cuda:N")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=_demo)
 
     p = sub.add_parser("preview", help="picture of sample clips and of the surface parameter sweep")

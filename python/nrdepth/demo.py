@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import os
 import time
-from typing import Any, Dict, Optional, Union
+from typing import Any, Callable, Dict, Optional, Union
 
 import numpy as np
 
@@ -30,11 +30,13 @@ def run_demo(
     index: int = 0,
     device: str = "auto",
     config: Optional[GeneratorConfig] = None,
+    progress: Optional[Callable[[int, int], None]] = None,
 ) -> Dict[str, Any]:
     """Generate clip ``index`` of ``seed`` at ``size``², reconstruct it with
     ``model`` (default: the shipped one) and score it. Returns the video,
     ground-truth and reconstructed depth, MAE-SN of the reconstruction and of
-    the flat baseline for both alignments, and the seconds each step took."""
+    the flat baseline for both alignments, and the seconds each step took.
+    ``progress(done, total)`` is called as patches are predicted."""
     from .stitch import reconstruct
 
     config = config or GeneratorConfig(size=size)
@@ -42,7 +44,7 @@ def run_demo(
     clip = generate_clips(1, seed=seed, config=config, start=index)
     video, truth = clip.video[0], clip.depth[0]
     generated = time.perf_counter()
-    depth = reconstruct(video, model, device=device)
+    depth = reconstruct(video, model, device=device, progress=progress)
     done = time.perf_counter()
     return {
         "video": video,
@@ -57,7 +59,10 @@ def run_demo(
 def demo_picture(result: Dict[str, Any], frames_shown: int = 4) -> np.ndarray:
     """uint8 RGB picture: one row per shown frame, columns frame | ground-truth
     depth | reconstruction mapped onto the truth by its per-frame GBR (the
-    alignment MAE-SN scores), both depths in the truth's colour range."""
+    alignment MAE-SN scores), both depths in the truth's colour range, with
+    column titles and a colour bar (near is yellow, far is blue)."""
+    from .labels import titled, with_colour_bar
+
     video, truth = result["video"], result["truth"]
     aligned = gbr_align(result["depth"], truth, "frame")
     value_range = depth_range(truth)
@@ -66,4 +71,5 @@ def demo_picture(result: Dict[str, Any], frames_shown: int = 4) -> np.ndarray:
     for t in np.linspace(0, len(video) - 1, frames_shown).round().astype(int):
         cells = [np.repeat(video[t][..., None], 3, axis=-1)] + [c[t] for c in colour]
         rows.append(np.concatenate([np.pad(c, ((2, 2), (2, 2), (0, 0)), constant_values=255) for c in cells], axis=1))
-    return np.concatenate(rows, axis=0)
+    picture = titled(np.concatenate(rows, axis=0), ["frames", "ground truth", "nrdepth (gbr-aligned)"], video.shape[2] + 4)
+    return with_colour_bar(picture, "far", "near")
