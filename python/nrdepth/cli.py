@@ -235,7 +235,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("train", help="train the depth network (online generation or a dataset); resumes in OUT")
     p.add_argument("out", help="run folder: config, checkpoints, weights, metrics")
-    p.add_argument("--loss", default="gbr", help="gbr | tr_sc | aligned | aligned_clip | aligned_signed | aligned_clip_signed | aligned_both_signed (default: gbr)")
+    p.add_argument("--loss", default="gbr", help="gbr | tr_sc | aligned | aligned_clip | aligned_signed | aligned_clip_signed | aligned_both_signed | "
+                   "aligned_clip_offsets_signed | aligned_both_offsets_signed (default: gbr; see nrdepth.losses)")
     p.add_argument("--arch", default="unet3d", help="unet3d (the paper's) | unet2p1d (factorised, ~15x cheaper) (default: unet3d)")
     p.add_argument("--schedule", default="cosine", help="cosine | constant (a campaign: --epochs may grow on resume) (default: cosine)")
     p.add_argument("--epochs", type=int, default=20, help="epochs in the run")
@@ -275,7 +276,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ply", action="store_true", help="also write a PLY point cloud per frame")
     p.add_argument("--ply-relief", type=float, default=None,
                    help="PLY depth standard deviation in frame widths (default: 0.073, as the training surfaces)")
-    p.add_argument("--flip", action="store_true", help="negate the depth (the convex/concave reading is ambiguous)")
+    p.add_argument("--flip", action="store_true", help="negate the depth: the other convex/concave reading (the model assumes light from above; use for a video lit from below)")
     p.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=_reconstruct)

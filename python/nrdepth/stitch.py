@@ -139,13 +139,14 @@ def reconstruct(
     paper's method is ``temporal=False``). Depth is defined up to one GBR
     (up to one per frame with ``temporal=False``) and returned standardised:
     zero mean and unit standard deviation over the video. Its overall sign
-    (convex or concave) is ambiguous: under an orthographic camera a surface
-    and its mirror image under mirrored lights make the same video, and the
-    training data hold both equally often; the sign is consistent over space
-    and (with ``temporal``) time, so ``-depth`` is the other reading. Patches
-    stream through the network
-    and the stitcher a chunk at a time: memory is a few copies of the video,
-    not of its (8× overlapping) patches."""
+    (convex or concave) follows the training data's light-from-above prior
+    (lights within ±70° of image-up, row 0 being the top): under an
+    orthographic camera a surface and its mirror image under mirrored lights
+    make the same video, so a video lit from below reads inverted, and
+    ``-depth`` is the other reading. The sign is consistent over space and
+    (with ``temporal``) time. Patches stream through the network and the
+    stitcher a chunk at a time: memory is a few copies of the video, not of
+    its (8× overlapping) patches."""
     import torch
 
     from .model.io import resolve_device
