@@ -105,3 +105,24 @@ def test_bad_input_is_named(kwargs, name):
     args = {"W": np.random.default_rng(0).normal(size=(20, 10)), "K": 1, "d": 3, **kwargs}
     with pytest.raises(ValueError, match=f"^{name}:"):
         csf2(**args)
+
+
+def test_tracks_follow_the_vertices_and_dense_exact_depths_come_back():
+    import nrdepth
+    from nrdepth.tracks import clip_tracks, densify
+
+    config = nrdepth.GeneratorConfig(size=64, frames=4, grid=32, texture_size=64)
+    clip = nrdepth.generate_clips(1, seed=4, config=config)
+    tracks = clip_tracks(clip.params[0], config, points=9)
+    T, n, _ = tracks.xy.shape
+    assert T == 4 and 20 <= n <= 81
+    assert ((tracks.xy >= 0) & (tracks.xy <= 63)).all()
+    # The rendered (ray-cast) depth at the pixel nearest a track is that vertex's depth, to the slope over half a pixel.
+    nearest = np.rint(tracks.xy).astype(int)
+    rendered = clip.depth[0][np.arange(T)[:, None], nearest[..., 1], nearest[..., 0]]
+    assert np.abs(rendered - tracks.depth).max() < 0.02
+    # Interpolating exact depths given at every pixel centre gives the depth map back.
+    rows, cols = np.mgrid[0:64, 0:64]
+    xy = np.broadcast_to(np.stack([cols.ravel(), rows.ravel()], -1).astype(float), (T, 64 * 64, 2))
+    dense = densify(xy, clip.depth[0].reshape(T, -1), (T, 64, 64))
+    assert np.abs(dense - clip.depth[0]).max() < 1e-6
