@@ -47,6 +47,8 @@ use crate::lanes::Avx8;
 const LANES: usize = HALF;
 /// Largest supersampling factor per axis.
 pub const MAX_SUPERSAMPLE: usize = 8;
+/// Most subsamples one render may hold (H·W·s²): 2²⁸, whose buffers take a few GiB.
+pub const MAX_SAMPLES: usize = 1 << 28;
 /// Relative size below which a specular term is dropped.
 const SPECULAR_FLOOR: f32 = 1e-4;
 /// Slack, in subsamples, of a triangle's bounding box.
@@ -958,6 +960,13 @@ pub fn check_render_inputs(vertices: &[[f32; 3]], triangles: &[[u32; 3]], uv: &[
     }
     if !(1..=MAX_SUPERSAMPLE).contains(&scene.supersample) {
         return Err(InvalidArgument::new("supersample", format!("expected 1..={MAX_SUPERSAMPLE}, got {}", scene.supersample)));
+    }
+    let samples = scene.view.height * scene.view.width * scene.supersample * scene.supersample;
+    if samples > MAX_SAMPLES {
+        return Err(InvalidArgument::new(
+            "size",
+            format!("{}×{} pixels × {}² subsamples = {samples} samples exceed {MAX_SAMPLES} (their buffers would need {} GiB); lower size or supersample", scene.view.height, scene.view.width, scene.supersample, samples * 16 >> 30),
+        ));
     }
     if scene.texture.height == 0 || scene.texture.width == 0 {
         return Err(InvalidArgument::new("texture", "expected a non-empty image (Texture::new), got an empty one"));

@@ -253,3 +253,35 @@ def test_the_flat_sheet_measure_tells_a_plane_from_relief():
 def test_a_flat_textured_sheet_comes_back_flat(family):
     video, _ = flat_sheet_video(family)
     assert plane_residual_ratio(nrdepth.reconstruct(video, device="cpu")) < 0.2
+
+
+def dead_pid() -> int:
+    import subprocess
+    import sys
+
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    child.wait()
+    return child.pid
+
+
+def test_overwrite_replaces_only_nrdepths_folder_and_a_kill_mid_swap_loses_nothing(tmp_path):
+    frames = moving_texture(t=2, h=16, w=16)
+    out = tmp_path / "out"
+    save_reconstruction(out, frames, frames.astype(np.float32))
+    first = (out / "depth.npz").read_bytes()
+    save_reconstruction(out, frames, -frames.astype(np.float32), overwrite=True)
+    assert (out / "depth.npz").read_bytes() != first and not leftovers(tmp_path)
+    (out / "notes.txt").write_text("mine")
+    with pytest.raises(ValueError, match="did not write"):
+        save_reconstruction(out, frames, frames.astype(np.float32), overwrite=True)
+    (out / "notes.txt").unlink()
+    # A run killed after moving the old result aside, before renaming the new one in:
+    pid = dead_pid()
+    aside = tmp_path / f".out.old-{pid}"
+    out.rename(aside)
+    (tmp_path / f".out.partial-{pid}").mkdir()
+    save_reconstruction(tmp_path / "other", frames, frames.astype(np.float32))  # an unrelated folder leaves them alone
+    assert aside.exists()
+    with pytest.raises(ValueError, match="exists and is not empty"):
+        save_reconstruction(out, frames, frames.astype(np.float32))  # the next run puts the old result back first
+    assert (out / "depth.npz").exists() and not aside.exists() and not (tmp_path / f".out.partial-{pid}").exists()

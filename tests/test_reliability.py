@@ -131,6 +131,10 @@ API_CASES = [
     ("render-int-vertices",
      "nrdepth.render(np.zeros((3, 3), np.int32), np.array([[0, 1, 2]], np.uint32), np.zeros((3, 2), np.float32), np.ones((4, 4), np.float32), (8, 8), (-1, -1, 1, 1), [nrdepth.Light()], nrdepth.Material())",
      "TypeError: vertices:"),
+    ("render-huge",
+     "v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32)\n"
+     "nrdepth.render(v, np.array([[0, 1, 2]], np.uint32), np.zeros((3, 2), np.float32), np.ones((4, 4), np.float32), 8192, (-1, -1, 1, 1), supersample=8)",
+     "ValueError: size:"),
     ("raycast-nan",
      "nrdepth.raycast_depth(np.full((3, 3), np.nan, np.float32), np.array([[0, 1, 2]], np.uint32), (8, 8), (-1, -1, 1, 1))", "ValueError: vertices:"),
     ("save-into-cwd", "from nrdepth.videoio import save_reconstruction; save_reconstruction('.', np.zeros((2, 8, 8), np.uint8), np.zeros((2, 8, 8)), overwrite=True)",
