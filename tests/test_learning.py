@@ -189,6 +189,15 @@ def test_first_frame_alignment_differs_when_the_transform_changes_over_time():
     assert mae_sn(pred, gt.numpy(), "first") > 0.1
 
 
+def test_first_offset_alignment_forgives_only_a_depth_offset_per_frame():
+    gt = smooth_depth(17, (1, 4, 16, 16))[0].numpy()
+    drifting = gt + np.arange(4)[:, None, None] * 0.7
+    assert mae_sn(drifting, gt, "first") > 0.1
+    assert mae_sn(drifting, gt, "first_offset") < 1e-10
+    tilting = np.stack([gbr(torch.from_numpy(gt[t]), 0.1 * t, 0.0, 1.0, 0.0).numpy() for t in range(4)])
+    assert mae_sn(tilting, gt, "first_offset") > 0.05
+
+
 def test_flat_baseline_is_the_score_of_a_constant_and_beaten_by_the_truth():
     gt = smooth_depth(8, (1, 3, 16, 16))[0].numpy()
     assert flat_baseline(gt) == pytest.approx(mae_sn(np.full_like(gt, 3.0), gt))

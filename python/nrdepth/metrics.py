@@ -7,7 +7,10 @@ row index; λ is not constrained in sign), then
     MAE-SN = (1/T) Σ_t mean|aligned_t − gt_t| / std(gt_t).
 
 ``align="first"`` fits on frame 0 only and applies that alignment to every
-frame (it measures temporal consistency). The *flat baseline* is the score of
+frame (it measures temporal consistency). ``align="first_offset"`` (ours, a
+diagnostic) does the same but refits each frame's offset τ: under an
+orthographic camera a surface's motion along the optical axis leaves no trace
+in the video, so no method can be asked for it. The *flat baseline* is the score of
 a constant prediction, i.e. of the best plane ``α x + β y + τ``: a prediction
 is useful only below it. Pure numpy, float64.
 """
@@ -20,7 +23,7 @@ import numpy as np
 
 __all__ = ["mae_sn", "flat_baseline", "gbr_fit", "gbr_align", "relief_signs", "sign_rates"]
 
-Align = Literal["frame", "first"]
+Align = Literal["frame", "first", "first_offset"]
 
 
 def _check(name: str, a: np.ndarray, mask: Optional[np.ndarray] = None) -> np.ndarray:
@@ -68,8 +71,8 @@ def _check_pair(pred: np.ndarray, gt: np.ndarray, align: Align, mask: Optional[n
     pred, gt = _check("pred", pred, mask), _check("gt", gt, mask)
     if pred.shape != gt.shape:
         raise ValueError(f"pred: expected the shape of gt {gt.shape}, got {pred.shape}")
-    if align not in ("frame", "first"):
-        raise ValueError(f"align: expected 'frame' or 'first', got {align!r}")
+    if align not in ("frame", "first", "first_offset"):
+        raise ValueError(f"align: expected 'frame', 'first' or 'first_offset', got {align!r}")
     return pred, gt, mask
 
 
@@ -88,7 +91,16 @@ def _frame_masks(mask: Optional[np.ndarray], t: int) -> list:
 def _aligned(pred: np.ndarray, gt: np.ndarray, align: Align, mask: Optional[np.ndarray] = None) -> np.ndarray:
     masks = _frame_masks(mask, len(pred))
     first = gbr_fit(pred[0], gt[0], masks[0])
-    return np.stack([(_design(p) @ (first if align == "first" else gbr_fit(p, g, m))).reshape(g.shape) for p, g, m in zip(pred, gt, masks)])
+    out = []
+    for p, g, m in zip(pred, gt, masks):
+        if align == "frame":
+            out.append((_design(p) @ gbr_fit(p, g, m)).reshape(g.shape))
+            continue
+        a = (_design(p) @ first).reshape(g.shape)
+        if align == "first_offset":  # frame 0's α, β, λ; this frame's own τ
+            a = a + ((g - a)[m] if m is not None else (g - a)).mean()
+        out.append(a)
+    return np.stack(out)
 
 
 def gbr_align(pred: np.ndarray, gt: np.ndarray, align: Align = "frame", mask: Optional[np.ndarray] = None) -> np.ndarray:
