@@ -246,7 +246,7 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
             except ValueError as e:
                 raise ValueError(f"{saved}: not valid JSON ({e})") from None
             if not config.resumable_as(previous):
-                raise ValueError(f"out: {out} holds a run with another config; use a new folder (only workers, device, and epochs with a constant schedule, may change on a resume)")
+                raise ValueError(f"out: {out} holds a run with another config; use a new folder (a resume may change workers and device and, with a constant schedule, epochs and lr)")
         out.mkdir(parents=True, exist_ok=True)
         _atomic_write_text(saved, json.dumps(config.as_dict(), indent=2, sort_keys=True) + "\n")
 
