@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from nrdepth.nrsfm import _spaces, cameras, csf2, dct_basis, error_3d
+from nrdepth.nrsfm import _spaces, cameras, csf2, dct_basis, error_3d, kernel_basis, ksta
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "nrsfm"
 PTA = {"drink": 0.0250, "pickup": 0.2369, "yoga": 0.1625, "stretch": 0.1088, "dance": 0.2956}
@@ -60,6 +60,22 @@ def test_csf2_recovers_a_rigid_object_and_more_spaces_fit_a_deforming_one_better
     shapes, W = deforming(T, n)
     errors = [error_3d(csf2(W, K=K, d=6).shapes, shapes.reshape(3 * T, n)) for K in (1, 3)]
     assert errors[1] < 0.5 * errors[0], errors
+    kernel = ksta(W, K=3, d=6)
+    assert np.isfinite(kernel.shapes).all() and error_3d(kernel.shapes, shapes.reshape(3 * T, n)) < 0.5 * errors[0]
+
+
+def test_the_kernel_basis_spans_smooth_functions_of_the_shape_space():
+    s = np.linspace(0, 1, 30)
+    points = np.column_stack([np.cos(2 * s), np.sin(2 * s)])
+    B = kernel_basis(points, 5)
+    assert B.shape == (30, 5) and np.isfinite(B).all()
+    # A smooth function of the points is nearly in the basis's span.
+    target = np.cos(3 * s)
+    coeffs, *_ = np.linalg.lstsq(B, target, rcond=None)
+    assert np.abs(B @ coeffs - target).max() < 0.1
+    noise = np.random.default_rng(0).normal(size=30)
+    coeffs, *_ = np.linalg.lstsq(B, noise, rcond=None)
+    assert np.abs(B @ coeffs - noise).std() > 0.5 * noise.std()
 
 
 def test_the_csf2_gradient_is_the_cost_s():

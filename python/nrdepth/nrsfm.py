@@ -20,6 +20,11 @@ Shapes are 3T × n (rows 3t .. 3t + 2: x, y, z of frame t).
   Gauss–Newton (variable projection: the S_k are eliminated). The shape of
   frame t is ``Σ_k C[t, k] S_k`` (object frame). Deterministic: X starts at
   the identity.
+- :func:`ksta`: "Kernel non-rigid structure from motion" (ICCV 2011) in our
+  reading of its description (the authors' public code found is a later
+  rotation-invariant-kernel variant): a Gaussian kernel on the shape
+  coefficients of a first CSF2 solution gives, by kernel PCA, the coefficient
+  basis of a second solve.
 - :func:`error_3d`: the benchmark's 3-D error (centred frames, one global
   least-squares rotation onto the truth, mean point distance over the mean
   per-row standard deviation of the truth).
@@ -32,7 +37,7 @@ from typing import NamedTuple, Optional
 
 import numpy as np
 
-__all__ = ["cameras", "dct_basis", "csf2", "error_3d", "CSF2Result"]
+__all__ = ["cameras", "dct_basis", "kernel_basis", "csf2", "ksta", "error_3d", "CSF2Result"]
 
 
 def _check_tracks(W: np.ndarray, name: str = "W") -> np.ndarray:
@@ -146,10 +151,13 @@ def _gradient(blocks: np.ndarray, Ms: list, pinvs: list, Ss: list, Rk: list, c: 
     return g
 
 
-def csf2(W: np.ndarray, K: int, d: int, Rs: Optional[np.ndarray] = None, max_iterations: int = 300, tolerance: float = 1e-12) -> CSF2Result:
+def csf2(
+    W: np.ndarray, K: int, d: int, Rs: Optional[np.ndarray] = None, max_iterations: int = 300, tolerance: float = 1e-12, basis: Optional[np.ndarray] = None
+) -> CSF2Result:
     """CSF2 on tracks ``W`` (2T × n) with K complementary rank-3 spaces and
     d DCT functions (1 ≤ d ≤ T, 1 ≤ K ≤ d). ``Rs`` (2T × 3): known cameras,
-    else :func:`cameras`."""
+    else :func:`cameras`. ``basis`` (T × d): another coefficient basis in
+    place of the DCT's (:func:`ksta` passes a kernel one)."""
     W = _check_tracks(W)
     T, n = W.shape[0] // 2, W.shape[1]
     if isinstance(d, bool) or not isinstance(d, int) or not 1 <= d <= T:
@@ -160,7 +168,9 @@ def csf2(W: np.ndarray, K: int, d: int, Rs: Optional[np.ndarray] = None, max_ite
     Rs = cameras(W) if Rs is None else np.asarray(Rs, dtype=np.float64)
     if Rs.shape != (2 * T, 3):
         raise ValueError(f"Rs: expected (2T, 3) = {(2 * T, 3)}, got {Rs.shape}")
-    B = dct_basis(T, d)
+    B = dct_basis(T, d) if basis is None else np.asarray(basis, dtype=np.float64)
+    if B.shape != (T, d) or not np.isfinite(B).all():
+        raise ValueError(f"basis: expected a finite (T, d) = {(T, d)} array, got {B.shape}")
     c = 1.0 / (2 * T * n)
     # Bnr = D (B ⊗ I3): block i of columns is [B[t, i] R_t]_t.
     Bnr = np.concatenate([np.repeat(B[:, i], 2)[:, None] * Rs for i in range(d)], axis=1)
@@ -244,3 +254,44 @@ def error_3d(shapes: np.ndarray, truth: np.ndarray, cameras_estimated: Optional[
     distance = np.linalg.norm(S0 - np.einsum("ab,tbn->tan", Y, S3), axis=1).mean()
     sigma = S0.reshape(3 * T, n).std(axis=1).mean()
     return float(distance / sigma)
+
+
+def kernel_basis(points: np.ndarray, d: int) -> np.ndarray:
+    """A d-function coefficient basis (T × d) from points (T × q) in a shape
+    space: the Gaussian kernel K_ts = exp(−|p_t − p_s|² / 2σ²) and its leading
+    eigenvectors, B = K V_d E_d^(−1/2) (kernel PCA, uncentred, as the authors'
+    code builds it). σ² is the mean distance to the k-th nearest frame, with
+    k found by bisection so that d eigenvalues hold 99 % of the spectrum."""
+    points = np.asarray(points, dtype=np.float64)
+    T = len(points)
+    squared = ((points[:, None, :] - points[None, :, :]) ** 2).sum(-1)
+    ordered = np.sort(squared, axis=1)
+    lo, hi = 1, T - 1
+    sigma2 = float(ordered[:, hi].mean())
+    while hi - lo > 1:
+        k = (lo + hi) // 2
+        sigma2 = max(float(ordered[:, k].mean()), 1e-12)
+        e = np.linalg.eigvalsh(np.exp(-squared / (2 * sigma2)))[::-1]
+        needed = int(np.searchsorted(np.cumsum(e) / e.sum(), 0.99) + 1)
+        if needed == d:
+            break
+        lo, hi = (k, hi) if needed > d else (lo, k)
+    kernel = np.exp(-squared / (2 * sigma2))
+    e, V = np.linalg.eigh(kernel)
+    e, V = e[::-1][:d], V[:, ::-1][:, :d]
+    return kernel @ V / np.sqrt(np.maximum(e, 1e-12))
+
+
+def ksta(W: np.ndarray, K: int, d: int, Rs: Optional[np.ndarray] = None, max_iterations: int = 300) -> CSF2Result:
+    """KSTA ("Kernel non-rigid structure from motion", ICCV 2011), in our
+    reading of its published description: shapes are a non-linear function of
+    points in a low-dimensional shape space, through the kernel trick. The
+    points are the shape coefficients of a first, linear solution (CSF2 with
+    the same K and d); a Gaussian kernel on them gives the coefficient basis
+    (:func:`kernel_basis`), and the CSF2 machinery is solved again with it."""
+    W = _check_tracks(W)
+    Rs = cameras(W) if Rs is None else Rs
+    linear = csf2(W, K, d, Rs=Rs, max_iterations=max_iterations)
+    scale = linear.coefficients.std(axis=0)
+    points = linear.coefficients / np.where(scale > 0, scale, 1.0)
+    return csf2(W, K, d, Rs=Rs, max_iterations=max_iterations, basis=kernel_basis(points, d))
