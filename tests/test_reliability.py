@@ -225,6 +225,8 @@ def test_ctrl_c_stops_a_hopeless_generation_quickly(tmp_path):
     code = textwrap.dedent("""
         import os, signal, threading, time
         import nrdepth
+        # As in an interactive shell (a background job starts with SIGINT ignored).
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         config = nrdepth.GeneratorConfig(window_width=(2, 2), window_offset=(1, 1), max_redraws=1_000_000)
         threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
         start = time.time()

@@ -222,7 +222,8 @@ def _params(**changes):
         (lambda: nrdepth.synthesize_surface({"intensity": 0.1}), TypeError, "params"),
         (lambda: nrdepth.synthesize_surfaces(_params()), TypeError, "params"),
         (lambda: nrdepth.synthesize_surfaces([_params(), None]), TypeError, "params[1]"),
-        (lambda: nrdepth.synthesize_surfaces([_params()] * 4, frames=4096, grid=4096), ValueError, "params"),
+        (lambda: nrdepth.synthesize_surfaces([_params()] * 4, frames=4096, grid=4096), ValueError, "grid"),
+        (lambda: nrdepth.synthesize_surfaces([_params()] * 4, frames=16, grid=4096), ValueError, "params"),
         (lambda: nrdepth.grid_triangles(0), ValueError, "grid"),
     ],
 )
