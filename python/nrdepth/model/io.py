@@ -81,7 +81,8 @@ def save_model(model: nn.Module, path: Union[str, os.PathLike], extra: Optional[
     meta_path = path.with_suffix(".json")
     meta_tmp = meta_path.with_name(meta_path.name + ".partial")
     meta_tmp.write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
-    # The JSON first: weights never sit beside another model's description.
+    # Each file is replaced atomically; a training run killed between the two
+    # rewrites both when it resumes (nrdepth.train._finish_epoch).
     os.replace(meta_tmp, meta_path)
     os.replace(tmp, path)
 
