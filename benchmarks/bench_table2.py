@@ -8,11 +8,15 @@ for both alignments beside the paper's figures; KSTA (our reading of its
 paper, nrdepth.nrsfm.ksta) from the same tracks.
 
     python benchmarks/bench_table2.py [--videos 100] [--K 2] [--d 4] [--noise 0] [--picture docs/table2.png]
+    # split over processes, then one table from their rows:
+    python benchmarks/bench_table2.py --videos 50 --start 0 --rows a.csv & python benchmarks/bench_table2.py --videos 50 --start 50 --rows b.csv
+    python benchmarks/bench_table2.py --summarise a.csv b.csv
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import time
 from pathlib import Path
 
@@ -36,55 +40,80 @@ def out_of_range(config: nrdepth.GeneratorConfig) -> nrdepth.GeneratorConfig:
     return dataclasses.replace(config, surface=dataclasses.replace(s, **beyond))
 
 
+METHODS = ("nrdepth", "CSF2", "KSTA", "flat plane")
+
+
+def summarise(rows: list, header: str) -> None:
+    print(header)
+    print(f"{'':14s}{'per frame':>18s}{'from 1st frame':>18s}{'paper, per frame':>20s}{'seconds a video':>17s}")
+    for name in METHODS:
+        frame = np.array([float(r[f"{name} frame"]) for r in rows])
+        first = np.array([float(r[f"{name} first"]) for r in rows])
+        paper = f"{PAPER[name][0]:.4f} ± {PAPER[name][1]:.4f}" if name in PAPER else ""
+        sec = f"{np.mean([float(r[f'{name} seconds']) for r in rows]):.1f}" if f"{name} seconds" in rows[0] else ""
+        print(f"{name:14s}{frame.mean():>9.4f} ± {frame.std():.4f}{first.mean():>9.4f} ± {first.std():.4f}{paper:>20s}{sec:>17s}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--model", default=None)
     parser.add_argument("--videos", type=int, default=100)
-    parser.add_argument("--K", type=int, default=2, help="CSF2's rank-3 spaces")
-    parser.add_argument("--d", type=int, default=4, help="CSF2's DCT functions (of 16 frames)")
+    parser.add_argument("--start", type=int, default=0, help="index of the first video")
+    parser.add_argument("--K", type=int, default=2, help="CSF2's and KSTA's rank-3 spaces")
+    parser.add_argument("--d", type=int, default=4, help="CSF2's DCT functions and KSTA's kernel ones (of 16 frames)")
     parser.add_argument("--noise", type=float, default=0.0, help="pixel noise on the tracks")
     parser.add_argument("--picture", type=Path, default=None, help="PNG of the first video: frames | truth | nrdepth | CSF2")
+    parser.add_argument("--rows", type=Path, default=None, help="CSV of every video's scores, written as they come")
+    parser.add_argument("--summarise", type=Path, nargs="+", default=None, help="print the table of these --rows files and stop")
     args = parser.parse_args()
+    if args.summarise:
+        rows = [r for path in args.summarise for r in csv.DictReader(path.open())]
+        summarise(rows, f"MAE-SN over {len(rows)} generated 256×256×16 videos outside the training ranges (seed {TEST_SEED}), from {', '.join(map(str, args.summarise))}")
+        return
     config = out_of_range(nrdepth.GeneratorConfig(size=256))
     model = nrdepth.model.load_model(args.model)
-    scores = {k: [] for k in ("nrdepth", "CSF2", "KSTA", "flat plane")}
-    seconds = {k: 0.0 for k in ("nrdepth", "CSF2", "KSTA")}
-    for i in range(args.videos):
+    rows = []
+    writer = None
+    for i in range(args.start, args.start + args.videos):
         clip = nrdepth.generate_clips(1, seed=TEST_SEED, config=config, start=i)
         video, truth = clip.video[0], clip.depth[0]
+        depths, seconds = {}, {}
         start = time.perf_counter()
-        ours = nrdepth.reconstruct(video, model)
-        seconds["nrdepth"] += time.perf_counter() - start
+        depths["nrdepth"] = nrdepth.reconstruct(video, model)
+        seconds["nrdepth"] = time.perf_counter() - start
         tracks = clip_tracks(clip.params[0], config, noise=args.noise, seed=i)
         W = measurement_matrix(tracks.xy)
         Rs = cameras(W)
-        baselines = {}
         for name, method in (("CSF2", csf2), ("KSTA", ksta)):
             start = time.perf_counter()
             result = method(W, K=args.K, d=args.d, Rs=Rs)
-            baselines[name] = densify(tracks.xy, nrsfm_depth(result.shapes, result.cameras), truth.shape)
-            seconds[name] += time.perf_counter() - start
-        theirs = baselines["CSF2"]
-        for name, depth in (("nrdepth", ours), ("CSF2", theirs), ("KSTA", baselines["KSTA"])):
-            scores[name].append([nrdepth.mae_sn(depth, truth, a) for a in ("frame", "first")])
-        scores["flat plane"].append([nrdepth.flat_baseline(truth, a) for a in ("frame", "first")])
-        if i == 0 and args.picture is not None:
+            depths[name] = densify(tracks.xy, nrsfm_depth(result.shapes, result.cameras), truth.shape)
+            seconds[name] = time.perf_counter() - start
+        depths["flat plane"] = np.zeros_like(truth)
+        row = {"video": i}
+        for name, depth in depths.items():
+            row.update({f"{name} {a}": nrdepth.mae_sn(depth, truth, a) for a in ("frame", "first")})
+            if name in seconds:
+                row[f"{name} seconds"] = seconds[name]
+        rows.append(row)
+        if args.rows is not None:
+            if writer is None:
+                handle = args.rows.open("w", newline="")
+                writer = csv.DictWriter(handle, fieldnames=list(row))
+                writer.writeheader()
+            writer.writerow(row)
+            handle.flush()
+        if i == args.start and args.picture is not None:
             from nrdepth.labels import titled, with_colour_bar
             from nrdepth.preview import save_png
             from nrdepth.videoio import colorize_depth, depth_range
 
             value_range = depth_range(truth)
-            columns = [np.repeat(video[..., None], 3, axis=-1)] + [colorize_depth(nrdepth.gbr_align(d, truth), value_range) for d in (truth, ours, theirs)]
-            rows = [np.concatenate([np.pad(c[t], ((2, 2), (2, 2), (0, 0)), constant_values=255) for c in columns], axis=1) for t in (0, 8, 15)]
-            save_png(args.picture, with_colour_bar(titled(np.concatenate(rows), ["frames", "truth", "nrdepth", "csf2"], 260), "far", "near"))
-    print(f"MAE-SN over {args.videos} generated 256×256×16 videos outside the training ranges (seed {TEST_SEED}); "
-          f"CSF2 K={args.K}, d={args.d}, tracks of up to 33×33 vertices, pixel noise {args.noise}")
-    print(f"{'':14s}{'per frame':>18s}{'from 1st frame':>18s}{'paper, per frame':>20s}{'seconds a video':>17s}")
-    for name, values in scores.items():
-        v = np.array(values)
-        paper = f"{PAPER[name][0]:.4f} ± {PAPER[name][1]:.4f}" if name in PAPER else ""
-        sec = f"{seconds[name] / args.videos:.1f}" if name in seconds else ""
-        print(f"{name:14s}{v[:, 0].mean():>9.4f} ± {v[:, 0].std():.4f}{v[:, 1].mean():>9.4f} ± {v[:, 1].std():.4f}{paper:>20s}{sec:>17s}")
+            columns = [np.repeat(video[..., None], 3, axis=-1)] + [colorize_depth(nrdepth.gbr_align(d, truth), value_range) for d in (truth, depths["nrdepth"], depths["CSF2"])]
+            picture_rows = [np.concatenate([np.pad(c[t], ((2, 2), (2, 2), (0, 0)), constant_values=255) for c in columns], axis=1) for t in (0, 8, 15)]
+            save_png(args.picture, with_colour_bar(titled(np.concatenate(picture_rows), ["frames", "truth", "nrdepth", "csf2"], 260), "far", "near"))
+    summarise(rows, f"MAE-SN over {args.videos} generated 256×256×16 videos outside the training ranges (seed {TEST_SEED}); "
+                    f"CSF2 and KSTA with K={args.K}, d={args.d}, tracks of up to 33×33 vertices, pixel noise {args.noise}")
 
 
 if __name__ == "__main__":
