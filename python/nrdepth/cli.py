@@ -153,7 +153,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
         if bar is not None:
             bar.update(done - bar.n)
 
-    depth = reconstruct(frames, model, batch_size=args.batch_size, device=str(device), progress=progress)
+    depth = reconstruct(frames, model, batch_size=args.batch_size, device=str(device), progress=progress, temporal=args.temporal_align)
     if args.flip:
         depth = -depth
     if bar is not None:
@@ -276,6 +276,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ply", action="store_true", help="also write a PLY point cloud per frame")
     p.add_argument("--ply-relief", type=float, default=None,
                    help="PLY depth standard deviation in frame widths (default: 0.073, as the training surfaces)")
+    p.add_argument("--temporal-align", action="store_true",
+                   help="give every frame frame 0's plane and relief norm (nrdepth.temporal_align): for models trained with per-frame losses only")
     p.add_argument("--flip", action="store_true", help="negate the depth: the other convex/concave reading (the model assumes light from above; use for a video lit from below)")
     p.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

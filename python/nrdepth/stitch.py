@@ -123,7 +123,7 @@ def reconstruct(
     batch_size: int = 8,
     device: str = "auto",
     progress: Optional[Callable[[int, int], None]] = None,
-    temporal: bool = True,
+    temporal: bool = False,
     roi: Optional[Tuple[int, int, int, int]] = None,
     frames: Optional[slice] = None,
 ) -> np.ndarray:
@@ -135,9 +135,13 @@ def reconstruct(
     width, height in pixels) select the part of the video to reconstruct.
     Videos smaller than a patch are padded (symmetrically).
     ``progress(done, total)`` is called as patches are predicted.
-    ``temporal`` applies :func:`temporal_align` to the stitched video (the
-    paper's method is ``temporal=False``). Depth is defined up to one GBR
-    (up to one per frame with ``temporal=False``) and returned standardised:
+    ``temporal`` applies :func:`temporal_align` to the stitched video: it
+    gives every frame frame 0's plane and relief norm, which helps a model
+    that predicts neither (one trained with per-frame losses) and hurts one
+    that predicts the plane's motion, as the shipped model does (off by
+    default, as in the paper; README, "Benchmarks"). Depth is defined up to
+    one GBR per frame (one for the video with ``temporal``) and returned
+    standardised:
     zero mean and unit standard deviation over the video. Its overall sign
     (convex or concave) follows the training data's light-from-above prior
     (lights within ±70° of image-up, row 0 being the top): under an
