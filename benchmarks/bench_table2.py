@@ -28,16 +28,10 @@ from nrdepth.evaluate import TEST_SEED
 from nrdepth.nrsfm import cameras, csf2, ksta
 from nrdepth.tracks import clip_tracks, densify, measurement_matrix, nrsfm_depth
 
+from bench_reconstruct import out_of_range  # the same ranges (this script's folder is on sys.path)
+
 PAPER = {"nrdepth": (0.5907, 0.4536), "CSF2": (0.8746, 0.6372), "KSTA": (0.8738, 0.6369)}
 """The paper's Table 2 (per-frame MAE-SN, mean ± std over 1,000 videos)."""
-
-
-def out_of_range(config: nrdepth.GeneratorConfig) -> nrdepth.GeneratorConfig:
-    import dataclasses
-
-    s = config.surface
-    beyond = {k: (getattr(s, k)[1], 1.6 * getattr(s, k)[1]) for k in ("intensity", "folding", "flexibility", "speed")}
-    return dataclasses.replace(config, surface=dataclasses.replace(s, **beyond))
 
 
 METHODS = ("nrdepth", "CSF2", "KSTA", "flat plane")
