@@ -78,7 +78,7 @@ def test_the_kernel_basis_spans_smooth_functions_of_the_shape_space():
     assert np.abs(B @ coeffs - noise).std() > 0.5 * noise.std()
 
 
-def test_the_csf2_gradient_is_the_cost_s():
+def test_the_csf2_gradient_matches_finite_differences():
     # The descent uses the exact gradient of f = ‖R_K‖² / (4Tn); checked by finite differences.
     rng = np.random.default_rng(2)
     T, n, K, d = 10, 6, 3, 4
@@ -96,7 +96,7 @@ def test_the_csf2_gradient_is_the_cost_s():
             e = np.zeros_like(X)
             e[i, k] = 1e-6
             numeric[i, k] = (f(X + e) - f(X - e)) / 2e-6
-    # Run one iteration's gradient through csf2's own code path by a tiny problem: compare descent.
+    # The gradient csf2's descent uses, from its own helper.
     from nrdepth import nrsfm
 
     Ms, pinvs, Ss, Rk = _spaces(X, B, Rs, Wc)

@@ -145,7 +145,7 @@ def _gradient(blocks: np.ndarray, Ms: list, pinvs: list, Ss: list, Rk: list, c: 
         if k < K - 1:
             Z = Z - Ms[k + 1] @ (pinvs[k + 1] @ Z)
         projected = Z - Ms[k] @ (pinvs[k] @ Z)
-        first = np.einsum("tia,tn,an->i", blocks, projected, Ss[k])
+        first = np.einsum("tia,tn,an->i", blocks, projected, Ss[k], optimize=True)
         second = np.einsum("tia,ta->i", blocks, Rk[k] @ (Z.T @ pinvs[k].T))
         g[:, k] = -c * (first + second)
     return g
@@ -195,7 +195,7 @@ def csf2(
         H = np.zeros((d, K, d, K))
         for k in range(K):
             for l in range(k, K):
-                block = np.einsum("tia,tjb,ab->ij", A[k], A[l], SS[k][l]) * c
+                block = np.einsum("tia,tjb,ab->ij", A[k], A[l], SS[k][l], optimize=True) * c  # contracted pairwise, not as one 5-index loop
                 H[:, k, :, l] = block
                 H[:, l, :, k] = block.T
         g = _gradient(Bnr.reshape(2 * T, d, 3), Ms, pinvs, Ss, Rk, c)
