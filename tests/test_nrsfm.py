@@ -142,3 +142,48 @@ def test_tracks_follow_the_vertices_and_dense_exact_depths_come_back():
     xy = np.broadcast_to(np.stack([cols.ravel(), rows.ravel()], -1).astype(float), (T, 64 * 64, 2))
     dense = densify(xy, clip.depth[0].reshape(T, -1), (T, 64, 64))
     assert np.abs(dense - clip.depth[0]).max() < 1e-6
+
+
+def moving_texture_video(frames: int = 6, size: int = 96):
+    """A smooth random texture under a known drifting rotation and scaling: (video, true position of a pixel of frame 0 in each frame)."""
+    from scipy.ndimage import affine_transform, gaussian_filter
+
+    texture = gaussian_filter(np.random.default_rng(7).random((size, size)), 1.5)
+    texture = (texture - texture.min()) / np.ptp(texture)
+    centre = np.array([size / 2, size / 2])
+    warps = []
+    for t in range(frames):
+        angle, scale = 0.01 * t, 1 + 0.006 * t
+        A = scale * np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])  # acts on (row, column)
+        b = centre - A @ centre + np.array([0.7 * t, -0.45 * t])
+        warps.append((A, b))
+    # frame t at q shows texture at A⁻¹ (q − b): a texture point p moves to A p + b.
+    video = np.stack([affine_transform(texture, np.linalg.inv(A), -np.linalg.inv(A) @ b, order=3, mode="reflect") for A, b in warps])
+
+    def truth(xy0: np.ndarray) -> np.ndarray:
+        rc = xy0[:, ::-1]
+        return np.stack([(rc @ A.T + b)[:, ::-1] for A, b in warps])
+
+    return np.rint(video.clip(0, 1) * 255).astype(np.uint8), truth
+
+
+def test_tracked_corners_follow_a_known_motion_and_lost_points_are_dropped():
+    pytest.importorskip("cv2")
+    from nrdepth.tracks import track_video
+
+    video, truth = moving_texture_video()
+    xy = track_video(video, max_points=200, mask=np.pad(np.ones((64, 64), bool), 16))
+    error = np.linalg.norm(xy - truth(xy[0]), axis=-1)
+    assert xy.shape[0] == 6 and xy.shape[1] >= 100
+    assert np.median(error) < 0.1 and error.max() < 0.5
+    # Points in a patch that goes blank halfway are gone; the rest keep their tracks.
+    hidden = video.copy()
+    hidden[3:, 20:50, 20:50] = 128
+    kept = track_video(hidden, max_points=200, mask=np.pad(np.ones((64, 64), bool), 16))
+    deep = np.abs(truth(kept[0])[3] - 35).max(axis=1) < 4  # a whole LK window (21 px) inside the blank square
+    assert not deep.any() and (np.abs(truth(xy[0])[3] - 35).max(axis=1) < 4).any()
+    assert 0.3 * xy.shape[1] < kept.shape[1] < xy.shape[1]
+    with pytest.raises(ValueError, match="^frames:"):
+        track_video(video.astype(np.float32))
+    with pytest.raises(ValueError, match="^mask:"):
+        track_video(video, mask=np.ones((5, 5), bool))

@@ -12,18 +12,23 @@ dense depth from sparse points: what the paper's comparison with CSF2 needs.
 - :func:`densify`: dense depth (T, H, W) from depths at scattered image
   points by linear interpolation over their Delaunay triangulation
   (``scipy.interpolate.griddata``), nearest-neighbour outside their hull.
+- :func:`track_video`: tracks of a real video, as NRSfM users make them:
+  Shi–Tomasi corners in the first frame followed frame to frame by OpenCV's
+  pyramidal Lucas–Kanade, keeping only points that every step tracks and
+  that a backward step brings back to within ``max_error`` pixels (needs
+  the optional OpenCV dependency: ``pip install 'nrdepth[tracking]'``).
 """
 
 from __future__ import annotations
 
-from typing import Any, Dict, NamedTuple
+from typing import Any, Dict, NamedTuple, Optional
 
 import numpy as np
 
 from .generate import GeneratorConfig
 from .surface import SurfaceParams, synthesize_surface
 
-__all__ = ["Tracks", "clip_tracks", "nrsfm_depth", "densify", "measurement_matrix"]
+__all__ = ["Tracks", "clip_tracks", "nrsfm_depth", "densify", "measurement_matrix", "track_video"]
 
 
 class Tracks(NamedTuple):
@@ -109,3 +114,65 @@ def densify(xy: np.ndarray, values: np.ndarray, shape: tuple) -> np.ndarray:
             linear[hole] = griddata(xy[t], values[t], (cols[hole], rows[hole]), method="nearest")
         out[t] = linear
     return out
+
+
+def track_video(
+    frames: np.ndarray,
+    max_points: int = 1089,
+    mask: Optional[np.ndarray] = None,
+    min_distance: Optional[float] = None,
+    quality: float = 0.01,
+    window: int = 21,
+    levels: int = 3,
+    max_error: float = 0.5,
+) -> np.ndarray:
+    """Point tracks (T, n, 2) (column, row; pixel centres at integers) of a
+    grayscale video ``frames`` (T, H, W) uint8, through every frame.
+
+    Up to ``max_points`` Shi–Tomasi corners (``cv2.goodFeaturesToTrack``,
+    relative ``quality``, at least ``min_distance`` pixels apart, by default
+    the spacing of ``max_points`` points spread evenly over ``mask`` or the
+    frame) inside ``mask`` (H, W) of the first frame, followed from each frame
+    to the next by pyramidal Lucas–Kanade (``cv2.calcOpticalFlowPyrLK``,
+    ``window`` × ``window`` pixels, ``levels`` pyramid levels above the
+    frame). A point is dropped for good when a step loses it or when tracking
+    its new position back lands more than ``max_error`` pixels from where it
+    was (the forward–backward check): NRSfM needs every point in every frame.
+    """
+    try:
+        import cv2
+    except ImportError as error:  # an optional dependency: say how to get it
+        raise ImportError("track_video needs OpenCV: pip install 'nrdepth[tracking]' (opencv-python-headless)") from error
+    frames = np.asarray(frames)
+    if frames.ndim != 3 or frames.dtype != np.uint8 or frames.shape[0] < 2:
+        raise ValueError(f"frames: expected a (T, H, W) uint8 grayscale video with T >= 2, got {frames.dtype} {frames.shape}")
+    if not (isinstance(max_points, (int, np.integer)) and max_points >= 4):
+        raise ValueError(f"max_points: expected an int >= 4, got {max_points!r}")
+    if mask is None:
+        mask = np.ones(frames.shape[1:], dtype=bool)
+    mask = np.asarray(mask)
+    if mask.shape != frames.shape[1:]:
+        raise ValueError(f"mask: expected shape {frames.shape[1:]} (a frame's), got {mask.shape}")
+    if not mask.any():
+        raise ValueError("mask: expected at least one pixel to track in")
+    if min_distance is None:
+        min_distance = max(1.0, 0.7 * float(np.sqrt(mask.sum() / max_points)))
+    if not (0 < quality < 1) or window < 3 or not (0 <= levels <= 8) or not max_error > 0:
+        raise ValueError(f"quality, window, levels, max_error: expected 0 < quality < 1, window >= 3, 0 <= levels <= 8, "
+                         f"max_error > 0; got {quality}, {window}, {levels}, {max_error}")
+    corners = cv2.goodFeaturesToTrack(frames[0], int(max_points), float(quality), float(min_distance), mask=mask.astype(np.uint8))
+    if corners is None or len(corners) < 4:
+        raise ValueError("frames: fewer than 4 trackable corners in the first frame (too little texture inside mask)")
+    lk = dict(winSize=(window, window), maxLevel=levels, criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 0.01))
+    xy = np.empty((frames.shape[0], len(corners), 2), dtype=np.float32)
+    xy[0] = corners.reshape(-1, 2)
+    alive = np.ones(len(corners), dtype=bool)
+    for t in range(1, frames.shape[0]):
+        ahead, found, _ = cv2.calcOpticalFlowPyrLK(frames[t - 1], frames[t], xy[t - 1].reshape(-1, 1, 2), None, **lk)
+        back, found_back, _ = cv2.calcOpticalFlowPyrLK(frames[t], frames[t - 1], ahead, None, **lk)
+        xy[t] = ahead.reshape(-1, 2)
+        error = np.linalg.norm(back.reshape(-1, 2) - xy[t - 1], axis=1)
+        alive &= (found.ravel() == 1) & (found_back.ravel() == 1) & (error <= max_error)
+    if alive.sum() < 4:
+        raise ValueError(f"frames: only {alive.sum()} of {len(corners)} points survive tracking through every frame")
+    return xy[:, alive].astype(np.float64)
