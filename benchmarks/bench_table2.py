@@ -56,7 +56,7 @@ def main() -> None:
     parser.add_argument("--K", type=int, default=2, help="CSF2's and KSTA's rank-3 spaces")
     parser.add_argument("--d", type=int, default=4, help="CSF2's DCT functions and KSTA's kernel ones (of 16 frames)")
     parser.add_argument("--noise", type=float, default=0.0, help="pixel noise on the tracks")
-    parser.add_argument("--picture", type=Path, default=None, help="PNG of the first video: frames | truth | nrdepth | CSF2")
+    parser.add_argument("--picture", type=Path, default=None, help="PNG of the first video: frames | truth | nrdepth | CSF2 | KSTA")
     parser.add_argument("--rows", type=Path, default=None, help="CSV of every video's scores, written as they come")
     parser.add_argument("--summarise", type=Path, nargs="+", default=None, help="print the table of these --rows files and stop")
     args = parser.parse_args()
@@ -103,9 +103,9 @@ def main() -> None:
             from nrdepth.videoio import colorize_depth, depth_range
 
             value_range = depth_range(truth)
-            columns = [np.repeat(video[..., None], 3, axis=-1)] + [colorize_depth(nrdepth.gbr_align(d, truth), value_range) for d in (truth, depths["nrdepth"], depths["CSF2"])]
+            columns = [np.repeat(video[..., None], 3, axis=-1)] + [colorize_depth(nrdepth.gbr_align(d, truth), value_range) for d in (truth, depths["nrdepth"], depths["CSF2"], depths["KSTA"])]
             picture_rows = [np.concatenate([np.pad(c[t], ((2, 2), (2, 2), (0, 0)), constant_values=255) for c in columns], axis=1) for t in (0, 8, 15)]
-            save_png(args.picture, with_colour_bar(titled(np.concatenate(picture_rows), ["frames", "truth", "nrdepth", "csf2"], 260), "far", "near"))
+            save_png(args.picture, with_colour_bar(titled(np.concatenate(picture_rows), ["frames", "truth", "nrdepth", "csf2", "ksta"], 260), "far", "near"))
     summarise(rows, f"MAE-SN over {args.videos} generated 256×256×16 videos outside the training ranges (seed {TEST_SEED}); "
                     f"CSF2 and KSTA with K={args.K}, d={args.d}, tracks of up to 33×33 vertices, pixel noise {args.noise}")
 

@@ -58,7 +58,8 @@ def test_a_folder_with_another_config_is_refused(tmp_path):
 
 @pytest.mark.parametrize(
     "changes, name",
-    [({"loss": "l2"}, "loss"), ({"batch_size": 0}, "batch_size"), ({"lr": -1.0}, "lr"), ({"device": "tpu"}, "device")],
+    [({"loss": "l2"}, "loss"), ({"batch_size": 0}, "batch_size"), ({"lr": -1.0}, "lr"), ({"device": "tpu"}, "device"),
+     ({"target": "truth"}, "target"), ({"init": "no/such/model.safetensors"}, "init")],
 )
 def test_bad_train_config_is_named(changes, name):
     with pytest.raises(ValueError) as info:
@@ -162,3 +163,34 @@ def test_a_resume_may_change_workers_device_and_with_a_constant_schedule_epochs_
     train(cosine, TrainConfig(loss="aligned", **base), progress=False)
     with pytest.raises(ValueError, match="^out:"):
         train(cosine, TrainConfig(loss="aligned", **{**base, "epochs": 2}), progress=False)
+
+
+def test_the_observable_target_is_the_depth_of_the_surface_that_never_moves_along_the_optical_axis():
+    from nrdepth.surface import SurfaceParams
+
+    config = nrdepth.GeneratorConfig(size=32, frames=4, grid=32, texture_size=64)
+    clip = nrdepth.generate_clips(1, seed=5, config=config)
+    params = clip.params[0]
+    triangles = nrdepth.grid_triangles(config.grid)
+
+    def cast(surface):
+        positions = nrdepth.synthesize_surface(SurfaceParams.from_dict(surface), config.frames, config.grid)
+        return np.stack([nrdepth.raycast_depth(p.reshape(-1, 3), triangles, config.size, params["window"]) for p in positions])
+
+    drift = params["surface"]["drift"]
+    still = cast({**params["surface"], "drift": [drift[0], drift[1], 0.0]})
+    assert np.abs(nrdepth.observable_depth(clip.depth[0], params) - still).max() < 1e-5
+    assert np.abs(clip.depth[0] - still).max() > 1e-2  # the clip did move along z
+
+
+def test_a_warm_start_begins_from_the_given_weights_and_refuses_another_network(tmp_path):
+    config = TrainConfig(loss="aligned_both_signed", arch="unet2p1d", **{**TINY, "epochs": 1})
+    train(tmp_path / "first", config, progress=False)
+    warm = TrainConfig(loss="aligned_both_signed", arch="unet2p1d", target="observable", init=str(tmp_path / "first"), **{**TINY, "epochs": 1, "lr": 1e-12})
+    train(tmp_path / "warm", warm, progress=False)
+    # At a vanishing learning rate the warm run's weights are the first run's.
+    before, after = load_model(tmp_path / "first").state_dict(), load_model(tmp_path / "warm").state_dict()
+    assert all(torch.allclose(before[k].float(), after[k].float(), atol=1e-6) for k in before)
+    with pytest.raises(ValueError, match="^init:.*another network"):
+        train(tmp_path / "other", TrainConfig(loss="aligned", init=str(tmp_path / "first"), **{**TINY, "epochs": 1}), progress=False)
+    assert not (tmp_path / "other").exists()

@@ -68,7 +68,7 @@ def _train(args: argparse.Namespace) -> int:
     from .train import TrainConfig, train
 
     config = TrainConfig(
-        loss=args.loss, arch=args.arch, base=args.base, schedule=args.schedule, batch_size=args.batch_size, steps_per_epoch=args.steps, epochs=args.epochs,
+        loss=args.loss, arch=args.arch, base=args.base, schedule=args.schedule, target=args.target, init=args.init, batch_size=args.batch_size, steps_per_epoch=args.steps, epochs=args.epochs,
         lr=args.lr, seed=args.seed, data=args.data, generator=_generator_config(args),
         validation_clips=args.validation_clips, workers=args.workers, device=args.device, compile=args.compile,
     )
@@ -239,6 +239,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "aligned_clip_offsets_signed | aligned_both_offsets_signed (default: gbr; see nrdepth.losses)")
     p.add_argument("--arch", default="unet3d", help="unet3d (the paper's) | unet2p1d (factorised, ~15x cheaper) (default: unet3d)")
     p.add_argument("--schedule", default="cosine", help="cosine | constant (a campaign: --epochs may grow on resume) (default: cosine)")
+    p.add_argument("--target", default="depth",
+                   help="depth (the rendered depth, the paper's) | observable (without the motion along the optical axis that no frame shows) (default: depth)")
+    p.add_argument("--init", default=None, help="model.safetensors or run folder whose weights start a new run (a warm start)")
     p.add_argument("--epochs", type=int, default=20, help="epochs in the run")
     p.add_argument("--steps", type=int, default=500, help="steps per epoch")
     p.add_argument("--max-epochs", type=int, default=None, help="epochs to run in this call (resume later)")

@@ -17,7 +17,7 @@ import numpy as np
 from . import _core
 from .surface import SurfaceConfig, _check_int, _check_seed, _float_tuple
 
-__all__ = ["GeneratorConfig", "Clips", "generate_clips"]
+__all__ = ["GeneratorConfig", "Clips", "generate_clips", "observable_depth"]
 
 _DEFAULT = _core.default_generator_config()
 Interval = Tuple[float, float]
@@ -149,3 +149,21 @@ def generate_clips(n: int, seed: int = 0, config: Optional[GeneratorConfig] = No
     start = _check_seed("start", start)
     video, depth, params = _core.generate_clips(n, _check_seed("seed", seed), start, config._core_dict(), config.textures)
     return Clips(video, depth, params)
+
+
+def observable_depth(depth: np.ndarray, params: Dict[str, Any]) -> np.ndarray:
+    """A clip's depth (T, H, W) without what its video cannot show: the
+    surface's translation along the optical axis, ``t · drift_z`` at frame
+    ``t = k / (T − 1)`` (``params["surface"]["drift"][2]``, ``params`` one of
+    ``Clips.params``). Under the orthographic camera, moving the surface along
+    z changes no pixel under directional lights (and barely any under the
+    generator's distant point lights), so no network can predict it; a
+    training target without it asks only for what the frames hold
+    (``nrdepth train --target observable``)."""
+    depth = np.asarray(depth)
+    if depth.ndim != 3:
+        raise ValueError(f"depth: expected one clip's (T, H, W) depth, got shape {depth.shape}")
+    drift_z = float(params["surface"]["drift"][2])
+    t = np.linspace(0.0, 1.0, depth.shape[0]) if depth.shape[0] > 1 else np.zeros(1)
+    # depth = camera_z − z and z grows by t · drift_z: adding it back removes the motion.
+    return (depth + (drift_z * t)[:, None, None]).astype(depth.dtype)

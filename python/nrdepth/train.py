@@ -32,7 +32,7 @@ import numpy as np
 import torch
 import torch.distributed as dist
 
-from .generate import GeneratorConfig, generate_clips
+from .generate import GeneratorConfig, generate_clips, observable_depth
 from .losses import get_loss
 from .metrics import flat_baseline, mae_sn, sign_rates
 from .model import ARCHITECTURES, build_model
@@ -74,11 +74,27 @@ class TrainConfig:
     """Learning rate over the run: ``cosine`` (from lr to 0 over all epochs)
     or ``constant`` (a campaign of open length: a resume may change ``epochs``
     and ``lr``)."""
+    target: str = "depth"
+    """What the loss compares the prediction with: ``depth`` (the rendered
+    depth, the paper's) or ``observable`` (the depth without the surface's
+    motion along the optical axis, which the video cannot show:
+    :func:`nrdepth.generate.observable_depth`). Validation scores the
+    rendered depth either way."""
+    init: Optional[str] = None
+    """A model (``model.safetensors`` or its run folder) whose weights start
+    a new run (a warm start; same architecture and width); ignored on
+    resume."""
 
     def __post_init__(self) -> None:
         get_loss(self.loss)
         if self.schedule not in ("cosine", "constant"):
             raise ValueError(f"schedule: expected 'cosine' or 'constant', got {self.schedule!r}")
+        if self.target not in TARGETS:
+            raise ValueError(f"target: expected one of {sorted(TARGETS)}, got {self.target!r}")
+        if self.init is not None:
+            self.init = os.fspath(self.init)
+            if not os.path.exists(self.init):
+                raise ValueError(f"init: not found: {self.init} (expected model.safetensors or its run folder)")
         if self.arch not in ARCHITECTURES:
             raise ValueError(f"arch: expected one of {sorted(ARCHITECTURES)}, got {self.arch!r}")
         for name in ("batch_size", "steps_per_epoch", "epochs", "validation_clips") + (("base",) if self.base is not None else ()):
@@ -120,9 +136,22 @@ class TrainConfig:
         under this config: the same but for fields that do not change what
         is computed (workers, device) and, with a constant schedule, epochs
         (it only moves the end) and lr (a campaign steps it down by hand)."""
-        free = ("workers", "device") + (("epochs", "lr") if self.schedule == "constant" else ())
+        free = ("workers", "device", "init") + (("epochs", "lr") if self.schedule == "constant" else ())
         mine = json.loads(json.dumps(self.as_dict()))
+        saved = {"target": "depth", **saved}  # runs saved before the option trained on the rendered depth
         return {k: v for k, v in mine.items() if k not in free} == {k: v for k, v in saved.items() if k not in free}
+
+
+TARGETS = {
+    "depth": lambda depth, params: depth,
+    "observable": observable_depth,
+}
+"""TrainConfig.target: the training target of one clip from its depth and params."""
+
+
+def targets(name: str, depth: np.ndarray, params: list) -> np.ndarray:
+    """The training targets (B, T, H, W) of a batch's depths and params."""
+    return np.stack([TARGETS[name](d, p) for d, p in zip(depth, params)])
 
 
 def to_tensors(video: np.ndarray, depth: np.ndarray) -> Tuple[torch.Tensor, torch.Tensor]:
@@ -136,25 +165,25 @@ def to_tensors(video: np.ndarray, depth: np.ndarray) -> Tuple[torch.Tensor, torc
 class OnlineBatches(torch.utils.data.Dataset):
     """Batch k: clips k·B .. (k+1)·B of the generator run (config, seed)."""
 
-    def __init__(self, config: GeneratorConfig, seed: int, batch_size: int) -> None:
-        self.config, self.seed, self.batch_size = config, seed, batch_size
+    def __init__(self, config: GeneratorConfig, seed: int, batch_size: int, target: str = "depth") -> None:
+        self.config, self.seed, self.batch_size, self.target = config, seed, batch_size, target
 
     def __len__(self) -> int:
         return 2**40
 
     def __getitem__(self, k: int):
         clips = generate_clips(self.batch_size, seed=self.seed, config=self.config, start=k * self.batch_size)
-        return to_tensors(clips.video, clips.depth)
+        return to_tensors(clips.video, targets(self.target, clips.depth, clips.params))
 
 
 class StoredBatches(torch.utils.data.Dataset):
     """Batch k of the train split: a permutation seeded by (seed, epoch)."""
 
-    def __init__(self, root: str, seed: int, batch_size: int) -> None:
+    def __init__(self, root: str, seed: int, batch_size: int, target: str = "depth") -> None:
         from .dataset import ClipStore
 
         self.store = ClipStore(root, "train")
-        self.seed, self.batch_size = seed, batch_size
+        self.seed, self.batch_size, self.target = seed, batch_size, target
         if len(self.store) < batch_size:
             raise ValueError(f"data: the train split has {len(self.store)} clips, fewer than batch_size {batch_size}")
 
@@ -166,7 +195,8 @@ class StoredBatches(torch.utils.data.Dataset):
         epoch, j = divmod(k, per_epoch)
         order = np.random.default_rng([self.seed, epoch]).permutation(len(self.store))
         items = [self.store[int(i)] for i in order[j * self.batch_size : (j + 1) * self.batch_size]]
-        return to_tensors(np.stack([v for v, _, _ in items]), np.stack([d for _, d, _ in items]))
+        depth = targets(self.target, np.stack([d for _, d, _ in items]), [p for _, _, p in items])
+        return to_tensors(np.stack([v for v, _, _ in items]), depth)
 
 
 def validation_set(config: TrainConfig) -> Tuple[np.ndarray, np.ndarray]:
@@ -233,8 +263,10 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
     rank, world = (dist.get_rank(), dist.get_world_size()) if distributed else (0, 1)
     leader = rank == 0
     # The data is opened (and refused if bad) before anything is written.
-    data = StoredBatches(config.data, config.seed, config.batch_size) if config.data else OnlineBatches(config.generator, config.seed, config.batch_size)
+    data = (StoredBatches(config.data, config.seed, config.batch_size, config.target) if config.data
+            else OnlineBatches(config.generator, config.seed, config.batch_size, config.target))
     video_val, depth_val = validation_set(config) if leader else (None, None)
+    warm_start = _warm_start(config) if config.init is not None and not (out / "last.pt").exists() else None
     depth_val_half = torch.nn.functional.avg_pool2d(torch.from_numpy(depth_val).float(), 2).numpy() if leader else None
     if leader:
         if out.is_file():
@@ -252,6 +284,8 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
 
     torch.manual_seed(config.seed)
     model = build_model(config.arch, **config.model_config()).to(device)
+    if warm_start is not None:
+        model.load_state_dict(warm_start)
     optimiser = torch.optim.Adam(model.parameters(), lr=config.lr)
     total = config.epochs * config.steps_per_epoch
     if config.schedule == "cosine":
@@ -348,6 +382,15 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
         dist.barrier()
         dist.destroy_process_group()
     return summary
+
+
+def _warm_start(config: TrainConfig) -> Dict[str, torch.Tensor]:
+    """The weights of ``config.init``, refused unless they fit this run's network."""
+    theirs = load_model(config.init, device="cpu").state_dict()
+    mine = build_model(config.arch, **config.model_config()).state_dict()
+    if mine.keys() != theirs.keys() or any(mine[k].shape != theirs[k].shape for k in mine):
+        raise ValueError(f"init: {config.init} holds another network than this run's {config.arch} {config.model_config() or '(default width)'}")
+    return theirs
 
 
 def _load_checkpoint(path: Path, device: torch.device) -> Dict[str, Any]:
