@@ -11,6 +11,8 @@ paper, nrdepth.nrsfm.ksta) from the same tracks.
     # split over processes, then one table from their rows:
     python benchmarks/bench_table2.py --videos 50 --start 0 --rows a.csv & python benchmarks/bench_table2.py --videos 50 --start 50 --rows b.csv
     python benchmarks/bench_table2.py --summarise a.csv b.csv
+    # rerun some methods only (e.g. after a change to KSTA); --summarise joins rows by video
+    python benchmarks/bench_table2.py --methods KSTA --rows ksta.csv && python benchmarks/bench_table2.py --summarise all.csv ksta.csv
 """
 
 from __future__ import annotations
@@ -40,7 +42,7 @@ METHODS = ("nrdepth", "CSF2", "KSTA", "flat plane")
 def summarise(rows: list, header: str) -> None:
     print(header)
     print(f"{'':14s}{'per frame':>18s}{'from 1st frame':>18s}{'paper, per frame':>20s}{'seconds a video':>17s}")
-    for name in METHODS:
+    for name in [m for m in METHODS if f"{m} frame" in rows[0]]:
         frame = np.array([float(r[f"{name} frame"]) for r in rows])
         first = np.array([float(r[f"{name} first"]) for r in rows])
         paper = f"{PAPER[name][0]:.4f} ± {PAPER[name][1]:.4f}" if name in PAPER else ""
@@ -55,35 +57,47 @@ def main() -> None:
     parser.add_argument("--start", type=int, default=0, help="index of the first video")
     parser.add_argument("--K", type=int, default=2, help="CSF2's and KSTA's rank-3 spaces")
     parser.add_argument("--d", type=int, default=4, help="CSF2's DCT functions and KSTA's kernel ones (of 16 frames)")
+    parser.add_argument("--methods", default=",".join(METHODS), help="comma list of the methods to run")
     parser.add_argument("--noise", type=float, default=0.0, help="pixel noise on the tracks")
     parser.add_argument("--picture", type=Path, default=None, help="PNG of the first video: frames | truth | nrdepth | CSF2 | KSTA")
     parser.add_argument("--rows", type=Path, default=None, help="CSV of every video's scores, written as they come")
     parser.add_argument("--summarise", type=Path, nargs="+", default=None, help="print the table of these --rows files and stop")
     args = parser.parse_args()
     if args.summarise:
-        rows = [r for path in args.summarise for r in csv.DictReader(path.open())]
+        joined: dict = {}  # video → its scores; a later file's columns replace an earlier one's
+        for path in args.summarise:
+            for r in csv.DictReader(path.open()):
+                joined.setdefault(r["video"], {}).update(r)
+        rows = list(joined.values())
         summarise(rows, f"MAE-SN over {len(rows)} generated 256×256×16 videos outside the training ranges (seed {TEST_SEED}), from {', '.join(map(str, args.summarise))}")
         return
+    methods = args.methods.split(",")
+    if not set(methods) <= set(METHODS) or (args.picture is not None and set(methods) != set(METHODS)):
+        parser.error(f"--methods: expected a comma list of {', '.join(METHODS)} (all of them with --picture)")
     config = out_of_range(nrdepth.GeneratorConfig(size=256))
-    model = nrdepth.model.load_model(args.model)
+    model = nrdepth.model.load_model(args.model) if "nrdepth" in methods else None
     rows = []
     writer = None
     for i in range(args.start, args.start + args.videos):
         clip = nrdepth.generate_clips(1, seed=TEST_SEED, config=config, start=i)
         video, truth = clip.video[0], clip.depth[0]
         depths, seconds = {}, {}
-        start = time.perf_counter()
-        depths["nrdepth"] = nrdepth.reconstruct(video, model)
-        seconds["nrdepth"] = time.perf_counter() - start
+        if "nrdepth" in methods:
+            start = time.perf_counter()
+            depths["nrdepth"] = nrdepth.reconstruct(video, model)
+            seconds["nrdepth"] = time.perf_counter() - start
         tracks = clip_tracks(clip.params[0], config, noise=args.noise, seed=i)
         W = measurement_matrix(tracks.xy)
         Rs = cameras(W)
         for name, method in (("CSF2", csf2), ("KSTA", ksta)):
+            if name not in methods:
+                continue
             start = time.perf_counter()
             result = method(W, K=args.K, d=args.d, Rs=Rs)
             depths[name] = densify(tracks.xy, nrsfm_depth(result.shapes, result.cameras), truth.shape)
             seconds[name] = time.perf_counter() - start
-        depths["flat plane"] = np.zeros_like(truth)
+        if "flat plane" in methods:
+            depths["flat plane"] = np.zeros_like(truth)
         row = {"video": i}
         for name, depth in depths.items():
             row.update({f"{name} {a}": nrdepth.mae_sn(depth, truth, a) for a in ("frame", "first")})

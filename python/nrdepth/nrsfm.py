@@ -152,12 +152,20 @@ def _gradient(blocks: np.ndarray, Ms: list, pinvs: list, Ss: list, Rk: list, c: 
 
 
 def csf2(
-    W: np.ndarray, K: int, d: int, Rs: Optional[np.ndarray] = None, max_iterations: int = 300, tolerance: float = 1e-12, basis: Optional[np.ndarray] = None
+    W: np.ndarray,
+    K: int,
+    d: int,
+    Rs: Optional[np.ndarray] = None,
+    max_iterations: int = 300,
+    tolerance: float = 1e-12,
+    basis: Optional[np.ndarray] = None,
+    start: Optional[np.ndarray] = None,
 ) -> CSF2Result:
     """CSF2 on tracks ``W`` (2T × n) with K complementary rank-3 spaces and
     d DCT functions (1 ≤ d ≤ T, 1 ≤ K ≤ d). ``Rs`` (2T × 3): known cameras,
     else :func:`cameras`. ``basis`` (T × d): another coefficient basis in
-    place of the DCT's (:func:`ksta` passes a kernel one)."""
+    place of the DCT's (:func:`ksta` passes a kernel one). ``start`` (d × K):
+    the first X (default: the identity's first K columns)."""
     W = _check_tracks(W)
     T, n = W.shape[0] // 2, W.shape[1]
     if isinstance(d, bool) or not isinstance(d, int) or not 1 <= d <= T:
@@ -178,7 +186,9 @@ def csf2(
     def cost(X: np.ndarray) -> float:
         return float((_spaces(X, B, Rs, Wc)[3][-1] ** 2).sum()) * c / 2
 
-    X = np.eye(d, K)
+    X = np.eye(d, K) if start is None else np.asarray(start, dtype=np.float64)
+    if X.shape != (d, K) or not np.isfinite(X).all():
+        raise ValueError(f"start: expected a finite (d, K) = {(d, K)} array, got {X.shape}")
     delta, f = 1e-4, cost(X)
     iterations = 0
     for iterations in range(1, max_iterations + 1):
@@ -294,4 +304,7 @@ def ksta(W: np.ndarray, K: int, d: int, Rs: Optional[np.ndarray] = None, max_ite
     linear = csf2(W, K, d, Rs=Rs, max_iterations=max_iterations)
     scale = linear.coefficients.std(axis=0)
     points = linear.coefficients / np.where(scale > 0, scale, 1.0)
-    return csf2(W, K, d, Rs=Rs, max_iterations=max_iterations, basis=kernel_basis(points, d))
+    B = kernel_basis(points, d)
+    # Start where the linear solution is: its coefficients in the kernel basis.
+    start = np.linalg.lstsq(B, linear.coefficients, rcond=None)[0]
+    return csf2(W, K, d, Rs=Rs, max_iterations=max_iterations, basis=B, start=start)
