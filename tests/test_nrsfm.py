@@ -115,6 +115,7 @@ def test_the_csf2_gradient_matches_finite_differences():
         ({"K": 5, "d": 3}, "K"),
         ({"d": 11}, "d"),
         ({"Rs": np.zeros((4, 3))}, "Rs"),
+        ({"start": np.zeros((2, 1))}, "start"),
     ],
 )
 def test_bad_input_is_named(kwargs, name):
