@@ -134,8 +134,9 @@ class TrainConfig:
     def resumable_as(self, saved: Dict[str, Any]) -> bool:
         """Whether a run saved with config ``saved`` (a dict) may continue
         under this config: the same but for fields that do not change what
-        is computed (workers, device) and, with a constant schedule, epochs
-        (it only moves the end) and lr (a campaign steps it down by hand)."""
+        is computed (workers, device; init, which only starts a run) and,
+        with a constant schedule, epochs (it only moves the end) and lr (a
+        campaign steps it down by hand)."""
         free = ("workers", "device", "init") + (("epochs", "lr") if self.schedule == "constant" else ())
         mine = json.loads(json.dumps(self.as_dict()))
         saved = {"target": "depth", **saved}  # runs saved before the option trained on the rendered depth
