@@ -152,6 +152,8 @@ TARGETS = {
 
 def targets(name: str, depth: np.ndarray, params: list) -> np.ndarray:
     """The training targets (B, T, H, W) of a batch's depths and params."""
+    if name == "depth":  # the rendered depth itself: no per-clip copy
+        return depth
     return np.stack([TARGETS[name](d, p) for d, p in zip(depth, params)])
 
 
