@@ -274,3 +274,23 @@ def test_a_mask_scores_only_its_pixels():
         mae_sn(pred, gt, mask=mask[:, :4])
     with pytest.raises(ValueError, match="^gt:"):
         mae_sn(pred, corrupted_gt)
+
+
+def test_the_relief_amplitude_term_sees_the_relief_scale_and_nothing_else():
+    from nrdepth.losses import AMPLITUDE_FLOOR, relief_amplitude_loss, relief_rms
+
+    z = smooth_depth(3)
+    relief = 0.05 * z
+    assert relief_amplitude_loss(relief, relief).item() == 0.0
+    # A plane and an offset in every frame change nothing; so does the sign.
+    planar = gbr(relief, 0.3, -0.2, 1.0, 5.0)
+    assert torch.allclose(relief_rms(planar), relief_rms(relief), rtol=1e-9)
+    assert relief_amplitude_loss(-planar, relief).item() < 1e-18
+    # A relief s times too large costs log(s)² (up to the floor).
+    rms = relief_rms(relief)
+    expected = (torch.log((3 * rms + AMPLITUDE_FLOOR) / (rms + AMPLITUDE_FLOOR)) ** 2).mean()
+    assert torch.isclose(relief_amplitude_loss(3 * relief, relief), expected, rtol=1e-9)
+    # A flat target asks for a flat prediction: the gradient shrinks the relief.
+    pred = relief.clone().requires_grad_(True)
+    relief_amplitude_loss(pred, gbr(torch.zeros_like(relief), 0.1, 0.2, 1.0, 0.0)).backward()
+    assert (pred.grad * relief).sum() > 0

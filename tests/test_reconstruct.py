@@ -141,6 +141,7 @@ def test_cli_reconstructs_an_image_folder(tmp_path, tiny_model):
         ("roi", ["--device", "cpu", "--roi", "30,0,20,20"], "--roi: expected x, y, width, height inside the 40×48 frame"),
         ("frames", ["--device", "cpu", "--frames", "20:30"], "--frames: selects no frame"),
         ("device", ["--device", "tpu"], "device: expected auto, cpu, cuda or cuda:N"),
+        ("units", ["--device", "cpu", "--units", "pixels"], "--units: 'pixels' needs a model that learnt the relief's scale"),
     ],
 )
 def test_cli_bad_input_is_named_and_writes_nothing(tmp_path, tiny_model, capsys, case, args, message):
@@ -152,6 +153,7 @@ def test_cli_bad_input_is_named_and_writes_nothing(tmp_path, tiny_model, capsys,
         "roi": tmp_path / "good.npy",
         "frames": tmp_path / "good.npy",
         "device": tmp_path / "good.npy",
+        "units": tmp_path / "good.npy",
     }[case]
     (tmp_path / "bad.mp4").write_bytes(b"\x00\x00\x00\x18ftypmp42" + bytes(range(256)) * 8)
     (tmp_path / "empty.avi").write_bytes(b"")
@@ -239,6 +241,26 @@ def plane_residual_ratio(depth: np.ndarray) -> float:
         coeffs, *_ = np.linalg.lstsq(design, frame.ravel(), rcond=None)
         ratios.append((frame.ravel() - design @ coeffs).std() / frame.std())
     return max(ratios)
+
+
+def test_depth_in_pixels_carries_the_models_scale_and_needs_a_model_that_has_one():
+    torch.manual_seed(0)
+    net = nrdepth.model.UNet2p1D(width=4).eval()
+    video = moving_texture(t=16, h=64, w=96)
+    with pytest.raises(ValueError, match="^units: 'pixels' needs a model"):
+        nrdepth.reconstruct(video, net, device="cpu", units="pixels")
+    with pytest.raises(ValueError, match="^units: expected"):
+        nrdepth.reconstruct(video, net, device="cpu", units="metres")
+    net.depth_units = "window"
+    pixels = nrdepth.reconstruct(video, net, device="cpu", units="pixels")
+    standard = nrdepth.reconstruct(video, net, device="cpu")
+    with torch.no_grad():
+        net.head.weight *= 3
+        net.head.bias *= 3
+    tripled = nrdepth.reconstruct(video, net, device="cpu", units="pixels")
+    assert np.allclose(tripled, 3 * pixels, rtol=1e-4, atol=1e-4 * np.abs(pixels).max())
+    assert np.allclose(nrdepth.reconstruct(video, net, device="cpu"), standard, atol=1e-4)
+    assert abs(pixels.mean()) < 1e-3 * pixels.std() and np.allclose(pixels / pixels.std(), standard, atol=1e-4)
 
 
 def test_the_flat_sheet_measure_tells_a_plane_from_relief():

@@ -194,3 +194,30 @@ def test_a_warm_start_begins_from_the_given_weights_and_refuses_another_network(
     with pytest.raises(ValueError, match="^init:.*another network"):
         train(tmp_path / "other", TrainConfig(loss="aligned", init=str(tmp_path / "first"), **{**TINY, "epochs": 1}), progress=False)
     assert not (tmp_path / "other").exists()
+
+
+def test_an_amplitude_run_trains_on_window_widths_and_its_warm_start_is_calibrated(tmp_path):
+    from nrdepth.train import CALIBRATION_CLIPS, VALIDATION_SEED_OFFSET, relief_ratio, targets, window_widths
+
+    generator = TINY["generator"]
+    clips = nrdepth.generate_clips(3, seed=1, config=generator)
+    widths = window_widths(clips.params)
+    assert np.allclose(widths, [p["window"][2] - p["window"][0] for p in clips.params])
+    scaled = targets("observable", clips.depth, clips.params, window_units=True)
+    assert np.allclose(scaled * widths[:, None, None, None], targets("observable", clips.depth, clips.params), rtol=1e-6)
+
+    config = TrainConfig(loss="aligned_both_signed", arch="unet2p1d", **{**TINY, "epochs": 1})
+    train(tmp_path / "first", config, progress=False)
+    assert load_model(tmp_path / "first").depth_units is None
+    warm = TrainConfig(loss="aligned_both_signed", arch="unet2p1d", amplitude=0.5, init=str(tmp_path / "first"), **{**TINY, "epochs": 1, "lr": 1e-12})
+    train(tmp_path / "warm", warm, progress=False)
+    model = load_model(tmp_path / "warm")
+    assert model.depth_units == "window"
+    # The warm start's scale was set so that its relief matches the truth's on average.
+    check = nrdepth.generate_clips(CALIBRATION_CLIPS, seed=warm.seed + VALIDATION_SEED_OFFSET, config=generator)
+    truth = torch.nn.functional.avg_pool2d(torch.from_numpy(check.depth).float(), 2).numpy() / window_widths(check.params)[:, None, None, None]
+    before = relief_ratio(predict_depth(load_model(tmp_path / "first"), check.video), truth)
+    assert abs(before - 1) > 0.1 and abs(relief_ratio(predict_depth(model, check.video), truth) - 1) < 1e-3
+    assert float(rows(tmp_path / "warm")[0]["val_relief_ratio"]) > 0
+    with pytest.raises(ValueError, match="^amplitude:"):
+        TrainConfig(amplitude=-1.0)

@@ -36,10 +36,13 @@ def _shard(text: str) -> tuple:
 
 def _generator_config(args: argparse.Namespace):
     from .generate import GeneratorConfig
+    from .surface import SurfaceConfig
 
     extra = {}
     if args.light_azimuth is not None:
         extra["light_azimuth"] = args.light_azimuth
+    if args.intensity is not None:
+        extra["surface"] = SurfaceConfig(intensity=args.intensity)
     return GeneratorConfig(frames=args.frames, size=args.size, grid=args.grid, textures=args.textures, **extra)
 
 
@@ -68,7 +71,7 @@ def _train(args: argparse.Namespace) -> int:
     from .train import TrainConfig, train
 
     config = TrainConfig(
-        loss=args.loss, arch=args.arch, base=args.base, schedule=args.schedule, target=args.target, init=args.init, batch_size=args.batch_size, steps_per_epoch=args.steps, epochs=args.epochs,
+        loss=args.loss, arch=args.arch, base=args.base, schedule=args.schedule, target=args.target, amplitude=args.amplitude, init=args.init, batch_size=args.batch_size, steps_per_epoch=args.steps, epochs=args.epochs,
         lr=args.lr, seed=args.seed, data=args.data, generator=_generator_config(args),
         validation_clips=args.validation_clips, workers=args.workers, device=args.device, compile=args.compile,
     )
@@ -93,6 +96,14 @@ def _azimuth(text: str) -> tuple:
         lo, hi = (math.radians(float(v)) for v in text.split(","))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected LO,HI in degrees from image-up or 'uniform', got {text!r}") from None
+    return lo, hi
+
+
+def _interval(text: str) -> tuple:
+    try:
+        lo, hi = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected LO,HI, got {text!r}") from None
     return lo, hi
 
 
@@ -127,6 +138,8 @@ def _reconstruct(args: argparse.Namespace) -> int:
         model = load_model(args.model, device=str(device))
     except ValueError as e:
         raise ValueError(f"--model: {e}") from None
+    if args.units == "pixels" and getattr(model, "depth_units", None) != "window":
+        raise ValueError("--units: 'pixels' needs a model that learnt the relief's scale (trained with --amplitude); this one gives depth up to scale")
     ply_relief = PLY_RELIEF if args.ply_relief is None else args.ply_relief
     if not (math.isfinite(ply_relief) and ply_relief > 0):
         raise ValueError(f"--ply-relief: expected a positive finite number, got {ply_relief}")
@@ -153,12 +166,14 @@ def _reconstruct(args: argparse.Namespace) -> int:
         if bar is not None:
             bar.update(done - bar.n)
 
-    depth = reconstruct(frames, model, batch_size=args.batch_size, device=str(device), progress=progress, temporal=args.temporal_align)
+    depth = reconstruct(frames, model, batch_size=args.batch_size, device=str(device), progress=progress, temporal=args.temporal_align, units=args.units)
     if args.flip:
         depth = -depth
     if bar is not None:
         bar.close()
     seconds = time.perf_counter() - start
+    if args.units == "pixels" and args.ply_relief is None:
+        ply_relief = 1.0 / frames.shape[2]  # pixels to frame widths, the PLY's x and y unit
     save_reconstruction(out, frames, depth, fps=video.fps, png16=args.png16, ply=args.ply, ply_relief=ply_relief, overwrite=args.overwrite)
     t, h, w = depth.shape
     print(f"wrote {out}: depth of {t} frames of {w}×{h} in {seconds:.1f} s on {device} "
@@ -198,6 +213,8 @@ def _add_generator_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--grid", type=int, default=64, help="mesh vertices per side")
     p.add_argument("--light-azimuth", type=_azimuth, default=None, metavar="LO,HI",
                    help="light azimuths in degrees from image-up, clockwise (default: -70,70, light from above); 'uniform' for all")
+    p.add_argument("--intensity", type=_interval, default=None, metavar="LO,HI",
+                   help="range of the surfaces' displacement intensity κ (default: 0.03,0.12; 0 is a flat sheet)")
 
 
 class _DefaultsFormatter(argparse.HelpFormatter):
@@ -241,6 +258,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--schedule", default="cosine", help="cosine | constant (a campaign: --epochs may grow on resume) (default: cosine)")
     p.add_argument("--target", default="depth",
                    help="depth (the rendered depth, the paper's) | observable (without the motion along the optical axis that no frame shows) (default: depth)")
+    p.add_argument("--amplitude", type=float, default=0.0,
+                   help="weight of the relief-amplitude term (targets in window widths; the model learns the relief's scale)")
     p.add_argument("--init", default=None, help="model.safetensors or run folder whose weights start a new run (a warm start)")
     p.add_argument("--epochs", type=int, default=20, help="epochs in the run")
     p.add_argument("--steps", type=int, default=500, help="steps per epoch")
@@ -281,6 +300,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="PLY depth standard deviation in frame widths (default: 0.073, as the training surfaces)")
     p.add_argument("--temporal-align", action="store_true",
                    help="give every frame frame 0's plane and relief norm (nrdepth.temporal_align): for models trained with per-frame losses only")
+    p.add_argument("--units", choices=("standard", "pixels"), default="standard",
+                   help="depth.npz's scale: standard (unit std over the video) or pixels (the relief's scale as a model trained with --amplitude reads it)")
     p.add_argument("--flip", action="store_true", help="negate the depth: the other convex/concave reading (the model assumes light from above; use for a video lit from below)")
     p.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

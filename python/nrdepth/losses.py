@@ -32,6 +32,16 @@ second. With ``H = ∇²z`` and ``‖H‖_F = sqrt(z_xx² + 2 z_xy² + z_yy²)``
   per frame): motion along the optical axis is invisible to an orthographic
   camera, so the clip's τ would ask for what no image shows.
 
+``relief_amplitude`` (ours) is not a loss of its own but a term added to one
+(``nrdepth train --amplitude WEIGHT``): every loss above is blind to the
+relief's scale (and a planar target scores 0 for any prediction, so nothing
+teaches a flat sheet to come back flat). It compares the root-mean-square
+relief of each frame (the frame minus its least-squares plane) of pred and
+target on a log scale, ``(log(rms_pred + floor) − log(rms_target + floor))²``,
+so it sets only the scale (the losses above, which standardise pred, keep
+the shape) and needs the target in units the video shows: window widths (an
+orthographic video of a surface scaled by s in x, y and z is the same video).
+
 The invariant losses average over pixels where the target's invariant is
 defined: ``‖H_gt‖_F`` above ``MASK_RATIO`` × that frame's mean (flat and
 planar regions are excluded; a frame with no such pixel contributes nothing).
@@ -54,6 +64,8 @@ __all__ = [
     "aligned_both_signed_loss",
     "aligned_clip_offsets_signed_loss",
     "aligned_both_offsets_signed_loss",
+    "relief_amplitude_loss",
+    "AMPLITUDE_FLOOR",
     "LOSSES",
     "get_loss",
     "derivatives",
@@ -217,6 +229,37 @@ def aligned_clip_offsets_signed_loss(pred: torch.Tensor, target: torch.Tensor) -
 def aligned_both_offsets_signed_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     """Ours: the mean of :func:`aligned_signed_loss` and :func:`aligned_clip_offsets_signed_loss`."""
     return 0.5 * (_signed(pred, target, per_clip=False) + _signed(pred, target, per_clip=True, offsets=True))
+
+
+AMPLITUDE_FLOOR = 2e-3
+"""Floor of :func:`relief_amplitude_loss`'s log, in window widths: the median
+relief of the generator's nearly flat surfaces (intensity below 0.01; that
+of its default surfaces is ~0.037), so reliefs under it count as flat."""
+
+
+def relief_rms(z: torch.Tensor) -> torch.Tensor:
+    """Root-mean-square of each frame of z (B, T, H, W) minus its
+    least-squares plane in the pixel coordinates: (B, T)."""
+    z = _frames("z", z)
+    h, w = z.shape[-2:]
+    ys, xs = torch.meshgrid(torch.arange(h, dtype=z.dtype, device=z.device), torch.arange(w, dtype=z.dtype, device=z.device), indexing="ij")
+    plane = torch.stack([xs.reshape(-1), ys.reshape(-1), torch.ones(h * w, dtype=z.dtype, device=z.device)], -1)  # (P, 3)
+    flat = z.reshape(-1, h * w)
+    relief = flat - (flat @ torch.linalg.pinv(plane).T) @ plane.T
+    return relief.pow(2).mean(-1).add(1e-30).sqrt().reshape(z.shape[:-2])
+
+
+def relief_amplitude_loss(pred: torch.Tensor, target: torch.Tensor, floor: float = AMPLITUDE_FLOOR) -> torch.Tensor:
+    """Ours, a term to add to a GBR-invariant loss: the squared log ratio of
+    each frame's relief amplitude (:func:`relief_rms`, ``floor`` added to
+    both) of pred and target, averaged over frames; both in the same units
+    (window widths in training)."""
+    pred, target = _frames("pred", pred), _frames("target", target)
+    if pred.shape != target.shape:
+        raise ValueError(f"pred: expected the shape of target {tuple(target.shape)}, got {tuple(pred.shape)}")
+    with torch.no_grad():
+        wanted = torch.log(relief_rms(target) + floor)
+    return (torch.log(relief_rms(pred) + floor) - wanted).pow(2).mean()
 
 
 LOSSES: Dict[str, Callable[[torch.Tensor, torch.Tensor], torch.Tensor]] = {

@@ -126,6 +126,7 @@ def reconstruct(
     temporal: bool = False,
     roi: Optional[Tuple[int, int, int, int]] = None,
     frames: Optional[slice] = None,
+    units: str = "standard",
 ) -> np.ndarray:
     """Depth video float32 (T, H, W) of a video (T, H, W) or colour video
     (T, H, W, 3) (uint8, or float in [0, 1]; colour becomes luma, ITU-R
@@ -141,8 +142,13 @@ def reconstruct(
     that predicts the plane's motion, as the shipped model does (off by
     default, as in the paper; README, "Benchmarks"). Depth is defined up to
     one GBR per frame (one for the video with ``temporal``) and returned
-    standardised:
-    zero mean and unit standard deviation over the video. Its overall sign
+    with zero mean over the video, in ``units``: ``"standard"`` (unit
+    standard deviation over the video) or ``"pixels"`` (depth in pixels of
+    the video, the relief's scale as the model reads it: only for a model
+    trained with a relief-amplitude term, whose ``depth_units`` is
+    ``"window"``; the coarse pass sees the whole frame as one window, so a
+    window width is √(H·W) pixels, the frame's width when it is square).
+    Its overall sign
     (convex or concave) follows the training data's light-from-above prior
     (lights within ±70° of image-up, row 0 being the top): under an
     orthographic camera a surface and its mirror image under mirrored lights
@@ -164,8 +170,13 @@ def reconstruct(
         raise TypeError(f"progress: expected a callable progress(done, total) or None, got {type(progress).__name__}")
     if model is not None and not isinstance(model, (str, os.PathLike, torch.nn.Module)):
         raise TypeError(f"model: expected None, a path to model.safetensors or its folder, or a torch.nn.Module, got {type(model).__name__}")
+    if units not in ("standard", "pixels"):
+        raise ValueError(f"units: expected 'standard' or 'pixels', got {units!r}")
     dev = resolve_device(device)
     net = model.to(dev).eval() if isinstance(model, torch.nn.Module) else inference_model(model, dev)
+    if units == "pixels" and getattr(net, "depth_units", None) != "window":
+        raise ValueError("units: 'pixels' needs a model that learnt the relief's scale (model.json's depth_units 'window', "
+                         "nrdepth train --amplitude); this one gives depth up to scale: use units='standard'")
     layout = patch_layout(video.shape)
     stitcher = _core.Stitcher(coarse_depth(video, net, batch_size, dev), layout.patch)
     done = 0
@@ -177,9 +188,12 @@ def reconstruct(
     depth = stitcher.finish()
     if temporal:
         depth = temporal_align(depth)
-    # The network fixes no depth scale (its losses are GBR-invariant): return a
+    mean = depth.mean(dtype=np.float64)
+    if units == "pixels":  # the stitched patches follow the coarse pass: one window the frame
+        return ((depth - mean) * np.sqrt(video.shape[1] * video.shape[2])).astype(np.float32)
+    # A network without a depth scale (GBR-invariant losses only): return a
     # canonical one rather than whatever magnitude its weights drifted to.
-    mean, std = depth.mean(dtype=np.float64), depth.std(dtype=np.float64)
+    std = depth.std(dtype=np.float64)
     return ((depth - mean) / (std if std > 0 else 1.0)).astype(np.float32)
 
 

@@ -33,7 +33,7 @@ import torch
 import torch.distributed as dist
 
 from .generate import GeneratorConfig, generate_clips, observable_depth
-from .losses import get_loss
+from .losses import get_loss, relief_amplitude_loss, relief_rms
 from .metrics import flat_baseline, mae_sn, sign_rates
 from .model import ARCHITECTURES, build_model
 from .model.io import DEFAULT_MODEL, load_model, predict_depth, resolve_device, save_model
@@ -42,6 +42,7 @@ from .surface import _check_int, _check_seed
 __all__ = ["TrainConfig", "train", "load_model", "save_model", "predict_depth", "DEFAULT_MODEL", "resolve_device"]
 
 VALIDATION_SEED_OFFSET = 1_000_003
+CALIBRATION_CLIPS = 32
 
 
 @dataclass
@@ -80,6 +81,12 @@ class TrainConfig:
     motion along the optical axis, which the video cannot show:
     :func:`nrdepth.generate.observable_depth`). Validation scores the
     rendered depth either way."""
+    amplitude: float = 0.0
+    """Weight of :func:`nrdepth.losses.relief_amplitude_loss` added to the
+    loss; above 0, targets are in window widths and the model learns the
+    relief's scale (``model.json``'s ``depth_units`` says ``"window"``), so
+    ``reconstruct(..., units="pixels")`` can give depth in pixels and a flat
+    sheet can come back flat."""
     init: Optional[str] = None
     """A model (``model.safetensors`` or its run folder) whose weights start
     a new run (a warm start; same architecture and width); ignored on
@@ -105,6 +112,9 @@ class TrainConfig:
         if isinstance(self.lr, bool) or not (isinstance(self.lr, (int, float, np.floating)) and math.isfinite(self.lr) and self.lr > 0):
             raise ValueError(f"lr: expected a positive number, got {self.lr!r}")
         self.lr = float(self.lr)
+        if isinstance(self.amplitude, bool) or not (isinstance(self.amplitude, (int, float, np.floating)) and math.isfinite(self.amplitude) and self.amplitude >= 0):
+            raise ValueError(f"amplitude: expected a weight >= 0, got {self.amplitude!r}")
+        self.amplitude = float(self.amplitude)
         self.seed = _check_seed("seed", self.seed)
         self.workers = _check_int("workers", self.workers)
         if self.workers < 0:
@@ -139,7 +149,7 @@ class TrainConfig:
         campaign steps it down by hand)."""
         free = ("workers", "device", "init") + (("epochs", "lr") if self.schedule == "constant" else ())
         mine = json.loads(json.dumps(self.as_dict()))
-        saved = {"target": "depth", **saved}  # runs saved before the option trained on the rendered depth
+        saved = {"target": "depth", "amplitude": 0.0, **saved}  # runs saved before these options had their defaults
         return {k: v for k, v in mine.items() if k not in free} == {k: v for k, v in saved.items() if k not in free}
 
 
@@ -150,11 +160,17 @@ TARGETS = {
 """TrainConfig.target: the training target of one clip from its depth and params."""
 
 
-def targets(name: str, depth: np.ndarray, params: list) -> np.ndarray:
-    """The training targets (B, T, H, W) of a batch's depths and params."""
-    if name == "depth":  # the rendered depth itself: no per-clip copy
-        return depth
-    return np.stack([TARGETS[name](d, p) for d, p in zip(depth, params)])
+def targets(name: str, depth: np.ndarray, params: list, window_units: bool = False) -> np.ndarray:
+    """The training targets (B, T, H, W) of a batch's depths and params; in
+    window widths with ``window_units`` (else in world units)."""
+    # "depth" is the rendered depth itself: no per-clip copy.
+    out = depth if name == "depth" else np.stack([TARGETS[name](d, p) for d, p in zip(depth, params)])
+    return out / window_widths(params)[:, None, None, None] if window_units else out
+
+
+def window_widths(params: list) -> np.ndarray:
+    """The view window's side in world units of each clip of ``params``: float32 (B,)."""
+    return np.array([p["window"][2] - p["window"][0] for p in params], dtype=np.float32)
 
 
 def to_tensors(video: np.ndarray, depth: np.ndarray) -> Tuple[torch.Tensor, torch.Tensor]:
@@ -168,25 +184,25 @@ def to_tensors(video: np.ndarray, depth: np.ndarray) -> Tuple[torch.Tensor, torc
 class OnlineBatches(torch.utils.data.Dataset):
     """Batch k: clips k·B .. (k+1)·B of the generator run (config, seed)."""
 
-    def __init__(self, config: GeneratorConfig, seed: int, batch_size: int, target: str = "depth") -> None:
-        self.config, self.seed, self.batch_size, self.target = config, seed, batch_size, target
+    def __init__(self, config: GeneratorConfig, seed: int, batch_size: int, target: str = "depth", window_units: bool = False) -> None:
+        self.config, self.seed, self.batch_size, self.target, self.window_units = config, seed, batch_size, target, window_units
 
     def __len__(self) -> int:
         return 2**40
 
     def __getitem__(self, k: int):
         clips = generate_clips(self.batch_size, seed=self.seed, config=self.config, start=k * self.batch_size)
-        return to_tensors(clips.video, targets(self.target, clips.depth, clips.params))
+        return to_tensors(clips.video, targets(self.target, clips.depth, clips.params, self.window_units))
 
 
 class StoredBatches(torch.utils.data.Dataset):
     """Batch k of the train split: a permutation seeded by (seed, epoch)."""
 
-    def __init__(self, root: str, seed: int, batch_size: int, target: str = "depth") -> None:
+    def __init__(self, root: str, seed: int, batch_size: int, target: str = "depth", window_units: bool = False) -> None:
         from .dataset import ClipStore
 
         self.store = ClipStore(root, "train")
-        self.seed, self.batch_size, self.target = seed, batch_size, target
+        self.seed, self.batch_size, self.target, self.window_units = seed, batch_size, target, window_units
         if len(self.store) < batch_size:
             raise ValueError(f"data: the train split has {len(self.store)} clips, fewer than batch_size {batch_size}")
 
@@ -198,11 +214,12 @@ class StoredBatches(torch.utils.data.Dataset):
         epoch, j = divmod(k, per_epoch)
         order = np.random.default_rng([self.seed, epoch]).permutation(len(self.store))
         items = [self.store[int(i)] for i in order[j * self.batch_size : (j + 1) * self.batch_size]]
-        depth = targets(self.target, np.stack([d for _, d, _ in items]), [p for _, _, p in items])
+        depth = targets(self.target, np.stack([d for _, d, _ in items]), [p for _, _, p in items], self.window_units)
         return to_tensors(np.stack([v for v, _, _ in items]), depth)
 
 
-def validation_set(config: TrainConfig) -> Tuple[np.ndarray, np.ndarray]:
+def validation_set(config: TrainConfig) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Validation videos, depths (world units) and window widths."""
     if config.data is not None:
         from .dataset import ClipStore
 
@@ -210,9 +227,9 @@ def validation_set(config: TrainConfig) -> Tuple[np.ndarray, np.ndarray]:
         if len(store) == 0:
             raise ValueError(f"data: the validation split of {config.data} is empty (it is 10 % of the clips, rounded down: write at least 10)")
         items = [store[i] for i in range(min(len(store), config.validation_clips))]
-        return np.stack([v for v, _, _ in items]), np.stack([d for _, d, _ in items])
+        return np.stack([v for v, _, _ in items]), np.stack([d for _, d, _ in items]), window_widths([p for _, _, p in items])
     clips = generate_clips(config.validation_clips, seed=config.seed + VALIDATION_SEED_OFFSET, config=config.generator)
-    return clips.video, clips.depth
+    return clips.video, clips.depth, window_widths(clips.params)
 
 
 def evaluate_depth(pred: np.ndarray, depth_half: np.ndarray) -> Dict[str, float]:
@@ -227,6 +244,14 @@ def evaluate_depth(pred: np.ndarray, depth_half: np.ndarray) -> Dict[str, float]
         for k, v in sign_rates(p, g).items():
             scores[k].append(v)
     return {k: float(np.mean(v)) for k, v in scores.items()}
+
+
+def relief_ratio(pred: np.ndarray, truth: np.ndarray) -> float:
+    """The geometric mean over frames of the ratio of predicted to true relief
+    amplitude (:func:`nrdepth.losses.relief_rms`; 1 is right, and both must be
+    in the same units)."""
+    ratio = relief_rms(torch.from_numpy(pred).double()) / relief_rms(torch.from_numpy(np.asarray(truth)).double())
+    return float(torch.exp(torch.log(ratio).mean()))
 
 
 def _atomic_save(obj: Any, path: Path) -> None:
@@ -266,9 +291,10 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
     rank, world = (dist.get_rank(), dist.get_world_size()) if distributed else (0, 1)
     leader = rank == 0
     # The data is opened (and refused if bad) before anything is written.
-    data = (StoredBatches(config.data, config.seed, config.batch_size, config.target) if config.data
-            else OnlineBatches(config.generator, config.seed, config.batch_size, config.target))
-    video_val, depth_val = validation_set(config) if leader else (None, None)
+    window_units = config.amplitude > 0
+    data = (StoredBatches(config.data, config.seed, config.batch_size, config.target, window_units) if config.data
+            else OnlineBatches(config.generator, config.seed, config.batch_size, config.target, window_units))
+    video_val, depth_val, widths_val = validation_set(config) if leader else (None, None, None)
     warm_start = _warm_start(config) if config.init is not None and not (out / "last.pt").exists() else None
     depth_val_half = torch.nn.functional.avg_pool2d(torch.from_numpy(depth_val).float(), 2).numpy() if leader else None
     if leader:
@@ -341,6 +367,8 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
             with torch.autocast(device.type, dtype=torch.bfloat16, enabled=amp):
                 pred = net(video)[:, 0]
             loss = loss_fn(pred.float(), target)
+            if window_units:
+                loss = loss + config.amplitude * relief_amplitude_loss(pred.float(), target)
             loss.backward()
             optimiser.step()
             schedule.step()
@@ -360,7 +388,10 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
             in_sync = len(set(digests)) == 1
         if not leader:
             continue
-        scores = evaluate_depth(predict_depth(model, video_val, config.batch_size, device), depth_val_half)
+        pred_val = predict_depth(model, video_val, config.batch_size, device)
+        scores = evaluate_depth(pred_val, depth_val_half)
+        if window_units:
+            scores["relief_ratio"] = relief_ratio(pred_val, depth_val_half / widths_val[:, None, None, None])
         row = {"epoch": epoch + 1, "step": (epoch + 1) * config.steps_per_epoch,
                "clips_seen": (epoch + 1) * config.steps_per_epoch * config.batch_size * world,
                "train_seconds": round(state["seconds"], 1), "lr": schedule.get_last_lr()[0],
@@ -388,11 +419,21 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
 
 
 def _warm_start(config: TrainConfig) -> Dict[str, torch.Tensor]:
-    """The weights of ``config.init``, refused unless they fit this run's network."""
-    theirs = load_model(config.init, device="cpu").state_dict()
+    """The weights of ``config.init``, refused unless they fit this run's
+    network. A run that learns the relief's scale (``amplitude`` > 0) from a
+    model that did not has the model's linear head divided by its relief
+    ratio on ``CALIBRATION_CLIPS`` validation clips: the same depths up to
+    scale, at the right scale on average, so the amplitude term starts small."""
+    model = load_model(config.init, device="cpu")
+    theirs = model.state_dict()
     mine = build_model(config.arch, **config.model_config()).state_dict()
     if mine.keys() != theirs.keys() or any(mine[k].shape != theirs[k].shape for k in mine):
         raise ValueError(f"init: {config.init} holds another network than this run's {config.arch} {config.model_config() or '(default width)'}")
+    if config.amplitude > 0 and model.depth_units != "window":
+        clips = generate_clips(CALIBRATION_CLIPS, seed=config.seed + VALIDATION_SEED_OFFSET, config=config.generator)
+        truth = torch.nn.functional.avg_pool2d(torch.from_numpy(clips.depth).float(), 2).numpy() / window_widths(clips.params)[:, None, None, None]
+        ratio = relief_ratio(predict_depth(model, clips.video), truth)
+        theirs = {k: v / ratio if k.startswith("head.") else v for k, v in theirs.items()}
     return theirs
 
 
@@ -413,7 +454,8 @@ def _finish_epoch(out: Path, model: torch.nn.Module, checkpoint: Dict[str, Any],
     row, epoch = checkpoint["row"], checkpoint["row"]["epoch"]
     if checkpoint["improved"]:
         _atomic_save(checkpoint, out / "best.pt")
-        save_model(model, out / "model.safetensors", {"loss": config.loss, "validation": checkpoint["scores"], "epoch": epoch})
+        units = {"depth_units": "window"} if config.amplitude > 0 else {}
+        save_model(model, out / "model.safetensors", {"loss": config.loss, "validation": checkpoint["scores"], "epoch": epoch, **units})
     _write_metrics_row(out / "metrics.csv", row)
 
 

@@ -90,8 +90,10 @@ def save_model(model: nn.Module, path: Union[str, os.PathLike], extra: Optional[
 def load_model(path: Optional[Union[str, os.PathLike]] = None, device: str = "cpu") -> nn.Module:
     """The model in ``model.safetensors`` (and the ``model.json`` beside it),
     a run folder holding them, or, with ``path=None``, the default model that
-    ships in the package (:data:`DEFAULT_MODEL`). Errors name the file and
-    what is wrong with it (``ValueError``)."""
+    ships in the package (:data:`DEFAULT_MODEL`). The model's
+    ``depth_units`` is ``model.json``'s: ``"window"`` where its output is depth
+    in widths of the view window, else None (depth up to scale). Errors name
+    the file and what is wrong with it (``ValueError``)."""
     from safetensors.torch import load_file
 
     if path is not None and not isinstance(path, (str, os.PathLike)):
@@ -124,6 +126,9 @@ def load_model(path: Optional[Union[str, os.PathLike]] = None, device: str = "cp
     except RuntimeError as e:
         first = str(e).strip().splitlines()[1:2] or [str(e)[:200]]
         raise ValueError(f"{path}: the weights do not fit the architecture in {meta_path.name} ({name}, {meta['config']}): {first[0].strip()}") from None
+    # What the output's scale means: "window" (depth in view-window widths,
+    # a model trained with a relief-amplitude term) or None (no scale).
+    model.depth_units = meta.get("depth_units")
     return model.to(resolve_device(device)).eval()
 
 
