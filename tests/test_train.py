@@ -219,5 +219,7 @@ def test_an_amplitude_run_trains_on_window_widths_and_its_warm_start_is_calibrat
     before = relief_ratio(predict_depth(load_model(tmp_path / "first"), check.video), truth)
     assert abs(before - 1) > 0.1 and abs(relief_ratio(predict_depth(model, check.video), truth) - 1) < 1e-3
     assert float(rows(tmp_path / "warm")[0]["val_relief_ratio"]) > 0
+    summary = nrdepth.evaluate.evaluate(tmp_path / "warm", clips=2, config=generator, device="cpu")
+    assert summary["relief_ratio"]["geometric_mean"] > 0 and "relief_ratio" not in nrdepth.evaluate.evaluate(tmp_path / "first", clips=2, config=generator, device="cpu")
     with pytest.raises(ValueError, match="^amplitude:"):
         TrainConfig(amplitude=-1.0)

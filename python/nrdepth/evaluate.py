@@ -1,6 +1,8 @@
 """Held-out evaluation of a model: per-clip MAE-SN (both alignments) beside
 the flat baseline, as in the paper's table "synthetic_data", and the relief's
-sign-correct rate (frames) and in-clip flip rate (clips).
+sign-correct rate (frames) and in-clip flip rate (clips); for a model that
+learnt the relief's scale (``depth_units`` "window"), the ratio of its relief
+amplitude to the truth's.
 
 Predictions are at the network's half resolution; the ground truth is brought
 to it by 2×2 means. Data: a dataset folder's test split, or, without one,
@@ -45,10 +47,10 @@ def evaluate(
 
         store = ClipStore(data, "test")
         items = [store[i] for i in range(min(clips, len(store)))]
-        video, depth = np.stack([v for v, _, _ in items]), np.stack([d for _, d, _ in items])
+        video, depth, params = np.stack([v for v, _, _ in items]), np.stack([d for _, d, _ in items]), [p for _, _, p in items]
     else:
         generated = generate_clips(clips, seed=TEST_SEED, config=config or GeneratorConfig())
-        video, depth = generated.video, generated.depth
+        video, depth, params = generated.video, generated.depth, generated.params
     pred = predict_depth(net, video, batch_size)
     truth = torch.nn.functional.avg_pool2d(torch.from_numpy(depth).float(), 2).numpy()
     rows = []
@@ -63,10 +65,19 @@ def evaluate(
             "flat_first_offset": flat_baseline(g, "first_offset"),
             **sign_rates(p, g),
         })
+    if net.depth_units == "window":  # a model that learnt the relief's scale: how well
+        from .train import relief_ratio, window_widths
+
+        in_windows = truth / window_widths(params)[:, None, None, None]
+        for row, p, g in zip(rows, pred, in_windows):
+            row["relief_ratio"] = relief_ratio(p[None], g[None])
     summary: Dict[str, Any] = {"clips": len(rows), "model": str(model), "data": str(data) if data else f"generated, seed {TEST_SEED}"}
     for key in ("mae_sn_frame", "mae_sn_first", "mae_sn_first_offset", "flat_frame", "flat_first", "flat_first_offset", "sign_correct", "flip"):
         values = np.array([r[key] for r in rows])
         summary[key] = {"mean": float(values.mean()), "std": float(values.std())}
+    if "relief_ratio" in rows[0]:  # a ratio: its geometric mean and the spread of its log
+        logs = np.log([r["relief_ratio"] for r in rows])
+        summary["relief_ratio"] = {"geometric_mean": float(np.exp(logs.mean())), "log_std": float(logs.std())}
     if out is not None:
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
@@ -88,4 +99,5 @@ def format_summary(summary: Dict[str, Any]) -> str:
         f"{'alignment from 1st frame':26s}{s['mae_sn_first']['mean']:>9.4f} ± {s['mae_sn_first']['std']:.4f}{s['flat_first']['mean']:>11.4f} ± {s['flat_first']['std']:.4f}",
         f"{'1st frame, offset per frame':26s}{s['mae_sn_first_offset']['mean']:>9.4f} ± {s['mae_sn_first_offset']['std']:.4f}{s['flat_first_offset']['mean']:>11.4f} ± {s['flat_first_offset']['std']:.4f}",
         f"relief sign correct in {100 * s['sign_correct']['mean']:.1f} % of frames; it flips inside {100 * s['flip']['mean']:.1f} % of clips",
-    ])
+    ] + ([f"relief amplitude / the truth's: geometric mean {s['relief_ratio']['geometric_mean']:.3f} over clips "
+          f"(log std {s['relief_ratio']['log_std']:.3f})"] if "relief_ratio" in s else []))
