@@ -45,6 +45,10 @@ def test_pictures_carry_readable_labels():
     out = with_colour_bar(titled(picture, ["x", "y"], 30), "far", "near")
     assert out.shape[0] == 40 + 22 and out.shape[1] > 60
     assert (out[:22] == 0).any()  # the titles are drawn in black on the white band
+    # A title wider than its column wraps inside it instead of running into the next.
+    wrapped = titled(np.full((40, 90, 3), 128, np.uint8), ["ground truth", "", "nrdepth (gbr-aligned)"], 30)
+    band = wrapped[: wrapped.shape[0] - 40] == 0
+    assert wrapped.shape[0] > 62 and band[:, :30].any() and band[:, 60:].any() and not band[:, 30:60].any()
 
 
 def test_help_shows_defaults():

@@ -268,7 +268,7 @@ def test_a_flat_textured_sheet_comes_back_flat(family):
     video, depth = flat_sheet_video(family)
     truth = depth * video.shape[2] / FLAT_SHEET_WINDOW  # world units to pixels
     assert flat_sheet_residual(nrdepth.reconstruct(video, device="cpu", units="pixels"), truth) < 0.2
-    # ... and not because it reads every sheet as flat: bumps of 3 % of the
+    # ... and not because it reads every sheet as flat: bumps whose RMS is 3 % of the
     # frame's width come back at their scale, within a factor of 2.
     video, depth = flat_sheet_video(family, relief=0.08)
     relief = plane_residuals(nrdepth.reconstruct(video, device="cpu", units="pixels")) / plane_residuals(depth * video.shape[2] / FLAT_SHEET_WINDOW)

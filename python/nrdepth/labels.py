@@ -61,13 +61,35 @@ def _stamp(canvas: np.ndarray, mask: np.ndarray, top: int, left: int, colour=(0,
 
 def titled(picture: np.ndarray, titles: Sequence[str], cell_width: int, scale: int = 2) -> np.ndarray:
     """The picture (H, W, 3) uint8 under a white band holding one title
-    centred over each column of ``cell_width`` pixels."""
-    band = np.full((7 * scale + 8, picture.shape[1], 3), 255, np.uint8)
-    for k, title in enumerate(titles):
-        mask = text(title, scale)
+    centred over each column of ``cell_width`` pixels; a title wider than its
+    column is wrapped at spaces, and drawn smaller if a word still does not
+    fit."""
+    blocks = [_wrapped(title, cell_width, scale) for title in titles]
+    band = np.full((max(b.shape[0] for b in blocks) + 8, picture.shape[1], 3), 255, np.uint8)
+    for k, mask in enumerate(blocks):
         left = max(k * cell_width + (cell_width - mask.shape[1]) // 2, k * cell_width)
-        _stamp(band, mask[:, : cell_width], 4, left)
+        _stamp(band, mask[:, :cell_width], 4, left)
     return np.concatenate([band, picture], axis=0)
+
+
+def _wrapped(title: str, width: int, scale: int) -> np.ndarray:
+    """``title`` as lines no wider than ``width`` at the largest scale up to
+    ``scale`` where every word fits (scale 1 at least): a bool mask."""
+    words = title.split(" ")
+    while scale > 1 and max(text(w, scale).shape[1] for w in words) > width:
+        scale -= 1
+    lines = [words[0]]
+    for word in words[1:]:
+        if text(f"{lines[-1]} {word}", scale).shape[1] <= width:
+            lines[-1] = f"{lines[-1]} {word}"
+        else:
+            lines.append(word)
+    masks = [text(line, scale) for line in lines]
+    block = np.zeros((len(masks) * 8 * scale - scale, max(m.shape[1] for m in masks)), bool)  # a blank row of scale between lines
+    for i, m in enumerate(masks):
+        offset = (block.shape[1] - m.shape[1]) // 2
+        block[i * 8 * scale : i * 8 * scale + 7 * scale, offset : offset + m.shape[1]] = m
+    return block
 
 
 def with_colour_bar(picture: np.ndarray, low: str, high: str, ramp=None, scale: int = 2) -> np.ndarray:
