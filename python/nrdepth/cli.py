@@ -92,18 +92,15 @@ def _evaluate(args: argparse.Namespace) -> int:
 def _azimuth(text: str) -> tuple:
     if text == "uniform":
         return (-math.pi, math.pi)
-    try:
-        lo, hi = (math.radians(float(v)) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected LO,HI in degrees from image-up or 'uniform', got {text!r}") from None
-    return lo, hi
+    lo, hi = _interval(text, "LO,HI in degrees from image-up or 'uniform'")
+    return math.radians(lo), math.radians(hi)
 
 
-def _interval(text: str) -> tuple:
+def _interval(text: str, expected: str = "LO,HI") -> tuple:
     try:
         lo, hi = (float(v) for v in text.split(","))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected LO,HI, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
     return lo, hi
 
 
