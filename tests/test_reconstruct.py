@@ -179,12 +179,14 @@ def test_interrupted_save_leaves_nothing(tmp_path, monkeypatch):
     assert list(tmp_path.iterdir()) == []
 
 
-def test_shipped_model_loads_and_is_documented():
-    meta = json.loads(DEFAULT_MODEL.with_suffix(".json").read_text())
-    model = load_model()
+@pytest.mark.parametrize("path", [DEFAULT_MODEL, nrdepth.model.SCALED_MODEL], ids=["default", "scaled"])
+def test_shipped_models_load_and_are_documented(path):
+    meta = json.loads(path.with_suffix(".json").read_text())
+    model = load_model(path)
     assert nrdepth.model.architecture_name(model) == meta["architecture"] and model.config == meta["config"]
     assert {"held_out", "training", "loss"} <= set(meta)
-    assert DEFAULT_MODEL.stat().st_size < 20 * 2**20
+    assert path.stat().st_size < 20 * 2**20
+    assert model.depth_units == ("window" if path == nrdepth.model.SCALED_MODEL else None)
 
 
 def test_shipped_model_beats_the_flat_baseline_on_a_generated_256_video():

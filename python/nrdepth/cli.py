@@ -123,7 +123,7 @@ def _frames(text: str) -> slice:
 
 
 def _reconstruct(args: argparse.Namespace) -> int:
-    from .model.io import load_model, resolve_device
+    from .model.io import SCALED_MODEL, load_model, resolve_device
     from .stitch import reconstruct
     from .videoio import PLY_RELIEF, check_output_folder, read_video, save_reconstruction, select
 
@@ -132,7 +132,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
     if args.model is not None and not Path(args.model).exists():
         raise ValueError(f"--model: {args.model} not found")
     try:
-        model = load_model(args.model, device=str(device))
+        model = load_model(SCALED_MODEL if args.model is None and args.units == "pixels" else args.model, device=str(device))
     except ValueError as e:
         raise ValueError(f"--model: {e}") from None
     if args.units == "pixels" and getattr(model, "depth_units", None) != "window":
@@ -298,7 +298,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--temporal-align", action="store_true",
                    help="give every frame frame 0's plane and relief norm (nrdepth.temporal_align): for models trained with per-frame losses only")
     p.add_argument("--units", choices=("standard", "pixels"), default="standard",
-                   help="depth.npz's scale: standard (unit std over the video) or pixels (the relief's scale as a model trained with --amplitude reads it)")
+                   help="depth.npz's scale: standard (unit std over the video) or pixels (the relief's scale as a model trained with --amplitude reads it; "
+                   "without --model, the shipped one that learnt it)")
     p.add_argument("--flip", action="store_true", help="negate the depth: the other convex/concave reading (the model assumes light from above; use for a video lit from below)")
     p.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

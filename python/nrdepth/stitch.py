@@ -146,7 +146,8 @@ def reconstruct(
     standard deviation over the video) or ``"pixels"`` (depth in pixels of
     the video, the relief's scale as the model reads it: only for a model
     trained with a relief-amplitude term, whose ``depth_units`` is
-    ``"window"``; the coarse pass sees the whole frame as one window, so a
+    ``"window"``, by default the shipped one that learnt it,
+    :data:`nrdepth.model.SCALED_MODEL`; the coarse pass sees the whole frame as one window, so a
     window width is √(H·W) pixels, the frame's width when it is square).
     Its overall sign
     (convex or concave) follows the training data's light-from-above prior
@@ -173,6 +174,10 @@ def reconstruct(
     if units not in ("standard", "pixels"):
         raise ValueError(f"units: expected 'standard' or 'pixels', got {units!r}")
     dev = resolve_device(device)
+    if model is None and units == "pixels":
+        from .model.io import SCALED_MODEL
+
+        model = SCALED_MODEL
     net = model.to(dev).eval() if isinstance(model, torch.nn.Module) else inference_model(model, dev)
     if units == "pixels" and getattr(net, "depth_units", None) != "window":
         raise ValueError("units: 'pixels' needs a model that learnt the relief's scale (model.json's depth_units 'window', "

@@ -2,13 +2,14 @@
 a factorised (2+1)D U-Net built for a CPU's budget (:class:`UNet2p1D`), and
 models by name, on disk and at work (:mod:`nrdepth.model.io`)."""
 
-from .io import ARCHITECTURES, DEFAULT_MODEL, architecture_name, build_model, load_model, predict_depth, resolve_device, save_model
+from .io import ARCHITECTURES, DEFAULT_MODEL, SCALED_MODEL, architecture_name, build_model, load_model, predict_depth, resolve_device, save_model
 from .unet import UNet3D, count_parameters
 from .unet2p1d import UNet2p1D
 
 __all__ = [
     "ARCHITECTURES",
     "DEFAULT_MODEL",
+    "SCALED_MODEL",
     "UNet2p1D",
     "UNet3D",
     "architecture_name",

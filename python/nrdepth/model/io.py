@@ -23,7 +23,7 @@ from torch import nn
 from .unet import UNet3D
 from .unet2p1d import UNet2p1D
 
-__all__ = ["ARCHITECTURES", "DEFAULT_MODEL", "build_model", "architecture_name", "save_model", "load_model", "predict_depth", "resolve_device"]
+__all__ = ["ARCHITECTURES", "DEFAULT_MODEL", "SCALED_MODEL", "build_model", "architecture_name", "save_model", "load_model", "predict_depth", "resolve_device"]
 
 ARCHITECTURES: Dict[str, Callable[..., nn.Module]] = {"unet3d": UNet3D, "unet2p1d": UNet2p1D}
 """Architecture name → constructor; every model stores its keyword arguments in ``.config``."""
@@ -31,6 +31,12 @@ ARCHITECTURES: Dict[str, Callable[..., nn.Module]] = {"unet3d": UNet3D, "unet2p1
 DEFAULT_MODEL = Path(__file__).resolve().parent.parent / "weights" / "default.safetensors"
 """The shipped default model (weights; its architecture, training loss and
 held-out scores are in ``default.json`` beside it)."""
+
+SCALED_MODEL = DEFAULT_MODEL.with_name("scaled.safetensors")
+"""The shipped model that learnt the relief's scale (``depth_units``
+"window"; trained with a relief-amplitude term): what ``reconstruct(...,
+units="pixels")`` uses without a model. A flat sheet comes back flat; its
+MAE-SN is a little behind :data:`DEFAULT_MODEL`'s (``scaled.json``)."""
 
 
 def build_model(architecture: str, **config: Any) -> nn.Module:
