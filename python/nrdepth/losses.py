@@ -65,6 +65,7 @@ __all__ = [
     "aligned_clip_offsets_signed_loss",
     "aligned_both_offsets_signed_loss",
     "relief_amplitude_loss",
+    "relief_rms",
     "AMPLITUDE_FLOOR",
     "LOSSES",
     "get_loss",

@@ -146,12 +146,12 @@ def reconstruct(
     standard deviation over the video) or ``"pixels"`` (depth in pixels of
     the video, the relief's scale as the model reads it: only for a model
     trained with a relief-amplitude term, whose ``depth_units`` is
-    ``"window"``, by default the shipped one that learnt it,
-    :data:`nrdepth.model.SCALED_MODEL`; the coarse pass sees the whole frame as one window, so a
-    window width is √(H·W) pixels, the frame's width when it is square).
-    Its overall sign
-    (convex or concave) follows the training data's light-from-above prior
-    (lights within ±70° of image-up, row 0 being the top): under an
+    ``"window"``; without ``model``, the shipped one that learnt it,
+    :data:`nrdepth.model.SCALED_MODEL`. The coarse pass sees the whole
+    frame as one window, so a window width is √(H·W) pixels, the frame's
+    width when it is square). Its overall sign (convex or concave) follows
+    the training data's light-from-above prior (lights within ±70° of
+    image-up, row 0 being the top): under an
     orthographic camera a surface and its mirror image under mirrored lights
     make the same video, so a video lit from below reads inverted, and
     ``-depth`` is the other reading. The sign is consistent over space and
