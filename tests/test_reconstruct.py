@@ -264,7 +264,8 @@ def test_the_flat_sheet_measure_tells_a_plane_from_relief():
 
 @pytest.mark.parametrize("family", ["fractal", "weave"])
 def test_a_flat_textured_sheet_comes_back_flat(family):
-    # In pixels, the relief's scale as the shipped model reads it: the sheet
+    # In pixels (without a model, the shipped scaled one), the relief's scale
+    # as the model reads it: the sheet
     # turns without moving in the image, so its tilt shows only in the light,
     # and a reconstruction that stays flat is all the frames allow.
     video, depth = flat_sheet_video(family)

@@ -197,12 +197,16 @@ def test_a_warm_start_begins_from_the_given_weights_and_refuses_another_network(
 
 
 def test_an_amplitude_run_trains_on_window_widths_and_its_warm_start_is_calibrated(tmp_path):
-    from nrdepth.train import CALIBRATION_CLIPS, VALIDATION_SEED_OFFSET, relief_ratio, targets, window_widths
+    from nrdepth.evaluate import relief_ratio
+    from nrdepth.generate import window_widths
+    from nrdepth.train import CALIBRATION_CLIPS, VALIDATION_SEED_OFFSET, targets
 
     generator = TINY["generator"]
     clips = nrdepth.generate_clips(3, seed=1, config=generator)
     widths = window_widths(clips.params)
-    assert np.allclose(widths, [p["window"][2] - p["window"][0] for p in clips.params])
+    # The window is square, and its side lies in the range it was drawn from.
+    assert np.allclose(widths, [p["window"][3] - p["window"][1] for p in clips.params])
+    assert all(generator.window_width[0] <= w <= generator.window_width[1] for w in widths)
     scaled = targets("observable", clips.depth, clips.params, window_units=True)
     assert np.allclose(scaled * widths[:, None, None, None], targets("observable", clips.depth, clips.params), rtol=1e-6)
 

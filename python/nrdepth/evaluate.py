@@ -20,11 +20,12 @@ from typing import Any, Dict, Optional, Union
 import numpy as np
 import torch
 
-from .generate import GeneratorConfig, generate_clips
+from .generate import GeneratorConfig, generate_clips, window_widths
+from .losses import relief_rms
 from .metrics import flat_baseline, mae_sn, sign_rates
 from .model.io import load_model, predict_depth, resolve_device
 
-__all__ = ["evaluate", "TEST_SEED"]
+__all__ = ["evaluate", "relief_ratio", "TEST_SEED"]
 
 TEST_SEED = 2_000_003
 """Generator seed of the held-out clips when no dataset is given."""
@@ -66,8 +67,6 @@ def evaluate(
             **sign_rates(p, g),
         })
     if net.depth_units == "window":  # a model that learnt the relief's scale: how well
-        from .train import relief_ratio, window_widths
-
         in_windows = truth / window_widths(params)[:, None, None, None]
         for row, p, g in zip(rows, pred, in_windows):
             row["relief_ratio"] = relief_ratio(p[None], g[None])
@@ -87,6 +86,14 @@ def evaluate(
             writer.writerows(rows)
         (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     return summary
+
+
+def relief_ratio(pred: np.ndarray, truth: np.ndarray) -> float:
+    """The geometric mean over frames of the ratio of predicted to true relief
+    amplitude (:func:`nrdepth.losses.relief_rms`; 1 is right, and both must be
+    in the same units)."""
+    ratio = relief_rms(torch.from_numpy(pred).double()) / relief_rms(torch.from_numpy(np.asarray(truth)).double())
+    return float(torch.exp(torch.log(ratio).mean()))
 
 
 def format_summary(summary: Dict[str, Any]) -> str:

@@ -17,7 +17,7 @@ import numpy as np
 from . import _core
 from .surface import SurfaceConfig, _check_int, _check_seed, _float_tuple
 
-__all__ = ["GeneratorConfig", "Clips", "generate_clips", "observable_depth"]
+__all__ = ["GeneratorConfig", "Clips", "generate_clips", "observable_depth", "window_widths"]
 
 _DEFAULT = _core.default_generator_config()
 Interval = Tuple[float, float]
@@ -167,3 +167,9 @@ def observable_depth(depth: np.ndarray, params: Dict[str, Any]) -> np.ndarray:
     t = np.linspace(0.0, 1.0, depth.shape[0]) if depth.shape[0] > 1 else np.zeros(1)
     # depth = camera_z − z and z grows by t · drift_z: adding it back removes the motion.
     return (depth + (drift_z * t)[:, None, None]).astype(depth.dtype)
+
+
+def window_widths(params: list) -> np.ndarray:
+    """The view window's side in world units of each clip of ``params`` (a
+    list of ``Clips.params`` entries): float32 (B,)."""
+    return np.array([p["window"][2] - p["window"][0] for p in params], dtype=np.float32)

@@ -32,8 +32,9 @@ import numpy as np
 import torch
 import torch.distributed as dist
 
-from .generate import GeneratorConfig, generate_clips, observable_depth
-from .losses import get_loss, relief_amplitude_loss, relief_rms
+from .evaluate import relief_ratio
+from .generate import GeneratorConfig, generate_clips, observable_depth, window_widths
+from .losses import get_loss, relief_amplitude_loss
 from .metrics import flat_baseline, mae_sn, sign_rates
 from .model import ARCHITECTURES, build_model
 from .model.io import DEFAULT_MODEL, load_model, predict_depth, resolve_device, save_model
@@ -168,11 +169,6 @@ def targets(name: str, depth: np.ndarray, params: list, window_units: bool = Fal
     return out / window_widths(params)[:, None, None, None] if window_units else out
 
 
-def window_widths(params: list) -> np.ndarray:
-    """The view window's side in world units of each clip of ``params``: float32 (B,)."""
-    return np.array([p["window"][2] - p["window"][0] for p in params], dtype=np.float32)
-
-
 def to_tensors(video: np.ndarray, depth: np.ndarray) -> Tuple[torch.Tensor, torch.Tensor]:
     """uint8 video (B, T, H, W) → float (B, 1, T, H, W) in [0, 1]; depth (B, T, H, W)
     → the network's target at half resolution (B, T, H/2, W/2), 2×2 means."""
@@ -244,14 +240,6 @@ def evaluate_depth(pred: np.ndarray, depth_half: np.ndarray) -> Dict[str, float]
         for k, v in sign_rates(p, g).items():
             scores[k].append(v)
     return {k: float(np.mean(v)) for k, v in scores.items()}
-
-
-def relief_ratio(pred: np.ndarray, truth: np.ndarray) -> float:
-    """The geometric mean over frames of the ratio of predicted to true relief
-    amplitude (:func:`nrdepth.losses.relief_rms`; 1 is right, and both must be
-    in the same units)."""
-    ratio = relief_rms(torch.from_numpy(pred).double()) / relief_rms(torch.from_numpy(np.asarray(truth)).double())
-    return float(torch.exp(torch.log(ratio).mean()))
 
 
 def _atomic_save(obj: Any, path: Path) -> None:
