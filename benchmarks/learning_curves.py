@@ -12,6 +12,9 @@ configurations side by side for the same wall-clock time and draws those rows.
         runs/b="--arch unet3d --base 16 --loss aligned_both_signed --steps 25"
     # curves of any runs (resumed runs included): CSV + PNG
     python benchmarks/learning_curves.py plot runs/a runs/b -o docs/learning_curves
+    # a warm-started run drawn where it continues another: "A@CLIPS+B" (B's
+    # --init was A's weights at CLIPS clips seen; B's clips and hours follow A's)
+    python benchmarks/learning_curves.py plot runs/a@27200+runs/c -o docs/campaign
 
 ``train`` passes ``--batch-size 8 --epochs 100000 --schedule constant
 --validation-clips 64 --workers 0 --device cpu --quiet`` unless the
@@ -65,14 +68,33 @@ def rows(run: Path) -> List[Dict[str, float]]:
         return [{k: float(v) for k, v in r.items() if k != "ranks_in_sync"} for r in csv.DictReader(f)]
 
 
-def plot(runs: List[Path], out: Path, labels: List[str]) -> None:
+def lineage(spec: str) -> List[Dict[str, float]]:
+    """The rows of a run folder, or of a chain of warm starts ``A@CLIPS+B``
+    (B started from A's weights at CLIPS clips seen; more links may follow):
+    A's rows up to CLIPS, then B's with A's clips and training seconds added."""
+    *links, last = spec.split("+")
+    out: List[Dict[str, float]] = []
+    clips = seconds = 0.0
+    for link in links:
+        folder, sep, cut = link.rpartition("@")
+        if not sep or not cut.isdigit():
+            raise SystemExit(f"{spec}: expected RUN@CLIPS before each '+', got {link!r}")
+        kept = [r for r in rows(Path(folder)) if r["clips_seen"] <= int(cut)]
+        if not kept or kept[-1]["clips_seen"] != int(cut):
+            raise SystemExit(f"{link}: {folder}/metrics.csv has no epoch ending at {cut} clips")
+        out += [{**r, "clips_seen": r["clips_seen"] + clips, "train_seconds": r["train_seconds"] + seconds} for r in kept]
+        clips, seconds = out[-1]["clips_seen"], out[-1]["train_seconds"]
+    return out + [{**r, "clips_seen": r["clips_seen"] + clips, "train_seconds": r["train_seconds"] + seconds} for r in rows(Path(last))]
+
+
+def plot(runs: List[str], out: Path, labels: List[str]) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     out.parent.mkdir(parents=True, exist_ok=True)
-    table = {label: rows(run) for label, run in zip(labels, runs)}
+    table = {label: lineage(run) for label, run in zip(labels, runs)}
     fields = ["run", "epoch", "clips_seen", "train_seconds", "val_mae_sn_frame", "val_mae_sn_first", "val_mae_sn_flat_frame", "val_mae_sn_flat_first", "val_sign_correct", "val_flip"]
     with out.with_suffix(".csv").open("w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=fields, extrasaction="ignore")
@@ -121,14 +143,14 @@ def main() -> None:
     p.add_argument("specs", nargs="+", metavar="OUT=ARGS", help="run folder and its nrdepth train arguments")
     p.add_argument("--minutes", type=float, required=True)
     p = sub.add_parser("plot", help="CSV and PNG of the runs' validation curves")
-    p.add_argument("runs", nargs="+", type=Path)
+    p.add_argument("runs", nargs="+", help="run folders, or chains of warm starts RUN@CLIPS+RUN")
     p.add_argument("-o", "--out", type=Path, default=Path("learning_curves"), help="output path without suffix (.csv and .png are written)")
     p.add_argument("--labels", default=None, help="comma-separated labels (default: the folder names)")
     args = parser.parse_args()
     if args.command == "train":
         train(args.specs, args.minutes)
     else:
-        labels = args.labels.split(",") if args.labels else [r.name for r in args.runs]
+        labels = args.labels.split(",") if args.labels else [Path(r.split("+")[-1]).name for r in args.runs]
         plot(args.runs, args.out, labels)
 
 

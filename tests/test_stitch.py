@@ -7,6 +7,7 @@ import torch
 
 import nrdepth
 import nrdepth.model
+from nrdepth.metrics import grid_contrast
 from nrdepth.stitch import PATCH
 
 
@@ -45,6 +46,21 @@ def test_gbr_distorted_true_patches_stitch_back_to_the_truth(shape):
     assert out.shape == shape and out.dtype == np.float32
     assert nrdepth.mae_sn(out, truth) < 1e-3
     np.testing.assert_allclose(out, truth, atol=2e-3)
+
+
+def test_grid_contrast_sees_planted_seams_is_gbr_invariant_and_names_a_bad_period():
+    depth = nrdepth.generate_clips(3, seed=5, config=nrdepth.GeneratorConfig(size=128, frames=4)).depth.astype(np.float64)
+    ridges = (np.arange(128) % 32 < 2).astype(float)  # a seam every 32 pixels, 2 wide, on both axes
+    seams = ridges[None, None, :] + ridges[None, :, None]
+    y, x = np.mgrid[0:128, 0:128]
+    for z in depth:
+        smooth = grid_contrast(z)
+        assert 0.9 < smooth < 1.1
+        assert grid_contrast(z + 0.05 * z.std() * seams) > 1.5  # seams of 5 % of the depth's std
+        gbr = np.stack([-2.5 * f + 0.3 * x - 0.1 * y + 7 for f in z])  # any GBR of each frame, λ < 0 too
+        assert grid_contrast(gbr) == pytest.approx(smooth, rel=1e-9)
+    with pytest.raises(ValueError, match="period"):
+        grid_contrast(depth[0], period=24)
 
 
 def test_windows_sum_to_one_in_space_and_time():

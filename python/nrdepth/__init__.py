@@ -7,7 +7,7 @@ package is its typed Python face.
 __version__ = "0.1.0"
 
 from .generate import Clips, GeneratorConfig, generate_clips, observable_depth
-from .metrics import flat_baseline, gbr_align, mae_sn, sign_rates
+from .metrics import flat_baseline, gbr_align, grid_contrast, mae_sn, sign_rates
 from .stitch import PatchLayout, patch_layout, reconstruct, stitch, temporal_align
 from .render import CAMERA_Z, TEXTURE_FAMILIES, Light, Material, Render, procedural_texture, raycast_depth, render
 from .surface import (
@@ -31,6 +31,7 @@ __all__ = [
     "generate_clips",
     "observable_depth",
     "gbr_align",
+    "grid_contrast",
     "mae_sn",
     "sign_rates",
     "PatchLayout",

@@ -12,7 +12,8 @@ diagnostic) does the same but refits each frame's offset τ: under an
 orthographic camera a surface's motion along the optical axis leaves no trace
 in the video, so no method can be asked for it. The *flat baseline* is the score of
 a constant prediction, i.e. of the best plane ``α x + β y + τ``: a prediction
-is useful only below it. Pure numpy, float64.
+is useful only below it. :func:`grid_contrast` looks for the seams of a
+stitched video. Pure numpy, float64.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from typing import Dict, Literal, Optional, Tuple
 
 import numpy as np
 
-__all__ = ["mae_sn", "flat_baseline", "gbr_fit", "gbr_align", "relief_signs", "sign_rates"]
+__all__ = ["mae_sn", "flat_baseline", "gbr_fit", "gbr_align", "relief_signs", "sign_rates", "grid_contrast"]
 
 Align = Literal["frame", "first", "first_offset"]
 
@@ -151,3 +152,60 @@ def sign_rates(pred: np.ndarray, gt: np.ndarray, mask: Optional[np.ndarray] = No
     ``flip``: 1.0 if the sign of λ changes inside the clip, else 0.0."""
     signs = relief_signs(pred, gt, mask)
     return {"sign_correct": float(np.mean(signs > 0)), "flip": float(len(set(signs[signs != 0].tolist())) > 1)}
+
+
+def _periodic_spectrum(frame: np.ndarray) -> np.ndarray:
+    """The 2-D DFT of the periodic component of ``frame`` (Moisan's periodic
+    plus smooth decomposition, J. Math. Imaging Vis. 2011): the DFT of a
+    frame whose opposite borders differ carries that jump on both frequency
+    axes at every frequency; the smooth component ŝ = v̂ / (2 cos(2πq/H) +
+    2 cos(2πr/W) − 4), with v the border jumps, takes it away."""
+    h, w = frame.shape
+    jumps = np.zeros_like(frame)
+    jumps[0, :] += frame[-1, :] - frame[0, :]
+    jumps[-1, :] += frame[0, :] - frame[-1, :]
+    jumps[:, 0] += frame[:, -1] - frame[:, 0]
+    jumps[:, -1] += frame[:, 0] - frame[:, -1]
+    denominator = 2 * np.cos(2 * np.pi * np.arange(h) / h)[:, None] + 2 * np.cos(2 * np.pi * np.arange(w) / w)[None, :] - 4
+    denominator[0, 0] = 1.0
+    smooth = np.fft.fft2(jumps) / denominator
+    smooth[0, 0] = 0.0
+    return np.fft.fft2(frame) - smooth
+
+
+def grid_contrast(depth: np.ndarray, period: int = 32) -> float:
+    """How much a depth video (T, H, W) shows a grid of the given period
+    (stitched patches' seams: half a 64-pixel patch). At each of the grid's
+    frequencies, every multiple of ``side / period`` cycles along either axis
+    below Nyquist, the power of the relief (each frame minus its
+    least-squares plane; its periodic component) summed over frames is
+    divided by the geometric mean of the power one cycle either side; the
+    result is the geometric mean of these ratios, so every harmonic counts
+    alike. A smooth spectrum gives about 1; seams (sharp: their power reaches
+    the high harmonics, where a surface's own is small) give more, and a
+    relief that lacks the grid's frequencies gives less. Invariant to a GBR
+    of each frame. Comparing neighbours rather than taking the grid's share
+    of all power keeps out what a share also counts (a relief smoother or
+    rougher than the truth), and the periodic component keeps out the jump
+    between a frame's opposite borders, which would put power on both axes
+    at every frequency. An axis whose side is not a multiple of ``period``,
+    or holds fewer than two periods, is skipped."""
+    depth = _check("depth", depth)
+    if isinstance(period, bool) or not isinstance(period, (int, np.integer)) or period < 2:
+        raise ValueError(f"period: expected an integer ≥ 2, got {period!r}")
+    t, h, w = depth.shape
+    if not any(side % period == 0 and side // period >= 2 for side in (h, w)):
+        raise ValueError(f"period: expected a divisor of a frame side that leaves at least two periods, got {period} for {h}×{w} frames")
+    design = _design(np.zeros((h, w)))[:, [0, 1, 3]]  # x, y, 1
+    lines = [np.zeros(h), np.zeros(w)]  # power along the y and x frequency axes, summed over frames
+    for frame in _unit_scale(depth)[0]:
+        coeffs, *_ = np.linalg.lstsq(design, frame.ravel(), rcond=None)
+        relief = frame - (design @ coeffs).reshape(h, w)
+        power = np.abs(_periodic_spectrum(relief / (relief.std() or 1.0))) ** 2
+        lines[0] += power[:, 0]
+        lines[1] += power[0, :]
+    logs = [np.log(line[k]) - 0.5 * np.log(line[k - 1] * line[k + 1])
+            for side, line in zip((h, w), lines) if side % period == 0
+            for k in range(side // period, side // 2, side // period)
+            if min(line[k - 1 : k + 2]) > 0]
+    return float(np.exp(np.mean(logs))) if logs else 1.0
