@@ -73,18 +73,20 @@ def lineage(spec: str) -> List[Dict[str, float]]:
     (B started from A's weights at CLIPS clips seen; more links may follow):
     A's rows up to CLIPS, then B's with A's clips and training seconds added."""
     *links, last = spec.split("+")
-    out: List[Dict[str, float]] = []
-    clips = seconds = 0.0
+    parts = []
     for link in links:
         folder, sep, cut = link.rpartition("@")
         if not sep or not cut.isdigit():
             raise SystemExit(f"{spec}: expected RUN@CLIPS before each '+', got {link!r}")
-        kept = [r for r in rows(Path(folder)) if r["clips_seen"] <= int(cut)]
-        if not kept or kept[-1]["clips_seen"] != int(cut):
-            raise SystemExit(f"{link}: {folder}/metrics.csv has no epoch ending at {cut} clips")
+        parts.append((folder, int(cut)))
+    out: List[Dict[str, float]] = []
+    for folder, cut in parts + [(last, None)]:
+        kept = [r for r in rows(Path(folder)) if cut is None or r["clips_seen"] <= cut]
+        if cut is not None and (not kept or kept[-1]["clips_seen"] != cut):
+            raise SystemExit(f"{folder}@{cut}: its metrics.csv has no epoch ending at {cut} clips")
+        clips, seconds = (out[-1]["clips_seen"], out[-1]["train_seconds"]) if out else (0.0, 0.0)
         out += [{**r, "clips_seen": r["clips_seen"] + clips, "train_seconds": r["train_seconds"] + seconds} for r in kept]
-        clips, seconds = out[-1]["clips_seen"], out[-1]["train_seconds"]
-    return out + [{**r, "clips_seen": r["clips_seen"] + clips, "train_seconds": r["train_seconds"] + seconds} for r in rows(Path(last))]
+    return out
 
 
 def plot(runs: List[str], out: Path, labels: List[str]) -> None:

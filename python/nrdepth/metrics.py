@@ -191,10 +191,11 @@ def grid_contrast(depth: np.ndarray, period: int = 32) -> float:
     at every frequency. An axis whose side is not a multiple of ``period``,
     or holds fewer than two periods, is skipped."""
     depth = _check("depth", depth)
-    if isinstance(period, bool) or not isinstance(period, (int, np.integer)) or period < 2:
-        raise ValueError(f"period: expected an integer ≥ 2, got {period!r}")
+    if isinstance(period, bool) or not isinstance(period, (int, np.integer)) or period < 3:
+        raise ValueError(f"period: expected an integer ≥ 3 (a grid below Nyquist), got {period!r}")
     t, h, w = depth.shape
-    if not any(side % period == 0 and side // period >= 2 for side in (h, w)):
+    measured = [side % period == 0 and side // period >= 2 for side in (h, w)]
+    if not any(measured):
         raise ValueError(f"period: expected a divisor of a frame side that leaves at least two periods, got {period} for {h}×{w} frames")
     design = _design(np.zeros((h, w)))[:, [0, 1, 3]]  # x, y, 1
     lines = [np.zeros(h), np.zeros(w)]  # power along the y and x frequency axes, summed over frames
@@ -205,7 +206,7 @@ def grid_contrast(depth: np.ndarray, period: int = 32) -> float:
         lines[0] += power[:, 0]
         lines[1] += power[0, :]
     logs = [np.log(line[k]) - 0.5 * np.log(line[k - 1] * line[k + 1])
-            for side, line in zip((h, w), lines) if side % period == 0
+            for side, line, use in zip((h, w), lines, measured) if use
             for k in range(side // period, side // 2, side // period)
             if min(line[k - 1 : k + 2]) > 0]
     return float(np.exp(np.mean(logs))) if logs else 1.0
