@@ -193,7 +193,7 @@ def grid_contrast(depth: np.ndarray, period: int = 32) -> float:
     depth = _check("depth", depth)
     if isinstance(period, bool) or not isinstance(period, (int, np.integer)) or period < 3:
         raise ValueError(f"period: expected an integer ≥ 3 (a grid below Nyquist), got {period!r}")
-    t, h, w = depth.shape
+    _, h, w = depth.shape
     measured = [side % period == 0 and side // period >= 2 for side in (h, w)]
     if not any(measured):
         raise ValueError(f"period: expected a divisor of a frame side that leaves at least two periods, got {period} for {h}×{w} frames")
