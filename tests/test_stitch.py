@@ -61,6 +61,8 @@ def test_grid_contrast_sees_planted_seams_is_gbr_invariant_and_names_a_bad_perio
         assert grid_contrast(gbr) == pytest.approx(smooth, rel=1e-9)
     with pytest.raises(ValueError, match="period"):
         grid_contrast(depth[0], period=24)
+    with pytest.raises(ValueError, match="depth"):  # tilted planes: no relief, no contrast
+        grid_contrast(np.stack([0.3 * x - 0.1 * y] * 2))
 
 
 def test_windows_sum_to_one_in_space_and_time():

@@ -189,7 +189,9 @@ def grid_contrast(depth: np.ndarray, period: int = 32) -> float:
     rougher than the truth), and the periodic component keeps out the jump
     between a frame's opposite borders, which would put power on both axes
     at every frequency. An axis whose side is not a multiple of ``period``,
-    or holds fewer than two periods, is skipped."""
+    or holds fewer than two periods, is skipped; a grid frequency with no
+    power at it or beside it (a planar frame has none) is left out, and a
+    video where that leaves nothing has no contrast (``ValueError``)."""
     depth = _check("depth", depth)
     if isinstance(period, bool) or not isinstance(period, (int, np.integer)) or period < 3:
         raise ValueError(f"period: expected an integer ≥ 3 (a grid below Nyquist), got {period!r}")
@@ -202,11 +204,15 @@ def grid_contrast(depth: np.ndarray, period: int = 32) -> float:
     for frame in _unit_scale(depth)[0]:
         coeffs, *_ = np.linalg.lstsq(design, frame.ravel(), rcond=None)
         relief = frame - (design @ coeffs).reshape(h, w)
-        power = np.abs(_periodic_spectrum(relief / (relief.std() or 1.0))) ** 2
+        if relief.std() < 1e-9:  # planar up to rounding (the video is scaled to a peak of 1): no relief to weigh
+            continue
+        power = np.abs(_periodic_spectrum(relief / relief.std())) ** 2
         lines[0] += power[:, 0]
         lines[1] += power[0, :]
     logs = [np.log(line[k]) - 0.5 * np.log(line[k - 1] * line[k + 1])
             for side, line, use in zip((h, w), lines, measured) if use
             for k in range(side // period, side // 2, side // period)
             if min(line[k - 1 : k + 2]) > 0]
-    return float(np.exp(np.mean(logs))) if logs else 1.0
+    if not logs:
+        raise ValueError("depth: no relief power at the grid's frequencies or beside them (planar frames?); the contrast is undefined")
+    return float(np.exp(np.mean(logs)))
