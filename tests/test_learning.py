@@ -11,14 +11,16 @@ from nrdepth.losses import (
     aligned_clip_loss,
     aligned_clip_offsets_signed_loss,
     aligned_clip_signed_loss,
+    aligned_first_loss,
     aligned_loss,
+    aligned_signed_first_loss,
     aligned_signed_loss,
     gbr_loss,
     get_loss,
     tr_sc_loss,
 )
 from nrdepth.metrics import flat_baseline, mae_sn, relief_signs, sign_rates
-from nrdepth.model import UNet2p1D, UNet3D, count_parameters
+from nrdepth.model import UNet2p1D, UNet2p1DGlobal, UNet3D, count_parameters
 
 
 def smooth_depth(seed, shape=(2, 4, 24, 24)):
@@ -69,6 +71,32 @@ def test_aligned_clip_loss_forgives_one_gbr_per_clip_but_not_one_per_frame():
     per_frame = torch.stack([gbr(z[:, k], 0.3 * k, -0.1 * k, 1.0 + k, k) for k in range(z.shape[1])], dim=1)
     assert aligned_loss(per_frame, z).item() < 1e-8
     assert aligned_clip_loss(per_frame, z).item() > 1e-2
+
+
+def test_the_first_frame_loss_is_mae_sn_first_alignment_squared():
+    z = smooth_depth(7)
+    pred = gbr(z, 0.4, -0.2, -2.0, 1.0)
+    assert aligned_first_loss(pred, z).item() < 1e-8  # one GBR per clip, any sign
+    pred = pred + 0.3 * smooth_depth(8)
+    expected = []
+    for p, g in zip(pred.numpy(), z.numpy()):  # the direct computation: fit frame 0, apply to every frame
+        h, w = g.shape[-2:]
+        y, x = np.mgrid[0:h, 0:w]
+        design = np.stack([x, y, p[0], np.ones_like(p[0])], -1).reshape(-1, 4)
+        coeffs = np.linalg.lstsq(design, g[0].ravel(), rcond=None)[0]
+        aligned = coeffs[0] * x + coeffs[1] * y + coeffs[2] * p + coeffs[3]
+        expected.append((((aligned - g) ** 2).mean((1, 2)) / g.var((1, 2))).mean())
+    assert aligned_first_loss(pred, z).item() == pytest.approx(np.mean(expected), rel=1e-3)  # the ridge
+
+
+def test_the_first_frame_loss_carries_frame_0s_error_into_the_clip():
+    z = smooth_depth(13)
+    tilted_first = z.clone()
+    tilted_first[:, 0] = gbr(z[:, 0], 0.3, -0.2, 1.0, 0.0)  # only frame 0 is off, by a plane
+    assert aligned_signed_loss(tilted_first, z).item() < 1e-8
+    first, clip = aligned_first_loss(tilted_first, z).item(), aligned_clip_loss(tilted_first, z).item()
+    assert first > 2 * clip > 1e-3  # fitted on frame 0, the tilt lands on the other frames
+    assert aligned_signed_first_loss(tilted_first, z).item() == pytest.approx(first / 2, rel=1e-6)
 
 
 def test_signed_losses_forgive_a_gbr_with_positive_lambda_only():
@@ -141,7 +169,8 @@ def test_masks_exclude_flat_and_planar_regions():
     assert tr_sc_loss(pred, planar).item() < 1e-12
 
 
-@pytest.mark.parametrize("name", ["gbr", "tr_sc", "aligned", "aligned_clip", "aligned_signed", "aligned_clip_signed", "aligned_both_signed", "aligned_clip_offsets_signed", "aligned_both_offsets_signed"])
+@pytest.mark.parametrize("name", ["gbr", "tr_sc", "aligned", "aligned_clip", "aligned_signed", "aligned_clip_signed", "aligned_both_signed", "aligned_clip_offsets_signed", "aligned_both_offsets_signed",
+                                  "aligned_first", "aligned_signed_first"])
 def test_losses_have_finite_gradients_on_flat_input(name):
     loss_fn = get_loss(name)
     pred = torch.zeros(2, 4, 16, 16, requires_grad=True)
@@ -238,6 +267,33 @@ def test_unet2p1d_shapes_and_exposure_invariance():
         model(torch.zeros(1, 1, 4, 30, 32))
     with pytest.raises(ValueError, match="^width:"):
         UNet2p1D(width=0)
+
+
+def receptive_frames(model, frames=16):
+    """Which input frames change output frame 0 (the gradient's support)
+    through the network's layers (after the clip-wide standardisation of
+    its input, which reaches every frame through two numbers)."""
+    video = torch.rand(1, 1, frames, 32, 32, requires_grad=True)
+    l1 = model.level1(model.stem(video))
+    l2 = model.level2(l1)
+    l3 = model.level3(l2)
+    (grad,) = torch.autograd.grad(model.head(model.up1(model.up2(l3, l2), l1))[0, 0, 0].sum(), video)
+    return grad[0, 0].abs().sum((1, 2)) > 0
+
+
+def test_the_global_unet2p1d_starts_as_the_plain_one_and_sees_the_whole_clip():
+    torch.manual_seed(0)
+    plain, global_ = UNet2p1D(width=8, stem_width=4), UNet2p1DGlobal(width=8, stem_width=4)
+    missing = global_.load_state_dict(plain.state_dict(), strict=False).missing_keys
+    assert missing and all(".fuse." in k or ".reduce." in k or ".branches." in k for k in missing)
+    video = torch.rand(2, 1, 16, 32, 32)
+    assert torch.equal(global_(video), plain(video))  # the temporal context starts as the identity
+    assert not receptive_frames(plain)[8:].any()  # ±7 frames: frame 0 never sees the second half
+    torch.nn.init.normal_(global_.level3[-1].fuse.weight, std=0.1)
+    assert receptive_frames(global_).all()
+    assert global_.config["temporal_rates"] == [2, 4, 8]
+    with pytest.raises(ValueError, match="^temporal_rates:"):
+        UNet2p1DGlobal(temporal_rates=())
 
 
 def test_a_small_unet_overfits_a_few_generated_clips():

@@ -194,6 +194,14 @@ def test_a_warm_start_begins_from_the_given_weights_and_refuses_another_network(
     with pytest.raises(ValueError, match="^init:.*another network"):
         train(tmp_path / "other", TrainConfig(loss="aligned", init=str(tmp_path / "first"), **{**TINY, "epochs": 1}), progress=False)
     assert not (tmp_path / "other").exists()
+    # A network with an added module starts from one without it, computing the same depth.
+    grown = TrainConfig(loss="aligned_signed_first", arch="unet2p1d_global", init=str(tmp_path / "first"), **{**TINY, "epochs": 1, "lr": 1e-12})
+    train(tmp_path / "grown", grown, progress=False)
+    video = torch.rand(1, 1, 4, 16, 16)
+    with torch.no_grad():
+        assert torch.allclose(load_model(tmp_path / "grown")(video), load_model(tmp_path / "first")(video), atol=1e-5)
+    with pytest.raises(ValueError, match="^init:.*another network"):  # but not the other way round
+        train(tmp_path / "shrunk", TrainConfig(loss="aligned", arch="unet2p1d", init=str(tmp_path / "grown"), **{**TINY, "epochs": 1}), progress=False)
 
 
 def test_an_amplitude_run_trains_on_window_widths_and_its_warm_start_is_calibrated(tmp_path):

@@ -17,6 +17,9 @@ second. With ``H = ∇²z`` and ``‖H‖_F = sqrt(z_xx² + 2 z_xy² + z_yy²)``
 - ``aligned_clip`` (ours): the same with one GBR for the whole clip, which
   asks the frames to agree with each other (temporal consistency: the
   first-frame alignment of MAE-SN) instead of leaving each frame its own GBR.
+- ``aligned_first`` (ours): MAE-SN's "first" alignment squared: one GBR per
+  clip fitted on frame 0 alone, applied to every frame; ``aligned_signed_first``
+  is its mean with ``aligned_signed``.
 - ``aligned_signed``, ``aligned_clip_signed`` (ours, for data whose relief
   sign is observable: the generator's light-from-above prior): the same fits
   with λ ≥ 0. After each group's best plane is removed (weighted by
@@ -64,6 +67,8 @@ __all__ = [
     "aligned_both_signed_loss",
     "aligned_clip_offsets_signed_loss",
     "aligned_both_offsets_signed_loss",
+    "aligned_first_loss",
+    "aligned_signed_first_loss",
     "relief_amplitude_loss",
     "relief_rms",
     "AMPLITUDE_FLOOR",
@@ -132,7 +137,7 @@ def tr_sc_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     return _masked_mse(pred, target, with_gradient=True)
 
 
-def _aligned(pred: torch.Tensor, target: torch.Tensor, per_clip: bool, ridge: float) -> torch.Tensor:
+def _aligned(pred: torch.Tensor, target: torch.Tensor, per_clip: bool, ridge: float, first_frame: bool = False) -> torch.Tensor:
     pred, target = _frames("pred", pred), _frames("target", target)
     if pred.shape != target.shape:
         raise ValueError(f"pred: expected the shape of target {tuple(target.shape)}, got {tuple(pred.shape)}")
@@ -145,8 +150,9 @@ def _aligned(pred: torch.Tensor, target: torch.Tensor, per_clip: bool, ridge: fl
     p = (p - p.mean(1, keepdim=True)) / (p.std(1, keepdim=True) + 1e-8)
     ones = torch.ones_like(p)
     design = torch.stack([xs.reshape(-1).repeat(frames).expand_as(p), ys.reshape(-1).repeat(frames).expand_as(p), p, ones], dim=-1)  # (G, P, 4)
-    normal = design.transpose(1, 2) @ design + ridge * frames * h * w * torch.eye(4, dtype=pred.dtype, device=pred.device)
-    coeffs = torch.linalg.solve(normal, design.transpose(1, 2) @ g.unsqueeze(-1))
+    fit, fit_g = (design[:, : h * w], g[:, : h * w]) if first_frame else (design, g)  # the frames the GBR is fitted on
+    normal = fit.transpose(1, 2) @ fit + ridge * fit.shape[1] * torch.eye(4, dtype=pred.dtype, device=pred.device)
+    coeffs = torch.linalg.solve(normal, fit.transpose(1, 2) @ fit_g.unsqueeze(-1))
     aligned = (design @ coeffs).reshape(b * t, h * w)
     g = target.reshape(b * t, h * w)
     variance = g.var(1, unbiased=False).clamp_min(1e-12)
@@ -165,6 +171,15 @@ def aligned_clip_loss(pred: torch.Tensor, target: torch.Tensor, ridge: float = 1
     other up to a single GBR (the symmetric form of MAE-SN's "first"
     alignment); still divided by each target frame's variance."""
     return _aligned(pred, target, per_clip=True, ridge=ridge)
+
+
+def aligned_first_loss(pred: torch.Tensor, target: torch.Tensor, ridge: float = 1e-6) -> torch.Tensor:
+    """Ours, MAE-SN's "first" alignment as a loss: one least-squares GBR per
+    clip fitted on frame 0 alone and applied to every frame, each frame's
+    squared error divided by its target's variance. What :func:`aligned_clip_loss`
+    forgives, it does not: a frame 0 whose plane or scale is off carries its
+    error into the whole clip, as it does in the metric."""
+    return _aligned(pred, target, per_clip=True, ridge=ridge, first_frame=True)
 
 
 def _signed(pred: torch.Tensor, target: torch.Tensor, per_clip: bool, offsets: bool = False) -> torch.Tensor:
@@ -232,6 +247,13 @@ def aligned_both_offsets_signed_loss(pred: torch.Tensor, target: torch.Tensor) -
     return 0.5 * (_signed(pred, target, per_clip=False) + _signed(pred, target, per_clip=True, offsets=True))
 
 
+def aligned_signed_first_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Ours: the mean of :func:`aligned_signed_loss` (local shape and its sign,
+    frame by frame) and :func:`aligned_first_loss` (the clip read through
+    frame 0's GBR: the plane's motion and the frames' agreement)."""
+    return 0.5 * (_signed(pred, target, per_clip=False) + _aligned(pred, target, per_clip=True, ridge=1e-6, first_frame=True))
+
+
 AMPLITUDE_FLOOR = 2e-3
 """Floor of :func:`relief_amplitude_loss`'s log, in window widths: the median
 relief of the generator's nearly flat surfaces (intensity below 0.01; that
@@ -273,6 +295,8 @@ LOSSES: Dict[str, Callable[[torch.Tensor, torch.Tensor], torch.Tensor]] = {
     "aligned_both_signed": aligned_both_signed_loss,
     "aligned_clip_offsets_signed": aligned_clip_offsets_signed_loss,
     "aligned_both_offsets_signed": aligned_both_offsets_signed_loss,
+    "aligned_first": aligned_first_loss,
+    "aligned_signed_first": aligned_signed_first_loss,
 }
 
 

@@ -302,7 +302,7 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
     torch.manual_seed(config.seed)
     model = build_model(config.arch, **config.model_config()).to(device)
     if warm_start is not None:
-        model.load_state_dict(warm_start)
+        model.load_state_dict(warm_start, strict=False)  # _warm_start checked that theirs ⊆ ours
     optimiser = torch.optim.Adam(model.parameters(), lr=config.lr)
     total = config.epochs * config.steps_per_epoch
     if config.schedule == "cosine":
@@ -408,14 +408,17 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
 
 def _warm_start(config: TrainConfig) -> Dict[str, torch.Tensor]:
     """The weights of ``config.init``, refused unless they fit this run's
-    network. A run that learns the relief's scale (``amplitude`` > 0) from a
+    network: every tensor of theirs is one of the network's, with its shape.
+    The network's others keep their (seeded) initialisation: a module added
+    to an architecture (``unet2p1d_global``'s temporal context, which starts
+    as the identity) warm-starts from the architecture without it. A run that learns the relief's scale (``amplitude`` > 0) from a
     model that did not has the model's linear head divided by its relief
     ratio on ``CALIBRATION_CLIPS`` validation clips: the same depths up to
     scale, at the right scale on average, so the amplitude term starts small."""
     model = load_model(config.init, device="cpu")
     theirs = model.state_dict()
     mine = build_model(config.arch, **config.model_config()).state_dict()
-    if mine.keys() != theirs.keys() or any(mine[k].shape != theirs[k].shape for k in mine):
+    if not theirs.keys() <= mine.keys() or any(mine[k].shape != theirs[k].shape for k in theirs):
         raise ValueError(f"init: {config.init} holds another network than this run's {config.arch} {config.model_config() or '(default width)'}")
     if config.amplitude > 0 and model.depth_units != "window":
         clips = generate_clips(CALIBRATION_CLIPS, seed=config.seed + VALIDATION_SEED_OFFSET, config=config.generator)

@@ -14,7 +14,9 @@ Where :class:`UNet3D` spends its FLOPs, and what this network does instead:
   on the coarsest level, behind a 1×1×1 bottleneck, and its branches are
   spatial only;
 - time keeps its full length at every level (16 frames cost little at
-  H/8), so no temporal detail is pooled away.
+  H/8), so no temporal detail is pooled away;
+- :class:`UNet2p1DGlobal` (``unet2p1d_global``) adds a temporal context
+  module on the coarsest level, so every frame sees the whole clip.
 
 Levels (``width`` = w, default 24)::
 
@@ -85,6 +87,28 @@ class SpatialContext(nn.Module):
         return self.act(x + self.fuse(torch.cat([branch(reduced) for branch in self.branches], dim=1)))
 
 
+class TemporalContext(nn.Module):
+    """The whole clip in time at the coarsest level: a 1×1×1 bottleneck to
+    ``width // 2``, parallel 3×1×1 convolutions at the given temporal
+    dilations, concatenated and fused by a 1×1×1 convolution that is added
+    to the input. The fusion starts at zero, so the module starts as the
+    identity (a network without it warm-starts one with it unchanged)."""
+
+    def __init__(self, width: int, rates: Sequence[int]) -> None:
+        super().__init__()
+        inner = max(width // 2, 1)
+        self.reduce = nn.Sequential(nn.Conv3d(width, inner, 1), _act())
+        self.branches = nn.ModuleList(
+            nn.Sequential(nn.Conv3d(inner, inner, (3, 1, 1), padding=(r, 0, 0), dilation=(r, 1, 1)), _act()) for r in rates)
+        self.fuse = nn.Conv3d(inner * len(rates), width, 1)
+        nn.init.zeros_(self.fuse.weight)
+        nn.init.zeros_(self.fuse.bias)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        reduced = self.reduce(x)
+        return x + self.fuse(torch.cat([branch(reduced) for branch in self.branches], dim=1))
+
+
 class UpMerge(nn.Module):
     """Spatial ×2 upsampling (nearest), a 1×1×1 convolution to the skip's
     width, added to the skip connection, then a block."""
@@ -98,15 +122,20 @@ class UpMerge(nn.Module):
         return self.block(self.project(x) + skip)
 
 
+def _check_rates(name: str, rates: Sequence[int]) -> tuple:
+    rates = tuple(rates)
+    if not rates or any(isinstance(r, bool) or not isinstance(r, int) or r < 1 for r in rates):
+        raise ValueError(f"{name}: expected positive ints, got {rates!r}")
+    return rates
+
+
 class UNet2p1D(nn.Module):
     def __init__(self, width: int = 24, stem_width: int = 8, rates: Sequence[int] = (1, 2, 4)) -> None:
         super().__init__()
         for name, value in (("width", width), ("stem_width", stem_width)):
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"{name}: expected a positive int, got {value!r}")
-        rates = tuple(rates)
-        if not rates or any(isinstance(r, bool) or not isinstance(r, int) or r < 1 for r in rates):
-            raise ValueError(f"rates: expected positive ints, got {rates!r}")
+        rates = _check_rates("rates", rates)
         self.config: Dict[str, Any] = {"width": width, "stem_width": stem_width, "rates": list(rates)}
         w = width
         self.stem = nn.Sequential(spatial(1, stem_width), _act(), spatial(stem_width, w, stride=2), _act())
@@ -130,3 +159,19 @@ class UNet2p1D(nn.Module):
         l2 = self.level2(l1)
         l3 = self.level3(l2)
         return self.head(self.up1(self.up2(l3, l2), l1))
+
+
+class UNet2p1DGlobal(UNet2p1D):
+    """:class:`UNet2p1D` whose coarsest level also sees the whole clip in
+    time (:class:`TemporalContext` after the spatial context, dilations
+    ``temporal_rates``). The plain network's seven 3-tap temporal
+    convolutions give each output frame ±7 frames: frame 15 of a 16-frame
+    clip never sees frame 0, so the plane's motion between them (what
+    MAE-SN from the first frame charges) can only be read twice,
+    independently. At H/8 the module costs little."""
+
+    def __init__(self, width: int = 24, stem_width: int = 8, rates: Sequence[int] = (1, 2, 4), temporal_rates: Sequence[int] = (2, 4, 8)) -> None:
+        super().__init__(width, stem_width, rates)
+        temporal_rates = _check_rates("temporal_rates", temporal_rates)
+        self.config["temporal_rates"] = list(temporal_rates)
+        self.level3.append(TemporalContext(4 * width, temporal_rates))
