@@ -251,7 +251,7 @@ def aligned_signed_first_loss(pred: torch.Tensor, target: torch.Tensor) -> torch
     """Ours: the mean of :func:`aligned_signed_loss` (local shape and its sign,
     frame by frame) and :func:`aligned_first_loss` (the clip read through
     frame 0's GBR: the plane's motion and the frames' agreement)."""
-    return 0.5 * (_signed(pred, target, per_clip=False) + _aligned(pred, target, per_clip=True, ridge=1e-6, first_frame=True))
+    return 0.5 * (_signed(pred, target, per_clip=False) + aligned_first_loss(pred, target))
 
 
 AMPLITUDE_FLOOR = 2e-3
