@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import math
 import os
 import shlex
 import subprocess
@@ -89,6 +90,22 @@ def lineage(spec: str) -> List[Dict[str, float]]:
     return out
 
 
+TREND_FROM = 8000
+"""Trends are fitted from this many clips seen on (before it, the curves bend)."""
+
+
+def trend(rs: List[Dict[str, float]], key: str) -> float:
+    """Change of ``key`` per doubling of the clips seen: the slope of a
+    least-squares line in log₂(clips seen), over the epochs from
+    :data:`TREND_FROM` clips on."""
+    points = [(math.log2(r["clips_seen"]), r[key]) for r in rs if r["clips_seen"] >= TREND_FROM]
+    if len(points) < 2:
+        return float("nan")
+    x_mean = sum(x for x, _ in points) / len(points)
+    y_mean = sum(y for _, y in points) / len(points)
+    return sum((x - x_mean) * (y - y_mean) for x, y in points) / sum((x - x_mean) ** 2 for x, _ in points)
+
+
 def plot(runs: List[str], out: Path, labels: List[str]) -> None:
     import matplotlib
 
@@ -136,6 +153,8 @@ def plot(runs: List[str], out: Path, labels: List[str]) -> None:
         last = rs[-1]
         print(f"{label}: {len(rs)} epochs, {int(last['clips_seen'])} clips, {last['train_seconds'] / 3600:.2f} h; last {last['val_mae_sn_frame']:.4f} / {last['val_mae_sn_first']:.4f} "
               f"(sign {100 * last['val_sign_correct']:.1f} %, flips {100 * last['val_flip']:.1f} %); best per frame {best['val_mae_sn_frame']:.4f} at {int(best['clips_seen'])} clips")
+        print(f"  a doubling of the clips seen (from {TREND_FROM} on): per frame {trend(rs, 'val_mae_sn_frame'):+.4f}, "
+              f"from the first frame {trend(rs, 'val_mae_sn_first'):+.4f}, flips {100 * trend(rs, 'val_flip'):+.1f} points")
 
 
 def main() -> None:
