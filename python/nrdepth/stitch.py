@@ -219,14 +219,21 @@ def _as_unit_float(frames: np.ndarray) -> np.ndarray:
 def coarse_depth(video: np.ndarray, net: "torch.nn.Module", batch_size: int, device: "torch.device") -> np.ndarray:  # noqa: F821
     """The coarse pass of :func:`reconstruct`: the whole video (T, H, W)
     resized to the patch side, in 16-frame windows (the last one mirrored),
-    through the network, and its depth resized back: float32 (T, H, W)."""
+    through the network, and its depth resized back: float32 (T, H, W).
+    Each window is read twice, as it is and mirrored left-right, and the two
+    depths are averaged: the mirror keeps image-up (so the light prior, and
+    the relief's sign), and this one reading sets every patch's large-scale
+    shape, so halving its variance pays (README, "Depth of a whole video")
+    for a pass that costs one window in 16 frames."""
     from .model.io import predict_depth
 
     lt, ls, _ = PATCH
     t, h, w = video.shape
     windows = -(-t // lt)
     small = np.pad(_resize(_as_unit_float(video), (ls, ls)), ((0, windows * lt - t), (0, 0), (0, 0)), mode="symmetric")
-    coarse = predict_depth(net, small.reshape(windows, lt, ls, ls), batch_size, device)
+    small = small.reshape(windows, lt, ls, ls)
+    both = predict_depth(net, np.concatenate([small, small[..., ::-1]]), batch_size, device)
+    coarse = (both[:windows] + both[windows:, ..., ::-1]) / 2
     return _resize(coarse.reshape(windows * lt, ls // 2, ls // 2)[:t], (h, w))
 
 
