@@ -1,7 +1,11 @@
 """The CLI writes a complete PNG of the requested size, or nothing."""
 
+import json
 import struct
 
+import numpy as np
+
+import nrdepth
 from nrdepth.cli import main
 
 
@@ -61,3 +65,16 @@ def test_help_shows_defaults():
     with contextlib.redirect_stdout(buffer), contextlib.suppress(SystemExit):
         build_parser().parse_args(["reconstruct", "--help"])
     assert "(default: 8)" in buffer.getvalue() and "0.073" in buffer.getvalue()
+
+
+def test_generate_passes_the_window_width_to_the_generator(tmp_path, capsys):
+    """--window-width reaches the clips (their windows are that wide) and a
+    bad range is refused naming the field."""
+    out = tmp_path / "zoomed"
+    assert main(["generate", str(out), "--clips", "2", "--window-width", "0.5,0.5", "--quiet"]) == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["config"]["window_width"] == [0.5, 0.5]
+    clips = nrdepth.generate_clips(2, seed=manifest["seed"], config=nrdepth.GeneratorConfig(window_width=(0.5, 0.5)))
+    assert np.allclose(nrdepth.generate.window_widths(clips.params), 0.5)
+    assert main(["generate", str(tmp_path / "bad"), "--clips", "2", "--window-width", "0,3"]) != 0
+    assert "config.window_width" in capsys.readouterr().err and not (tmp_path / "bad").exists()

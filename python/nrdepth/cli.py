@@ -43,6 +43,8 @@ def _generator_config(args: argparse.Namespace):
         extra["light_azimuth"] = args.light_azimuth
     if args.intensity is not None:
         extra["surface"] = SurfaceConfig(intensity=args.intensity)
+    if args.window_width is not None:
+        extra["window_width"] = args.window_width
     return GeneratorConfig(frames=args.frames, size=args.size, grid=args.grid, textures=args.textures, **extra)
 
 
@@ -212,6 +214,9 @@ def _add_generator_options(p: argparse.ArgumentParser) -> None:
                    help="light azimuths in degrees from image-up, clockwise (default: -70,70, light from above); 'uniform' for all")
     p.add_argument("--intensity", type=_interval, default=None, metavar="LO,HI",
                    help="range of the surfaces' displacement intensity κ (default: 0.03,0.12; 0 is a flat sheet)")
+    p.add_argument("--window-width", type=_interval, default=None, metavar="LO,HI",
+                   help="range of the view window's width in half-widths of the patch, i.e. the zoom (default: 0.8,1.2; "
+                        "smaller shows the surface magnified)")
 
 
 class _DefaultsFormatter(argparse.HelpFormatter):
