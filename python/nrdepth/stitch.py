@@ -223,8 +223,9 @@ def coarse_depth(video: np.ndarray, net: "torch.nn.Module", batch_size: int, dev
     Each window is read twice, as it is and mirrored left-right, and the two
     depths are averaged: the mirror keeps image-up (so the light prior, and
     the relief's sign), and this one reading sets every patch's large-scale
-    shape, so halving its variance pays (README, "Depth of a whole video")
-    for a pass that costs one window in 16 frames."""
+    shape, so halving its variance pays (README, "Depth of a whole video");
+    the pass runs one network window per 16 frames, so reading it twice is
+    nearly free."""
     from .model.io import predict_depth
 
     lt, ls, _ = PATCH
