@@ -20,7 +20,7 @@ from nrdepth.losses import (
     tr_sc_loss,
 )
 from nrdepth.metrics import flat_baseline, mae_sn, relief_signs, sign_rates
-from nrdepth.model import UNet2p1D, UNet2p1DGlobal, UNet3D, count_parameters
+from nrdepth.model import UNet2p1D, UNet2p1DDeep, UNet2p1DGlobal, UNet3D, count_parameters
 
 
 def smooth_depth(seed, shape=(2, 4, 24, 24)):
@@ -294,6 +294,22 @@ def test_the_global_unet2p1d_starts_as_the_plain_one_and_sees_the_whole_clip():
     assert global_.config["temporal_rates"] == [2, 4, 8]
     with pytest.raises(ValueError, match="^temporal_rates:"):
         UNet2p1DGlobal(temporal_rates=())
+
+
+def test_the_deep_unet2p1d_starts_as_the_plain_one_and_reaches_further_in_time():
+    torch.manual_seed(0)
+    plain, deep = UNet2p1D(width=8, stem_width=4), UNet2p1DDeep(width=8, stem_width=4, coarse_blocks=3)
+    missing = deep.load_state_dict(plain.state_dict(), strict=False).missing_keys
+    assert len(missing) == 3 * 4 and all(k.startswith("level3.") for k in missing)  # a spatial and a temporal conv per block
+    video = torch.rand(2, 1, 16, 32, 32)
+    assert torch.equal(deep(video), plain(video))  # the added blocks start as the identity
+    for block in deep.level3[-3:]:
+        torch.nn.init.normal_(block.temporal.weight, std=0.1)
+    reach = receptive_frames(deep)
+    assert reach[:11].all() and not reach[11:].any()  # ±7 frames, and one more per block at the coarsest level
+    assert deep.config["coarse_blocks"] == 3 and UNet2p1DDeep().config["coarse_blocks"] == 4
+    with pytest.raises(ValueError, match="^coarse_blocks:"):
+        UNet2p1DDeep(coarse_blocks=0)
 
 
 def test_a_small_unet_overfits_a_few_generated_clips():

@@ -256,7 +256,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("out", help="run folder: config, checkpoints, weights, metrics")
     p.add_argument("--loss", default="gbr", help="gbr | tr_sc | aligned | aligned_clip | aligned_signed | aligned_clip_signed | aligned_both_signed | "
                    "aligned_clip_offsets_signed | aligned_both_offsets_signed | aligned_first | aligned_signed_first (default: gbr; see nrdepth.losses)")
-    p.add_argument("--arch", default="unet3d", help="unet3d (the paper's) | unet2p1d (factorised, ~15x cheaper) | unet2p1d_global (unet2p1d whose coarsest level sees the whole clip in time) (default: unet3d)")
+    p.add_argument("--arch", default="unet3d", help="unet3d (the paper's) | unet2p1d (factorised, ~15x cheaper) | unet2p1d_global (unet2p1d whose coarsest level sees the whole clip in time) | unet2p1d_deep (unet2p1d with 4 more residual blocks on its coarsest level) (default: unet3d)")
     p.add_argument("--schedule", default="cosine", help="cosine | constant (a campaign: --epochs may grow on resume) (default: cosine)")
     p.add_argument("--target", default="depth",
                    help="depth (the rendered depth, the paper's) | observable (without the motion along the optical axis that no frame shows) (default: depth)")

@@ -410,8 +410,8 @@ def _warm_start(config: TrainConfig) -> Dict[str, torch.Tensor]:
     """The weights of ``config.init``, refused unless they fit this run's
     network: every tensor of theirs is one of the network's, with its shape.
     The network's others keep their (seeded) initialisation: a module added
-    to an architecture (``unet2p1d_global``'s temporal context, which starts
-    as the identity) warm-starts from the architecture without it. A run
+    to an architecture (``unet2p1d_global``'s temporal context,
+    ``unet2p1d_deep``'s coarse blocks, which start as the identity) warm-starts from the architecture without it. A run
     that learns the relief's scale (``amplitude`` > 0) from a model that
     did not has the model's linear head divided by its relief
     ratio on ``CALIBRATION_CLIPS`` validation clips: the same depths up to

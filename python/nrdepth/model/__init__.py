@@ -5,13 +5,14 @@ models by name, on disk and at work (:mod:`nrdepth.model.io`)."""
 
 from .io import ARCHITECTURES, DEFAULT_MODEL, SCALED_MODEL, architecture_name, build_model, load_model, predict_depth, resolve_device, save_model
 from .unet import UNet3D, count_parameters
-from .unet2p1d import UNet2p1D, UNet2p1DGlobal
+from .unet2p1d import UNet2p1D, UNet2p1DDeep, UNet2p1DGlobal
 
 __all__ = [
     "ARCHITECTURES",
     "DEFAULT_MODEL",
     "SCALED_MODEL",
     "UNet2p1D",
+    "UNet2p1DDeep",
     "UNet2p1DGlobal",
     "UNet3D",
     "architecture_name",

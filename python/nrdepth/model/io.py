@@ -21,11 +21,11 @@ import torch
 from torch import nn
 
 from .unet import UNet3D
-from .unet2p1d import UNet2p1D, UNet2p1DGlobal
+from .unet2p1d import UNet2p1D, UNet2p1DDeep, UNet2p1DGlobal
 
 __all__ = ["ARCHITECTURES", "DEFAULT_MODEL", "SCALED_MODEL", "build_model", "architecture_name", "save_model", "load_model", "predict_depth", "resolve_device"]
 
-ARCHITECTURES: Dict[str, Callable[..., nn.Module]] = {"unet3d": UNet3D, "unet2p1d": UNet2p1D, "unet2p1d_global": UNet2p1DGlobal}
+ARCHITECTURES: Dict[str, Callable[..., nn.Module]] = {"unet3d": UNet3D, "unet2p1d": UNet2p1D, "unet2p1d_global": UNet2p1DGlobal, "unet2p1d_deep": UNet2p1DDeep}
 """Architecture name → constructor; every model stores its keyword arguments in ``.config``."""
 
 DEFAULT_MODEL = Path(__file__).resolve().parent.parent / "weights" / "default.safetensors"
