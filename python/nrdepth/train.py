@@ -411,11 +411,12 @@ def _warm_start(config: TrainConfig) -> Dict[str, torch.Tensor]:
     network: every tensor of theirs is one of the network's, with its shape.
     The network's others keep their (seeded) initialisation: a module added
     to an architecture (``unet2p1d_global``'s temporal context,
-    ``unet2p1d_deep``'s coarse blocks, which start as the identity) warm-starts from the architecture without it. A run
-    that learns the relief's scale (``amplitude`` > 0) from a model that
-    did not has the model's linear head divided by its relief
-    ratio on ``CALIBRATION_CLIPS`` validation clips: the same depths up to
-    scale, at the right scale on average, so the amplitude term starts small."""
+    ``unet2p1d_deep``'s coarse blocks, which start as the identity)
+    warm-starts from the architecture without it. A run that learns the
+    relief's scale (``amplitude`` > 0) from a model that did not has the
+    model's linear head divided by its relief ratio on
+    ``CALIBRATION_CLIPS`` validation clips: the same depths up to scale, at
+    the right scale on average, so the amplitude term starts small."""
     model = load_model(config.init, device="cpu")
     theirs = model.state_dict()
     mine = build_model(config.arch, **config.model_config()).state_dict()
