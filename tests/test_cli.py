@@ -80,3 +80,15 @@ def test_generate_passes_the_window_width_to_the_generator(tmp_path, capsys):
     assert np.allclose(window_widths([written[i][2] for i in range(len(written))]), 0.5)
     assert main(["generate", str(tmp_path / "bad"), "--clips", "2", "--window-width", "0,3"]) != 0
     assert "config.window_width" in capsys.readouterr().err and not (tmp_path / "bad").exists()
+
+
+def test_evaluate_passes_the_readings_to_the_scores(tmp_path, capsys):
+    from nrdepth.evaluate import evaluate
+    from nrdepth.model import DEFAULT_MODEL
+
+    assert main(["evaluate", str(DEFAULT_MODEL), "--clips", "2", "--device", "cpu", "--readings", "4", "-o", str(tmp_path)]) == 0
+    assert "4 readings averaged" in capsys.readouterr().out
+    written = json.loads((tmp_path / "summary.json").read_text())
+    assert written["readings"] == 4
+    assert written["mae_sn_frame"] == evaluate(DEFAULT_MODEL, clips=2, device="cpu", readings=4)["mae_sn_frame"]
+    assert written["mae_sn_frame"] != evaluate(DEFAULT_MODEL, clips=2, device="cpu")["mae_sn_frame"]

@@ -366,3 +366,32 @@ def test_the_relief_amplitude_term_sees_the_relief_scale_and_nothing_else():
     pred = relief.clone().requires_grad_(True)
     relief_amplitude_loss(pred, gbr(torch.zeros_like(relief), 0.1, 0.2, 1.0, 0.0)).backward()
     assert (pred.grad * relief).sum() > 0
+
+
+def test_averaged_readings_commute_with_the_symmetries_they_average():
+    """``readings=2`` averages a clip's reading with its left-right mirror's,
+    so mirroring the input mirrors the depth; ``readings=4`` adds both
+    upside down and negated, so turning the input upside down turns the
+    depth upside down and negates it; whatever the network. One reading of
+    a random network has neither symmetry."""
+    from nrdepth.evaluate import evaluate
+    from nrdepth.model import predict_depth
+
+    torch.manual_seed(0)
+    net = nrdepth.model.build_model("unet2p1d").eval()
+    video = (np.random.default_rng(3).random((2, 16, 32, 32)) * 255).astype(np.uint8)
+    mirror, upside_down = (lambda v: np.ascontiguousarray(v[..., ::-1])), (lambda v: np.ascontiguousarray(v[..., ::-1, :]))
+    one = predict_depth(net, video)
+    tol = 1e-5 * np.abs(one).max()
+    assert np.abs(predict_depth(net, mirror(video)) - mirror(one)).max() > 100 * tol
+    assert np.abs(predict_depth(net, upside_down(video)) + upside_down(one)).max() > 100 * tol
+    two = predict_depth(net, video, readings=2)
+    np.testing.assert_allclose(predict_depth(net, mirror(video), readings=2), mirror(two), rtol=0, atol=tol)
+    four = predict_depth(net, video, readings=4)
+    np.testing.assert_allclose(predict_depth(net, mirror(video), readings=4), mirror(four), rtol=0, atol=tol)
+    np.testing.assert_allclose(predict_depth(net, upside_down(video), readings=4), -upside_down(four), rtol=0, atol=tol)
+    for bad in (3, 0, True, "4"):
+        with pytest.raises(ValueError, match="^readings:"):
+            predict_depth(net, video, readings=bad)
+    with pytest.raises(ValueError, match="^readings:"):
+        evaluate("no-such-model.safetensors", clips=1, readings=8)

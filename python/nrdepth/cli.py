@@ -86,7 +86,7 @@ def _train(args: argparse.Namespace) -> int:
 def _evaluate(args: argparse.Namespace) -> int:
     from .evaluate import evaluate, format_summary
 
-    summary = evaluate(args.model, args.data, args.out, clips=args.clips, config=_generator_config(args), device=args.device)
+    summary = evaluate(args.model, args.data, args.out, clips=args.clips, config=_generator_config(args), device=args.device, readings=args.readings)
     print(format_summary(summary))
     return 0
 
@@ -284,6 +284,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--out", default=None, help="folder for per_clip.csv and summary.json")
     p.add_argument("--clips", type=int, default=256, help="clips to score")
     p.add_argument("--device", default="auto", help="auto | cpu | cuda | cuda:N")
+    p.add_argument("--readings", type=int, choices=(1, 2, 4), default=1,
+                   help="readings of each clip averaged: 2 adds it mirrored left-right, 4 also upside down (nrdepth.predict_depth)")
     _add_generator_options(p)
     p.set_defaults(run=_evaluate)
 

@@ -23,7 +23,7 @@ import torch
 from .generate import GeneratorConfig, generate_clips, window_widths
 from .losses import relief_rms
 from .metrics import flat_baseline, mae_sn, sign_rates
-from .model.io import load_model, predict_depth, resolve_device
+from .model.io import check_readings, load_model, predict_depth, resolve_device
 
 __all__ = ["evaluate", "relief_ratio", "TEST_SEED"]
 
@@ -39,9 +39,13 @@ def evaluate(
     config: Optional[GeneratorConfig] = None,
     batch_size: int = 8,
     device: str = "auto",
+    readings: int = 1,
 ) -> Dict[str, Any]:
     """Score ``model`` (a ``model.safetensors`` or its folder); write
-    ``per_clip.csv`` and ``summary.json`` into ``out`` when given."""
+    ``per_clip.csv`` and ``summary.json`` into ``out`` when given.
+    ``readings`` is :func:`~nrdepth.model.predict_depth`'s: how many
+    symmetric readings of each clip are averaged."""
+    check_readings(readings)
     net = load_model(model, device="cpu").to(resolve_device(device))
     if data is not None:
         from .dataset import ClipStore
@@ -52,7 +56,7 @@ def evaluate(
     else:
         generated = generate_clips(clips, seed=TEST_SEED, config=config or GeneratorConfig())
         video, depth, params = generated.video, generated.depth, generated.params
-    pred = predict_depth(net, video, batch_size)
+    pred = predict_depth(net, video, batch_size, readings=readings)
     truth = torch.nn.functional.avg_pool2d(torch.from_numpy(depth).float(), 2).numpy()
     rows = []
     for i, (p, g) in enumerate(zip(pred, truth)):
@@ -70,7 +74,7 @@ def evaluate(
         in_windows = truth / window_widths(params)[:, None, None, None]
         for row, p, g in zip(rows, pred, in_windows):
             row["relief_ratio"] = relief_ratio(p[None], g[None])
-    summary: Dict[str, Any] = {"clips": len(rows), "model": str(model), "data": str(data) if data else f"generated, seed {TEST_SEED}"}
+    summary: Dict[str, Any] = {"clips": len(rows), "model": str(model), "data": str(data) if data else f"generated, seed {TEST_SEED}", "readings": readings}
     for key in ("mae_sn_frame", "mae_sn_first", "mae_sn_first_offset", "flat_frame", "flat_first", "flat_first_offset", "sign_correct", "flip"):
         values = np.array([r[key] for r in rows])
         summary[key] = {"mean": float(values.mean()), "std": float(values.std())}
@@ -100,7 +104,7 @@ def format_summary(summary: Dict[str, Any]) -> str:
     """The paper's table layout: rows per alignment, model beside flat baseline."""
     s = summary
     return "\n".join([
-        f"MAE-SN over {s['clips']} held-out clips ({s['data']}), mean ± std",
+        f"MAE-SN over {s['clips']} held-out clips ({s['data']}{', %d readings averaged' % s['readings'] if s.get('readings', 1) > 1 else ''}), mean ± std",
         f"{'':26s}{'model':>18s}{'flat baseline':>20s}",
         f"{'align each frame':26s}{s['mae_sn_frame']['mean']:>9.4f} ± {s['mae_sn_frame']['std']:.4f}{s['flat_frame']['mean']:>11.4f} ± {s['flat_frame']['std']:.4f}",
         f"{'alignment from 1st frame':26s}{s['mae_sn_first']['mean']:>9.4f} ± {s['mae_sn_first']['std']:.4f}{s['flat_first']['mean']:>11.4f} ± {s['flat_first']['std']:.4f}",
