@@ -11,9 +11,11 @@ three ways per model, on ``bench_real.py``'s crop (108×108, 50 frames).
 - stitched: ``nrdepth.reconstruct``, as ``bench_real.py`` scores it;
 
 all as MAE-SN per frame over the pixels with a ground-truth value, beside
-the flat plane's.
+the flat plane's. ``--cross`` adds, for two or more models, the stitched
+score of every pairing of one model's coarse pass with another's patches:
+which of the two passes a difference between models comes from.
 
-    python benchmarks/real_scales.py MODEL [MODEL ...]     # 'default' is the shipped model
+    python benchmarks/real_scales.py MODEL [MODEL ...] [--cross]     # 'default' is the shipped model
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ import torch
 import nrdepth
 from nrdepth.metrics import flat_baseline, mae_sn
 from nrdepth.model import DEFAULT_MODEL, load_model, predict_depth
-from nrdepth.stitch import coarse_depth
+from nrdepth.stitch import coarse_depth, inference_model, patch_depths, patch_layout
 
 from bench_real import DATA
 
@@ -50,6 +52,7 @@ def patches(video: np.ndarray, truth: np.ndarray) -> tuple:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("models", nargs="+", help="model.safetensors or run folder; 'default' for the shipped model")
+    parser.add_argument("--cross", action="store_true", help="also stitch every model's coarse pass with every model's patches")
     args = parser.parse_args()
     data = np.load(DATA / "phisft_R1" / "derived_q4.npz")
     top, bottom, left, right = CROP
@@ -68,6 +71,22 @@ def main() -> None:
         coarse = mae_sn(coarse_depth(video, net, 8, cpu), truth, "frame", mask=mask)
         stitched = mae_sn(nrdepth.reconstruct(video, net, device="cpu"), truth, "frame", mask=mask)
         print(f"{name[-50:]:50s}{local:>9.4f}{coarse:>9.4f}{stitched:>10.4f}", flush=True)
+    if args.cross:
+        cross(video, truth, mask, args.models)
+
+
+def cross(video: np.ndarray, truth: np.ndarray, mask: np.ndarray, models: list) -> None:
+    """Stitched MAE-SN per frame of every model's coarse pass (rows) with every model's patches (columns)."""
+    cpu = torch.device("cpu")
+    layout = patch_layout(video.shape)
+    nets = [inference_model(None if name == "default" else name, cpu) for name in models]
+    coarse = [coarse_depth(video, net, 8, cpu) for net in nets]
+    fine = [np.concatenate([depth for _, depth in patch_depths(video, net, layout, 8, cpu)]) for net in nets]
+    print("stitched: coarse pass of the row's model, patches of the column's")
+    print(f"{'':50s}" + "".join(f"{j:>9d}" for j in range(len(models))))
+    for i, name in enumerate(models):
+        row = [mae_sn(nrdepth.stitch(patches, coarse[i], layout), truth, "frame", mask=mask) for patches in fine]
+        print(f"{i} {name[-48:]:48s}" + "".join(f"{v:>9.4f}" for v in row), flush=True)
 
 
 if __name__ == "__main__":
