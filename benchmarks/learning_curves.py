@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import math
 import os
 import shlex
@@ -90,6 +91,12 @@ def lineage(spec: str) -> List[Dict[str, float]]:
     return out
 
 
+def validation_counts(runs: List[str]) -> List[int]:
+    """The distinct validation-set sizes of the run folders in ``runs`` (chains included)."""
+    folders = [link.rpartition("@")[0] or link for spec in runs for link in spec.split("+")]
+    return sorted({json.loads((Path(f) / "config.json").read_text())["validation_clips"] for f in folders})
+
+
 TREND_FROM = 8000
 """Trends are fitted from this many clips seen on (before it, the curves bend)."""
 
@@ -122,7 +129,7 @@ def plot(runs: List[str], out: Path, labels: List[str]) -> None:
             for r in rs:
                 w.writerow({"run": label, **r})
     figure, axes = plt.subplots(2, 3, figsize=(16, 9))
-    for col, (x_key, x_label, scale) in enumerate([("clips_seen", "clips seen", 1.0), ("train_seconds", "hours of training (one CPU thread each)", 1 / 3600)]):
+    for col, (x_key, x_label, scale) in enumerate([("clips_seen", "clips seen", 1.0), ("train_seconds", "hours of training (on one or two CPU threads, or a GPU, as each run ran)", 1 / 3600)]):
         for row, (align, title) in enumerate([("frame", "MAE-SN, each frame aligned"), ("first", "MAE-SN, alignment from the 1st frame")]):
             ax = axes[row, col]
             for label, rs in table.items():
@@ -144,7 +151,8 @@ def plot(runs: List[str], out: Path, labels: List[str]) -> None:
     for label, rs in table.items():
         ax.plot([r["clips_seen"] for r in rs], [100 * r["val_flip"] for r in rs], marker=".", label=label)
     ax.set_xscale("log"), ax.set_xlabel("clips seen"), ax.set_title("clips whose relief sign flips, %"), ax.grid(alpha=0.3), ax.legend(fontsize=8)
-    figure.suptitle("Held-out validation clips (64, generator seed + 1,000,003) after every epoch")
+    counts = " or ".join(str(n) for n in validation_counts(runs))
+    figure.suptitle(f"Held-out validation clips ({counts} as each run's config.json says, generator seed + 1,000,003) after every epoch")
     figure.tight_layout()
     figure.savefig(out.with_suffix(".png"), dpi=80)
     print(f"wrote {out.with_suffix('.csv')} and {out.with_suffix('.png')}")

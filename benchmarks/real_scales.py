@@ -1,21 +1,27 @@
 """Where a model's score on ``phisft_R1`` comes from: the real cloth scored
 three ways per model, on ``bench_real.py``'s crop (108×108, 50 frames).
 
-- patches: the network's raw outputs on 27 patches of 64×64×16 (offsets 0,
-  22, 44 on each image axis; frames 0, 17, 34), each aligned per frame to
+- patches: the network's raw outputs on 27 patches of 64×64×16 (three
+  origins spread evenly on each image axis, 0, 22, 44 on the 108×108 crop;
+  frames 0, 17, 34), each aligned per frame to
   the truth box-averaged 2×2 to the output's half resolution, no stitching:
   the local reading;
 - coarse: the coarse pass alone (the crop resized to 64×64, both readings
-  averaged as ``reconstruct`` does), resized back: the large-scale reading at
-  0.6× scale that every patch is aligned to;
+  averaged as ``reconstruct`` does), resized back: the large-scale reading (at
+  0.6× scale on the 108×108 crop) that every patch is aligned to;
 - stitched: ``nrdepth.reconstruct``, as ``bench_real.py`` scores it;
 
 all as MAE-SN per frame over the pixels with a ground-truth value, beside
 the flat plane's. ``--cross`` adds, for two or more models, the stitched
 score of every pairing of one model's coarse pass with another's patches:
-which of the two passes a difference between models comes from.
+which of the two passes a difference between models comes from. ``--bin 3``
+or ``--bin 2`` scores the same region of the cloth at a finer scale: the
+full 1920×1080 frames' luma box-averaged 3×3 or 2×2 (144×144 or 216×216
+pixels), the ground truth splatted into that grid by ``derived_q4.npz``'s
+own recipe (the nearest point of each frame's cloud per pixel, which gives
+that file's depth exactly at 4×4).
 
-    python benchmarks/real_scales.py MODEL [MODEL ...] [--cross]     # 'default' is the shipped model
+    python benchmarks/real_scales.py MODEL [MODEL ...] [--cross] [--bin 4|3|2]     # 'default' is the shipped model
 """
 
 from __future__ import annotations
@@ -30,18 +36,48 @@ import nrdepth
 from nrdepth.metrics import flat_baseline, mae_sn
 from nrdepth.model import DEFAULT_MODEL, load_model, predict_depth
 from nrdepth.stitch import coarse_depth, inference_model, patch_depths, patch_layout
+from nrdepth.videoio import read_video
 
 from bench_real import DATA
 
 CROP = (110, 218, 106, 214)
+"""bench_real.py's crop of the 4×4-binned grid: TOP, BOTTOM, LEFT, RIGHT."""
+FOCAL, CENTRE = (971.522, 944.575), (962.134, 554.778)
+"""The full frames' intrinsics (pixels; the data set's README)."""
+
+
+def phisft_at_bin(b: int) -> tuple:
+    """``phisft_R1`` on the full frames box-averaged b×b, cut to the region
+    of :data:`CROP`: gray uint8 (50, S, S) and ground-truth Z float32 (metres,
+    NaN where no point falls), with S = 108·4/b."""
+    root = DATA / "phisft_R1"
+    top, bottom, left, right = (round(c * 4 / b) for c in CROP)
+    if b == 4:
+        data = np.load(root / "derived_q4.npz")
+        return data["gray"][:, top:bottom, left:right], data["depth"][:, top:bottom, left:right]
+    full = read_video(root / "rgbs").frames.astype(np.float64)
+    t, h, w = full.shape
+    gray = np.rint(full[:, : h // b * b, : w // b * b].reshape(t, h // b, b, w // b, b).mean(axis=(2, 4))).astype(np.uint8)
+    clouds = np.load(root / "gt_pointclouds.npz")
+    depth = np.full(gray.shape, np.nan, np.float32)
+    for i in range(t):
+        p = clouds["points"][clouds["offsets"][i] : clouds["offsets"][i + 1]].astype(np.float64)
+        u, v = ((f * p[:, k] / p[:, 2] + c + 0.5) / b - 0.5 for k, f, c in zip((0, 1), FOCAL, CENTRE))
+        iu, iv = np.rint(u).astype(int), np.rint(v).astype(int)
+        inside = (iu >= 0) & (iu < w // b) & (iv >= 0) & (iv < h // b)
+        far_first = np.argsort(-p[inside, 2], kind="stable")  # the nearest point is written last
+        depth[i, iv[inside][far_first], iu[inside][far_first]] = p[inside, 2][far_first]
+    return gray[:, top:bottom, left:right], depth[:, top:bottom, left:right]
 
 
 def patches(video: np.ndarray, truth: np.ndarray) -> tuple:
-    """27 clips (uint8) and their truth at half resolution (NaN where no pixel of a 2×2 block has one)."""
+    """27 clips (uint8; 3 origins spread evenly over each image axis) and
+    their truth at half resolution (NaN where no pixel of a 2×2 block has one)."""
     clips, truths = [], []
+    origins = np.linspace(0, video.shape[1] - 64, 3).round().astype(int)
     for t in (0, 17, 34):
-        for y in (0, 22, 44):
-            for x in (0, 22, 44):
+        for y in origins:
+            for x in origins:
                 clips.append(video[t : t + 16, y : y + 64, x : x + 64])
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN blocks stay NaN
@@ -53,15 +89,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("models", nargs="+", help="model.safetensors or run folder; 'default' for the shipped model")
     parser.add_argument("--cross", action="store_true", help="also stitch every model's coarse pass with every model's patches")
+    parser.add_argument("--bin", type=int, choices=(4, 3, 2), default=4, help="the full frames box-averaged b×b (default 4: derived_q4.npz, bench_real.py's scale)")
     args = parser.parse_args()
-    data = np.load(DATA / "phisft_R1" / "derived_q4.npz")
-    top, bottom, left, right = CROP
-    video, truth = data["gray"][:, top:bottom, left:right], data["depth"][:, top:bottom, left:right]
+    video, truth = phisft_at_bin(args.bin)
+    top, bottom, left, right = (round(c * 4 / args.bin) for c in CROP)
     mask = np.isfinite(truth)
     clips, clip_truth = patches(video, truth)
     clip_masks = np.isfinite(clip_truth)
     plane_patches = np.mean([flat_baseline(g, "frame", mask=m) for g, m in zip(clip_truth, clip_masks)])
-    print(f"phisft_R1, rows {top}–{bottom}, columns {left}–{right}: MAE-SN per frame (flat plane: patches "
+    print(f"phisft_R1 binned {args.bin}×{args.bin}, rows {top}–{bottom}, columns {left}–{right}: MAE-SN per frame (flat plane: patches "
           f"{plane_patches:.4f}, whole crop {flat_baseline(truth, 'frame', mask=mask):.4f})")
     print(f"{'model':50s}{'patches':>9s}{'coarse':>9s}{'stitched':>10s}")
     cpu = torch.device("cpu")
