@@ -12,7 +12,10 @@ three ways per model, on ``bench_real.py``'s crop (108×108, 50 frames).
 - stitched: ``nrdepth.reconstruct``, as ``bench_real.py`` scores it;
 
 all as MAE-SN per frame over the pixels with a ground-truth value, beside
-the flat plane's. ``--cross`` adds, for two or more models, the stitched
+the flat plane's, and for the coarse pass and the stitched depth the share
+of frames whose relief sign is read right (λ > 0 in the frame's GBR fit;
+MAE-SN per frame leaves the sign free). ``--turn`` turns the video (and
+the truth) 180° first: the cloth lit from the other side of image-up. ``--cross`` adds, for two or more models, the stitched
 score of every pairing of one model's coarse pass with another's patches:
 which of the two passes a difference between models comes from. ``--bin 3``
 or ``--bin 2`` scores the same region of the cloth at a finer scale: the
@@ -21,7 +24,7 @@ pixels), the ground truth splatted into that grid by ``derived_q4.npz``'s
 own recipe (the nearest point of each frame's cloud per pixel, which gives
 that file's depth exactly at 4×4).
 
-    python benchmarks/real_scales.py MODEL [MODEL ...] [--cross] [--bin 4|3|2]     # 'default' is the shipped model
+    python benchmarks/real_scales.py MODEL [MODEL ...] [--cross] [--bin 4|3|2] [--turn]     # 'default' is the shipped model
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ import numpy as np
 import torch
 
 import nrdepth
-from nrdepth.metrics import flat_baseline, mae_sn
+from nrdepth.metrics import flat_baseline, mae_sn, relief_signs
 from nrdepth.model import DEFAULT_MODEL, load_model, predict_depth
 from nrdepth.stitch import coarse_depth, inference_model, patch_depths, patch_layout
 from nrdepth.videoio import read_video
@@ -90,23 +93,27 @@ def main() -> None:
     parser.add_argument("models", nargs="+", help="model.safetensors or run folder; 'default' for the shipped model")
     parser.add_argument("--cross", action="store_true", help="also stitch every model's coarse pass with every model's patches")
     parser.add_argument("--bin", type=int, choices=(4, 3, 2), default=4, help="the full frames box-averaged b×b (default 4: derived_q4.npz, bench_real.py's scale)")
+    parser.add_argument("--turn", action="store_true", help="turn the video and the truth 180° (the light's side flips)")
     args = parser.parse_args()
     video, truth = phisft_at_bin(args.bin)
+    if args.turn:
+        video, truth = np.ascontiguousarray(video[:, ::-1, ::-1]), np.ascontiguousarray(truth[:, ::-1, ::-1])
     top, bottom, left, right = (round(c * 4 / args.bin) for c in CROP)
     mask = np.isfinite(truth)
     clips, clip_truth = patches(video, truth)
     clip_masks = np.isfinite(clip_truth)
     plane_patches = np.mean([flat_baseline(g, "frame", mask=m) for g, m in zip(clip_truth, clip_masks)])
-    print(f"phisft_R1 binned {args.bin}×{args.bin}, rows {top}–{bottom}, columns {left}–{right}: MAE-SN per frame (flat plane: patches "
+    print(f"phisft_R1 binned {args.bin}×{args.bin}{', turned 180°' if args.turn else ''}, rows {top}–{bottom}, columns {left}–{right}: MAE-SN per frame (flat plane: patches "
           f"{plane_patches:.4f}, whole crop {flat_baseline(truth, 'frame', mask=mask):.4f})")
-    print(f"{'model':50s}{'patches':>9s}{'coarse':>9s}{'stitched':>10s}")
+    print(f"{'model':50s}{'patches':>9s}{'coarse':>9s}{'stitched':>10s}   sign right: coarse, stitched")
     cpu = torch.device("cpu")
     for name in args.models:
         net = load_model(DEFAULT_MODEL if name == "default" else name, device="cpu")
         local = np.mean([mae_sn(p, g, "frame", mask=m) for p, g, m in zip(predict_depth(net, clips), clip_truth, clip_masks)])
-        coarse = mae_sn(coarse_depth(video, net, 8, cpu), truth, "frame", mask=mask)
-        stitched = mae_sn(nrdepth.reconstruct(video, net, device="cpu"), truth, "frame", mask=mask)
-        print(f"{name[-50:]:50s}{local:>9.4f}{coarse:>9.4f}{stitched:>10.4f}", flush=True)
+        depths = coarse_depth(video, net, 8, cpu), nrdepth.reconstruct(video, net, device="cpu")
+        coarse, stitched = (mae_sn(d, truth, "frame", mask=mask) for d in depths)
+        right = "".join(f"{np.mean(relief_signs(d, truth, mask=mask) > 0):>8.0%}" for d in depths)
+        print(f"{name[-50:]:50s}{local:>9.4f}{coarse:>9.4f}{stitched:>10.4f}{right}", flush=True)
     if args.cross:
         cross(video, truth, mask, args.models)
 

@@ -1,0 +1,46 @@
+#!/bin/bash
+# A campaign run on a lent GPU machine (torch and numpy there, no Rust, no
+# network), started and collected by the device tool's `run` calls, which
+# copy the working tree there (64 MiB at most) and bring back what is under
+# $OUT. Here, first:
+#   maturin build --release -o .whl            # abi3 wheel; /.whl/ in .git/info/exclude
+#   cp campaign/RUN/model.safetensors campaign/RUN/model.json .whl/     # the --init weights
+#   git rm -r -q --cached campaign && echo /campaign/ >> .git/info/exclude
+#                                              # campaign/ is over 64 MiB; undo after with
+#                                              # `git reset -q campaign` and deleting that line
+# Then `run` (carry .whl) with
+#   bash tools/gpu_run.sh start NAME [nrdepth train options, e.g. --init .whl/model.safetensors]
+# which installs the wheel and starts `nrdepth train /tmp/gpu/NAME ... --device cuda
+# --workers 14` detached (it outlives the call; one Rust thread per worker), and,
+# within 30 s of each call's end so that the machine stays warm,
+#   bash tools/gpu_run.sh collect NAME SECONDS
+# which waits until the run ends or SECONDS pass and copies its resumable state
+# (config, last.pt, metrics, best weights; each under 16 MB) to $OUT/NAME.
+set -euo pipefail
+command=$1 name=$2
+shift 2
+export PYTHONPATH=/tmp/site RAYON_NUM_THREADS=1  # DEVICE and WORKERS override cuda and 14 (a check on a CPU)
+case $command in
+start)
+    pip install -q --no-deps --target /tmp/site .whl/*.whl
+    mkdir -p /tmp/gpu
+    setsid nohup python3 -m nrdepth train "/tmp/gpu/$name" "$@" --device "${DEVICE:-cuda}" --workers "${WORKERS:-14}" --quiet \
+        > "/tmp/gpu/$name.log" 2>&1 < /dev/null &
+    echo $! > "/tmp/gpu/$name.pid"
+    ;;
+collect)
+    deadline=$(( $(date +%s) + $1 ))
+    while kill -0 "$(cat "/tmp/gpu/$name.pid")" 2> /dev/null && [ "$(date +%s)" -lt "$deadline" ]; do
+        sleep 5
+    done
+    tail -c 600 "/tmp/gpu/$name.log"
+    mkdir -p "$OUT/$name"
+    for f in config.json last.pt metrics.csv model.json model.safetensors; do
+        if [ -f "/tmp/gpu/$name/$f" ]; then cp "/tmp/gpu/$name/$f" "$OUT/$name/"; fi
+    done
+    ;;
+*)
+    echo "usage: $0 start NAME [train options] | collect NAME SECONDS" >&2
+    exit 2
+    ;;
+esac
