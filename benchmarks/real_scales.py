@@ -14,15 +14,17 @@ three ways per model, on ``bench_real.py``'s crop (108×108, 50 frames).
 all as MAE-SN per frame over the pixels with a ground-truth value, beside
 the flat plane's, and for the coarse pass and the stitched depth the share
 of frames whose relief sign is read right (λ > 0 in the frame's GBR fit;
-MAE-SN per frame leaves the sign free). ``--turn`` turns the video (and
-the truth) 180° first: the cloth lit from the other side of image-up. ``--cross`` adds, for two or more models, the stitched
-score of every pairing of one model's coarse pass with another's patches:
-which of the two passes a difference between models comes from. ``--bin 3``
-or ``--bin 2`` scores the same region of the cloth at a finer scale: the
-full 1920×1080 frames' luma box-averaged 3×3 or 2×2 (144×144 or 216×216
-pixels), the ground truth splatted into that grid by ``derived_q4.npz``'s
-own recipe (the nearest point of each frame's cloud per pixel, which gives
-that file's depth exactly at 4×4).
+MAE-SN per frame leaves the sign free).
+
+``--cross`` adds, for two or more models, the stitched score of every
+pairing of one model's coarse pass with another's patches: which of the two
+passes a difference between models comes from. ``--turn`` turns the video
+(and the truth) 180° first: the cloth lit from the other side of image-up.
+``--bin 3`` or ``--bin 2`` scores the same region of the cloth at a finer
+scale: the full 1920×1080 frames' luma box-averaged 3×3 or 2×2 (144×144 or
+216×216 pixels), the ground truth splatted into that grid by
+``derived_q4.npz``'s own recipe (the nearest point of each frame's cloud
+per pixel, which gives that file's depth exactly at 4×4).
 
     python benchmarks/real_scales.py MODEL [MODEL ...] [--cross] [--bin 4|3|2] [--turn]     # 'default' is the shipped model
 """

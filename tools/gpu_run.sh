@@ -16,6 +16,8 @@
 #   bash tools/gpu_run.sh collect NAME SECONDS
 # which waits until the run ends or SECONDS pass and copies its resumable state
 # (config, last.pt, metrics, best weights; each under 16 MB) to $OUT/NAME.
+# Committed to campaign/NAME, its config.json's "init" is set to the campaign
+# path of the same weights, so that it resumes from campaign/.
 set -euo pipefail
 command=$1 name=$2
 shift 2
