@@ -51,12 +51,17 @@ FOCAL, CENTRE = (971.522, 944.575), (962.134, 554.778)
 """The full frames' intrinsics (pixels; the data set's README)."""
 
 
+def crop_at_bin(b: int) -> tuple:
+    """:data:`CROP`'s region on the full frames binned b×b: TOP, BOTTOM, LEFT, RIGHT."""
+    return tuple(round(c * 4 / b) for c in CROP)
+
+
 def phisft_at_bin(b: int) -> tuple:
     """``phisft_R1`` on the full frames box-averaged b×b, cut to the region
     of :data:`CROP`: gray uint8 (50, S, S) and ground-truth Z float32 (metres,
     NaN where no point falls), with S = 108·4/b."""
     root = DATA / "phisft_R1"
-    top, bottom, left, right = (round(c * 4 / b) for c in CROP)
+    top, bottom, left, right = crop_at_bin(b)
     if b == 4:
         data = np.load(root / "derived_q4.npz")
         return data["gray"][:, top:bottom, left:right], data["depth"][:, top:bottom, left:right]
@@ -100,7 +105,7 @@ def main() -> None:
     video, truth = phisft_at_bin(args.bin)
     if args.turn:
         video, truth = np.ascontiguousarray(video[:, ::-1, ::-1]), np.ascontiguousarray(truth[:, ::-1, ::-1])
-    top, bottom, left, right = (round(c * 4 / args.bin) for c in CROP)
+    top, bottom, left, right = crop_at_bin(args.bin)
     mask = np.isfinite(truth)
     clips, clip_truth = patches(video, truth)
     clip_masks = np.isfinite(clip_truth)
