@@ -16,6 +16,9 @@ configurations side by side for the same wall-clock time and draws those rows.
     # --init was A's weights at CLIPS clips seen; B's clips and hours follow A's)
     python benchmarks/learning_curves.py plot runs/a@27200+runs/c -o docs/campaign
 
+Runs that watch a real video (``nrdepth train --real``) get a third row:
+its MAE-SN per frame and from the first frame, and its sign-correct share.
+
 ``train`` passes ``--batch-size 8 --epochs 100000 --schedule constant
 --validation-clips 64 --workers 0 --device cpu --quiet`` unless the
 arguments given override them; a run stopped at the budget resumes where it
@@ -67,7 +70,8 @@ def train(specs: List[str], minutes: float) -> None:
 
 def rows(run: Path) -> List[Dict[str, float]]:
     with (run / "metrics.csv").open(newline="") as f:
-        return [{k: float(v) for k, v in r.items() if k != "ranks_in_sync"} for r in csv.DictReader(f)]
+        # Columns a run added on resume (--real) are empty in its earlier rows.
+        return [{k: float(v) for k, v in r.items() if k != "ranks_in_sync" and v != ""} for r in csv.DictReader(f)]
 
 
 def lineage(spec: str) -> List[Dict[str, float]]:
@@ -122,13 +126,15 @@ def plot(runs: List[str], out: Path, labels: List[str]) -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
     table = {label: lineage(run) for label, run in zip(labels, runs)}
     fields = ["run", "epoch", "clips_seen", "train_seconds", "val_mae_sn_frame", "val_mae_sn_first", "val_mae_sn_flat_frame", "val_mae_sn_flat_first", "val_sign_correct", "val_flip"]
+    real = [k for k in REAL_COLUMNS if any(k in r for rs in table.values() for r in rs)]
+    fields += real
     with out.with_suffix(".csv").open("w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=fields, extrasaction="ignore")
         w.writeheader()
         for label, rs in table.items():
             for r in rs:
                 w.writerow({"run": label, **r})
-    figure, axes = plt.subplots(2, 3, figsize=(16, 9))
+    figure, axes = plt.subplots(3 if real else 2, 3, figsize=(16, 13.5 if real else 9))
     for col, (x_key, x_label, scale) in enumerate([("clips_seen", "clips seen", 1.0), ("train_seconds", "hours of training (on one or two CPU threads, or a GPU, as each run ran)", 1 / 3600)]):
         for row, (align, title) in enumerate([("frame", "MAE-SN, each frame aligned"), ("first", "MAE-SN, alignment from the 1st frame")]):
             ax = axes[row, col]
@@ -151,18 +157,45 @@ def plot(runs: List[str], out: Path, labels: List[str]) -> None:
     for label, rs in table.items():
         ax.plot([r["clips_seen"] for r in rs], [100 * r["val_flip"] for r in rs], marker=".", label=label)
     ax.set_xscale("log"), ax.set_xlabel("clips seen"), ax.set_title("clips whose relief sign flips, %"), ax.grid(alpha=0.3), ax.legend(fontsize=8)
+    if real:
+        real_panels(axes[2], table)
     counts = " or ".join(str(n) for n in validation_counts(runs))
     figure.suptitle(f"Held-out validation clips ({counts} as each run's config.json says, generator seed + 1,000,003) after every epoch")
     figure.tight_layout()
     figure.savefig(out.with_suffix(".png"), dpi=80)
     print(f"wrote {out.with_suffix('.csv')} and {out.with_suffix('.png')}")
     for label, rs in table.items():
+        scored = [r for r in rs if "real_mae_sn_frame" in r]
+        if scored:
+            best_real = min(scored, key=lambda r: r["real_mae_sn_frame"])
+            print(f"{label}: real video per frame first {scored[0]['real_mae_sn_frame']:.4f}, last {scored[-1]['real_mae_sn_frame']:.4f}, "
+                  f"best {best_real['real_mae_sn_frame']:.4f} at {int(best_real['clips_seen'])} clips (plane {scored[0]['real_flat_frame']:.4f})")
         best = min(rs, key=lambda r: r["val_mae_sn_frame"])
         last = rs[-1]
         print(f"{label}: {len(rs)} epochs, {int(last['clips_seen'])} clips, {last['train_seconds'] / 3600:.2f} h; last {last['val_mae_sn_frame']:.4f} / {last['val_mae_sn_first']:.4f} "
               f"(sign {100 * last['val_sign_correct']:.1f} %, flips {100 * last['val_flip']:.1f} %); best per frame {best['val_mae_sn_frame']:.4f} at {int(best['clips_seen'])} clips")
         print(f"  a doubling of the clips seen (from {TREND_FROM} on): per frame {trend(rs, 'val_mae_sn_frame'):+.4f}, "
               f"from the first frame {trend(rs, 'val_mae_sn_first'):+.4f}, flips {100 * trend(rs, 'val_flip'):+.1f} points")
+
+
+REAL_COLUMNS = ("real_mae_sn_frame", "real_mae_sn_first", "real_flat_frame", "real_sign_correct")
+"""metrics.csv's scores of the real video a run watches (``nrdepth train --real``)."""
+
+
+def real_panels(axes, table: Dict[str, List[Dict[str, float]]]) -> None:
+    """The third row: the watched real video's MAE-SN per frame and from the
+    first frame (the flat plane beside them) and its sign-correct share."""
+    for ax, key, title in zip(axes, ("real_mae_sn_frame", "real_mae_sn_first", "real_sign_correct"),
+                              ("real video (--real): MAE-SN, each frame aligned", "real video: MAE-SN, alignment from the 1st frame",
+                               "real video: relief sign correct, % of frames")):
+        scale = 100 if key == "real_sign_correct" else 1
+        for label, rs in table.items():
+            scored = [r for r in rs if key in r]
+            ax.plot([r["clips_seen"] for r in scored], [scale * r[key] for r in scored], marker=".", label=label)
+        if key == "real_mae_sn_frame":
+            flat = [r["real_flat_frame"] for rs in table.values() for r in rs if "real_flat_frame" in r]
+            ax.axhline(flat[0], color="gray", linestyle="--", label="flat plane")
+        ax.set_xlabel("clips seen"), ax.set_title(title), ax.grid(alpha=0.3), ax.legend(fontsize=8)
 
 
 def main() -> None:

@@ -26,7 +26,11 @@ scale: the full 1920×1080 frames' luma box-averaged 3×3 or 2×2 (144×144 or
 ``derived_q4.npz``'s own recipe (the nearest point of each frame's cloud
 per pixel, which gives that file's depth exactly at 4×4).
 
+``--write NPZ`` saves the scored video and its truth (``video``, ``depth``)
+for ``nrdepth train --real NPZ``, which scores it stitched after every epoch.
+
     python benchmarks/real_scales.py MODEL [MODEL ...] [--cross] [--bin 4|3|2] [--turn]     # 'default' is the shipped model
+    python benchmarks/real_scales.py --write phisft_bin4.npz [--bin 4|3|2] [--turn]
 """
 
 from __future__ import annotations
@@ -97,14 +101,21 @@ def patches(video: np.ndarray, truth: np.ndarray) -> tuple:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("models", nargs="+", help="model.safetensors or run folder; 'default' for the shipped model")
+    parser.add_argument("models", nargs="*", help="model.safetensors or run folder; 'default' for the shipped model")
     parser.add_argument("--cross", action="store_true", help="also stitch every model's coarse pass with every model's patches")
     parser.add_argument("--bin", type=int, choices=(4, 3, 2), default=4, help="the full frames box-averaged b×b (default 4: derived_q4.npz, bench_real.py's scale)")
     parser.add_argument("--turn", action="store_true", help="turn the video and the truth 180° (the light's side flips)")
+    parser.add_argument("--write", default=None, metavar="NPZ", help="save the video and its truth for `nrdepth train --real NPZ` and stop")
     args = parser.parse_args()
+    if not args.models and not args.write:
+        parser.error("give one or more models, or --write NPZ")
     video, truth = phisft_at_bin(args.bin)
     if args.turn:
         video, truth = np.ascontiguousarray(video[:, ::-1, ::-1]), np.ascontiguousarray(truth[:, ::-1, ::-1])
+    if args.write:
+        np.savez_compressed(args.write, video=video, depth=truth)
+        print(f"wrote {args.write}: phisft_R1 binned {args.bin}×{args.bin}{', turned 180°' if args.turn else ''}, video {video.shape} uint8, depth in metres (NaN: no truth)")
+        return
     top, bottom, left, right = crop_at_bin(args.bin)
     mask = np.isfinite(truth)
     clips, clip_truth = patches(video, truth)

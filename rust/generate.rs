@@ -10,9 +10,11 @@
 //! Per clip: surface (`synthesis`), texture (`textures`), then per frame the
 //! frame and its depth are rendered in one pass (`raster`: the depth at pixel
 //! centres is the ray caster's, `bvh::raycast_depth`, bit for bit at the
-//! power-of-two supersampling factors and to rounding otherwise), Gaussian
-//! noise of the drawn standard deviation is added and the intensity is clamped
-//! to [0, 1] and quantised to u8. Depth is `camera_z − z` (`geometry`).
+//! power-of-two supersampling factors and to rounding otherwise), the
+//! camera's blur and response are applied (`camera_response`; none by
+//! default), Gaussian noise of the drawn standard deviation is added and the
+//! intensity is clamped to [0, 1] and quantised to u8. Depth is
+//! `camera_z − z` (`geometry`).
 //! Shapes: video (n, T, H, W) u8, depth (n, T, H, W) f32; H = W = `size`.
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -84,6 +86,12 @@ pub struct GeneratorConfig {
     pub texture_size: usize,
     /// Standard deviation of the additive Gaussian noise, intensity units ([0, 1] = black to white).
     pub noise_std: Range,
+    /// Standard deviation of the camera's Gaussian blur (optics, focus), in
+    /// output pixels; 0 is none.
+    pub blur: Range,
+    /// Exponent of the camera's response, `v ↦ v^gamma` on the blurred
+    /// intensity before noise; 1 is linear.
+    pub gamma: Range,
     /// Attempts after the first before a clip is given up with an error.
     pub max_redraws: usize,
 }
@@ -112,6 +120,8 @@ impl Default for GeneratorConfig {
             texture_families: FAMILIES.to_vec(),
             texture_size: 256,
             noise_std: Range::new(0.0, 0.03),
+            blur: Range::new(0.0, 0.0),
+            gamma: Range::new(1.0, 1.0),
             max_redraws: 200,
         }
     }
@@ -154,6 +164,8 @@ impl GeneratorConfig {
         check_range("config.specular", self.specular, 0.0, 10.0)?;
         check_range("config.shininess", self.shininess, 1e-3, 10_000.0)?;
         check_range("config.noise_std", self.noise_std, 0.0, 1.0)?;
+        check_range("config.blur", self.blur, 0.0, 8.0)?;
+        check_range("config.gamma", self.gamma, 0.1, 10.0)?;
         if self.texture_families.is_empty() {
             return Err(InvalidArgument::new("config.texture_families", "expected at least one family"));
         }
@@ -188,6 +200,9 @@ pub struct ClipParams {
     pub texture: TextureChoice,
     pub noise_std: f64,
     pub noise_seed: u64,
+    /// The camera's blur (pixels) and response exponent.
+    pub blur: f64,
+    pub gamma: f64,
     /// Attempts rejected before this one because the window showed background.
     pub redraws: usize,
 }
@@ -237,7 +252,45 @@ fn draw_clip(config: &GeneratorConfig, bank: Option<&TextureBank>, rng: &mut Spl
         }
     };
     let noise_std = rng.uniform(config.noise_std.lo, config.noise_std.hi);
-    Ok(ClipParams { surface, window, lights, material, texture, noise_std, noise_seed: rng.next_u64(), redraws: 0 })
+    let noise_seed = rng.next_u64();
+    // Drawn last, so that a config without camera effects draws everything else as before.
+    let blur = rng.uniform(config.blur.lo, config.blur.hi);
+    let gamma = rng.uniform(config.gamma.lo, config.gamma.hi);
+    Ok(ClipParams { surface, window, lights, material, texture, noise_std, noise_seed, blur, gamma, redraws: 0 })
+}
+
+/// The camera's optics and response on a rendered `size`² frame, in place:
+/// a Gaussian blur of standard deviation `sigma` pixels (separable, kernel
+/// radius ⌈3σ⌉, edges clamped), then `v ↦ max(v, 0)^gamma` (the
+/// rasteriser's `pow4`, relative error below 2e-7 + 1.5e-7·|γ log₂ v|). `sigma = 0` and
+/// `gamma = 1` leave the frame's bytes as they are.
+pub fn camera_response(image: &mut [f32], size: usize, sigma: f64, gamma: f64, kernel: &mut Vec<f32>, scratch: &mut Vec<f32>) {
+    if sigma > 0.0 {
+        let radius = (3.0 * sigma).ceil() as isize;
+        kernel.clear();
+        kernel.extend((-radius..=radius).map(|k| (-0.5 * (k as f64 / sigma).powi(2)).exp() as f32));
+        let total: f32 = kernel.iter().sum();
+        kernel.iter_mut().for_each(|w| *w /= total);
+        let at = |i: usize, k: usize| (i as isize + k as isize - radius).clamp(0, size as isize - 1) as usize;
+        scratch.resize(image.len(), 0.0);
+        for (row, out) in image.chunks_exact(size).zip(scratch.chunks_exact_mut(size)) {
+            out.iter_mut().enumerate().for_each(|(x, o)| *o = kernel.iter().enumerate().map(|(k, w)| w * row[at(x, k)]).sum());
+        }
+        for y in 0..size {
+            for x in 0..size {
+                image[y * size + x] = kernel.iter().enumerate().map(|(k, w)| w * scratch[at(y, k) * size + x]).sum();
+            }
+        }
+    }
+    if gamma != 1.0 {
+        // The rasteriser's polynomial power: the same bits on every platform.
+        for chunk in image.chunks_mut(4) {
+            let mut lanes = [0.0f32; 4];
+            lanes[..chunk.len()].copy_from_slice(chunk);
+            let powered = crate::raster::pow4(wide::f32x4::from(lanes), gamma as f32).to_array();
+            chunk.iter_mut().zip(powered).for_each(|(v, p)| *v = if *v > 0.0 { p } else { 0.0 });
+        }
+    }
 }
 
 /// Add N(0, std²) noise (a pure function of seed, frame, pixel), clamp to
@@ -301,6 +354,8 @@ pub struct ClipWorker {
     texture: Texture,
     rasterizer: Rasterizer,
     frame: Frame,
+    kernel: Vec<f32>,
+    scratch: Vec<f32>,
 }
 
 impl ClipWorker {
@@ -318,6 +373,8 @@ impl ClipWorker {
             texture: Texture::default(),
             rasterizer: Rasterizer::default(),
             frame: Frame::default(),
+            kernel: Vec::new(),
+            scratch: Vec::new(),
         }
     }
 
@@ -377,6 +434,7 @@ impl ClipWorker {
                 return Ok(false);
             }
             depth[f * frame_len..(f + 1) * frame_len].copy_from_slice(&self.frame.depth);
+            camera_response(&mut self.frame.image, config.size, p.blur, p.gamma, &mut self.kernel, &mut self.scratch);
             noisy_u8(&self.frame.image, p.noise_std, p.noise_seed, f, &mut video[f * frame_len..(f + 1) * frame_len]);
         }
         Ok(true)
@@ -568,6 +626,34 @@ mod tests {
         let len = config.clip_pixels();
         let err = generate_clips(&config, None, 0, 0, 1, &mut vec![0; len], &mut vec![0.0; len]).unwrap_err();
         assert_eq!(err.name, "config");
+    }
+
+    #[test]
+    fn camera_blur_is_a_unit_gaussian_and_the_response_a_power() {
+        let (size, sigma) = (41, 2.5);
+        let (mut kernel, mut scratch) = (Vec::new(), Vec::new());
+        let mut image = vec![0.0f32; size * size];
+        image[20 * size + 20] = 1.0;
+        camera_response(&mut image, size, sigma, 1.0, &mut kernel, &mut scratch);
+        let total: f64 = image.iter().map(|&v| v as f64).sum();
+        let variance: f64 = image.iter().enumerate().map(|(i, &v)| v as f64 * ((i % size) as f64 - 20.0).powi(2)).sum::<f64>() / total;
+        assert!((total - 1.0).abs() < 1e-5, "the blur keeps the energy: {total}");
+        // The kernel is cut at 3σ: its variance falls short of σ² by about 1 %.
+        assert!((variance / (sigma * sigma) - 1.0).abs() < 0.02, "variance {variance} vs {}", sigma * sigma);
+        assert_eq!(image[20 * size + 17], image[17 * size + 20], "the same along both axes");
+        let mut constant = vec![0.3f32; size * size];
+        camera_response(&mut constant, size, sigma, 2.0, &mut kernel, &mut scratch);
+        assert!(constant.iter().all(|&v| (v - 0.09).abs() < 1e-6), "edges clamped, then v²");
+        let mut ramp: Vec<f32> = (0..size * size).map(|i| i as f32 / (size * size) as f32 - 0.01).collect();
+        camera_response(&mut ramp, size, 0.0, 0.45, &mut kernel, &mut scratch);
+        for (i, &v) in ramp.iter().enumerate() {
+            let x = (i as f64 / (size * size) as f64 - 0.01).max(0.0);
+            assert!((v as f64 - x.powf(0.45)).abs() <= 1e-6 * x.powf(0.45) + 1e-30, "pixel {i}: {v} vs {}", x.powf(0.45));
+        }
+        let frame: Vec<f32> = (0..size * size).map(|i| (i as f32 * 0.618).fract()).collect();
+        let mut same = frame.clone();
+        camera_response(&mut same, size, 0.0, 1.0, &mut kernel, &mut scratch);
+        assert_eq!(same, frame, "no blur and a linear response leave the bits");
     }
 
     #[test]

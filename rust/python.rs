@@ -435,6 +435,8 @@ fn generator_config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<GeneratorConfig
         texture_families: families.iter().map(|f| TextureFamily::from_name(f)).collect::<Result<_, _>>().map_err(|e| PyValueError::new_err(format!("config.{e}")))?,
         texture_size: size("texture_size")?,
         noise_std: range("noise_std")?,
+        blur: range("blur")?,
+        gamma: range("gamma")?,
         max_redraws: size("max_redraws")?,
     };
     config.validate().map_err(value_error)?;
@@ -463,6 +465,8 @@ fn default_generator_config(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
         ("specular", c.specular),
         ("shininess", c.shininess),
         ("noise_std", c.noise_std),
+        ("blur", c.blur),
+        ("gamma", c.gamma),
     ])?;
     d.set_item("light_count", c.light_count)?;
     d.set_item("point_light_probability", c.point_light_probability)?;
@@ -515,6 +519,8 @@ fn clip_to_dict<'py>(py: Python<'py>, p: &ClipParams, bank: Option<&TextureBank>
     d.set_item("texture", texture)?;
     d.set_item("noise_std", p.noise_std)?;
     d.set_item("noise_seed", p.noise_seed)?;
+    d.set_item("blur", p.blur)?;
+    d.set_item("gamma", p.gamma)?;
     d.set_item("redraws", p.redraws)?;
     Ok(d)
 }

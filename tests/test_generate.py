@@ -63,6 +63,23 @@ def test_noise_has_the_drawn_variance():
     assert all(p["noise_std"] == 0.04 for p in noisy.params)
 
 
+def test_camera_blur_and_response_change_only_the_frames():
+    # Drawn after everything else: the surface, lights and depth stay those of the plain config.
+    plain = nrdepth.generate_clips(3, seed=6, config=SMALL.replace(noise_std=(0.0, 0.0)))
+    camera = nrdepth.generate_clips(3, seed=6, config=SMALL.replace(noise_std=(0.0, 0.0), blur=(1.5, 1.5), gamma=(0.5, 0.5)))
+    np.testing.assert_array_equal(plain.depth, camera.depth)
+    assert [{k: v for k, v in p.items() if k not in ("blur", "gamma")} for p in camera.params] == [
+        {k: v for k, v in p.items() if k not in ("blur", "gamma")} for p in plain.params]
+    assert all(p["blur"] == 1.5 and p["gamma"] == 0.5 for p in camera.params)
+    assert all(p["blur"] == 0.0 and p["gamma"] == 1.0 for p in plain.params)
+    # Blur removes fine detail; gamma 0.5 brightens (v ↦ √v).
+    detail = lambda v: np.abs(np.diff(v.astype(float), axis=-1)).mean()
+    assert detail(camera.video) < 0.6 * detail(plain.video)
+    assert camera.video.mean() > plain.video.mean() + 20
+    with pytest.raises(ValueError, match="config.gamma"):
+        SMALL.replace(gamma=(0.0, 1.0))
+
+
 def test_clip_i_depends_only_on_config_seed_and_i():
     whole = nrdepth.generate_clips(6, seed=4, config=SMALL)
     part = nrdepth.generate_clips(3, seed=4, config=SMALL, start=2)
@@ -212,3 +229,17 @@ def test_a_folder_of_another_run_is_refused(tmp_path):
     write_dataset(tmp_path, 4, seed=1, config=SMALL, shard_size=4, progress=False)
     with pytest.raises(ValueError, match="different dataset"):
         write_dataset(tmp_path, 4, seed=2, config=SMALL, shard_size=4, progress=False)
+    with pytest.raises(ValueError, match="different dataset"):
+        write_dataset(tmp_path, 4, seed=1, config=SMALL.replace(blur=(0.0, 1.0)), shard_size=4, progress=False)
+
+
+def test_a_folder_written_before_the_camera_fields_is_the_same_run(tmp_path):
+    # Fields added to GeneratorConfig later take their defaults when an older manifest is read.
+    write_dataset(tmp_path, 4, seed=1, config=SMALL, shard_size=2, progress=False)
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    for name in ("blur", "gamma"):
+        del manifest["config"][name]
+    (tmp_path / "manifest.json").write_text(json.dumps(manifest))
+    (tmp_path / "shard-00001.h5").unlink()
+    write_dataset(tmp_path, 4, seed=1, config=SMALL, shard_size=2, progress=False)
+    assert ClipStore(tmp_path)[3][0].tobytes() == nrdepth.generate_clips(1, seed=1, config=SMALL, start=3).video[0].tobytes()

@@ -59,12 +59,42 @@ def test_a_folder_with_another_config_is_refused(tmp_path):
 @pytest.mark.parametrize(
     "changes, name",
     [({"loss": "l2"}, "loss"), ({"batch_size": 0}, "batch_size"), ({"lr": -1.0}, "lr"), ({"device": "tpu"}, "device"),
-     ({"target": "truth"}, "target"), ({"init": "no/such/model.safetensors"}, "init")],
+     ({"target": "truth"}, "target"), ({"init": "no/such/model.safetensors"}, "init"), ({"real": "no/such/video.npz"}, "real"),
+     ({"keep_every": -1}, "keep_every")],
 )
 def test_bad_train_config_is_named(changes, name):
     with pytest.raises(ValueError) as info:
         TrainConfig(**{**TINY, **changes})
     assert str(info.value).startswith(name)
+
+
+def test_a_real_video_is_scored_every_epoch_by_the_weights_of_that_epoch(tmp_path):
+    from nrdepth.evaluate import load_real_video, score_real_video
+
+    clip = nrdepth.generate_clips(1, seed=9)
+    depth = clip.depth[0].copy()
+    depth[:, :8, :8] = np.nan  # pixels without ground truth are left out
+    np.savez(tmp_path / "real.npz", video=clip.video[0], depth=depth)
+    config = TrainConfig(loss="aligned", real=str(tmp_path / "real.npz"), keep_every=2, **TINY)
+    train(tmp_path / "run", config, progress=False)
+    assert sorted(p.name for p in (tmp_path / "run" / "epochs").iterdir()) == ["epoch_2.json", "epoch_2.safetensors"]
+    kept = load_model(tmp_path / "run" / "epochs" / "epoch_2.safetensors")
+    assert all(torch.equal(kept.state_dict()[k], v) for k, v in torch.load(tmp_path / "run" / "last.pt", weights_only=False)["model"].items())
+    expected = score_real_video(kept, *load_real_video(tmp_path / "real.npz"))
+    last = rows(tmp_path / "run")[-1]
+    for column, key in (("real_mae_sn_frame", "frame"), ("real_mae_sn_first", "first"), ("real_flat_frame", "flat_frame"), ("real_sign_correct", "sign_correct")):
+        assert float(last[column]) == pytest.approx(expected[key], rel=1e-6), column
+    assert float(last["real_flat_frame"]) == pytest.approx(nrdepth.flat_baseline(depth, "frame", mask=np.isfinite(depth)), rel=1e-6)
+    # Watching changes nothing that is computed: a resume may add or drop it.
+    assert TrainConfig(loss="aligned", **TINY).resumable_as(config.as_dict())
+    # A run saved before the generator had its camera fields resumes under their defaults.
+    older = config.as_dict()
+    older["generator"] = {k: v for k, v in older["generator"].items() if k not in ("blur", "gamma")}
+    assert config.resumable_as(older)
+    assert not TrainConfig(loss="aligned", **{**TINY, "generator": TINY["generator"].replace(gamma=(0.5, 1.0))}).resumable_as(older)
+    np.savez(tmp_path / "bad.npz", video=clip.video[0].astype(np.float32), depth=depth)
+    with pytest.raises(ValueError, match="^real: .*'video' must be uint8"):
+        TrainConfig(loss="aligned", real=str(tmp_path / "bad.npz"), **TINY)
 
 
 def test_two_process_torchrun_on_the_cpu_keeps_ranks_in_sync(tmp_path):

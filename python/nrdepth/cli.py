@@ -45,6 +45,9 @@ def _generator_config(args: argparse.Namespace):
         extra["surface"] = SurfaceConfig(intensity=args.intensity)
     if args.window_width is not None:
         extra["window_width"] = args.window_width
+    for name in ("blur", "gamma"):
+        if getattr(args, name, None) is not None:
+            extra[name] = getattr(args, name)
     return GeneratorConfig(frames=args.frames, size=args.size, grid=args.grid, textures=args.textures, **extra)
 
 
@@ -76,6 +79,7 @@ def _train(args: argparse.Namespace) -> int:
         loss=args.loss, arch=args.arch, base=args.base, schedule=args.schedule, target=args.target, amplitude=args.amplitude, init=args.init, batch_size=args.batch_size, steps_per_epoch=args.steps, epochs=args.epochs,
         lr=args.lr, seed=args.seed, data=args.data, generator=_generator_config(args),
         validation_clips=args.validation_clips, workers=args.workers, device=args.device, compile=args.compile,
+        real=args.real, keep_every=args.keep_every,
     )
     summary = train(args.out, config, progress=not args.quiet, max_epochs=args.max_epochs)
     if summary:
@@ -217,6 +221,10 @@ def _add_generator_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--window-width", type=_interval, default=None, metavar="LO,HI",
                    help="range of the view window's width in half-widths of the patch, i.e. the zoom (default: 0.8,1.2; "
                         "smaller shows the surface magnified)")
+    p.add_argument("--blur", type=_interval, default=None, metavar="LO,HI",
+                   help="range of the camera's Gaussian blur, standard deviation in pixels (default: 0,0, none)")
+    p.add_argument("--gamma", type=_interval, default=None, metavar="LO,HI",
+                   help="range of the camera's response exponent, v -> v**gamma (default: 1,1, linear)")
 
 
 class _DefaultsFormatter(argparse.HelpFormatter):
@@ -271,6 +279,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--base", type=int, default=None, help="width of the first network stage (default: the architecture's, 16 / 24)")
     p.add_argument("--data", default=None, help="dataset folder; default: fresh clips every step")
     p.add_argument("--validation-clips", type=int, default=64, help="held-out clips scored after every epoch")
+    p.add_argument("--real", default=None, metavar="NPZ",
+                   help="a real video with ground-truth depth (.npz: video uint8 (T, H, W), depth (T, H, W), NaN where none), "
+                        "reconstructed and scored after every epoch (metrics.csv's real_* columns; it does not choose the best weights)")
+    p.add_argument("--keep-every", type=int, default=0, metavar="N",
+                   help="also keep every N-th epoch's weights as epochs/epoch_E.safetensors (default: 0, none)")
     p.add_argument("--workers", type=int, default=2, help="DataLoader worker processes")
     p.add_argument("--device", default="auto", help="auto | cpu | cuda | cuda:N")
     p.add_argument("--compile", action="store_true", help="torch.compile the network")

@@ -104,8 +104,12 @@ def write_dataset(
     if path.exists():
         existing = _read_manifest(path)
         expected = json.loads(json.dumps(manifest))  # tuples become lists, as on disk
-        keys = ("format", "clips", "seed", "shard_size", "config")
-        if any(existing.get(k) != expected[k] for k in keys):
+        keys = ("format", "clips", "seed", "shard_size")
+        try:  # generator fields added since the folder was written take their defaults
+            same_config = json.loads(json.dumps(GeneratorConfig.from_dict(existing["config"]).as_dict())) == expected["config"]
+        except (TypeError, ValueError):
+            same_config = False
+        if not same_config or any(existing.get(k) != expected[k] for k in keys):
             raise ValueError(f"out: {out} holds a different dataset (config, seed, clips or shard size differ); use a new folder")
     else:
         _write_json_atomic(path, manifest)

@@ -15,7 +15,7 @@ import csv
 import json
 import os
 from pathlib import Path
-from typing import Any, Dict, Optional, Union
+from typing import Any, Dict, Optional, Tuple, Union
 
 import numpy as np
 import torch
@@ -25,7 +25,7 @@ from .losses import relief_rms
 from .metrics import flat_baseline, mae_sn, sign_rates
 from .model.io import check_readings, load_model, predict_depth, resolve_device
 
-__all__ = ["evaluate", "relief_ratio", "TEST_SEED"]
+__all__ = ["evaluate", "load_real_video", "score_real_video", "relief_ratio", "TEST_SEED"]
 
 TEST_SEED = 2_000_003
 """Generator seed of the held-out clips when no dataset is given."""
@@ -90,6 +90,44 @@ def evaluate(
             writer.writerows(rows)
         (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     return summary
+
+
+def load_real_video(path: Union[str, os.PathLike]) -> Tuple[np.ndarray, np.ndarray]:
+    """A real video with ground-truth depth from an ``.npz``: ``video`` uint8
+    (T, H, W) and ``depth`` float (T, H, W), NaN where there is no truth
+    (``benchmarks/real_scales.py --write`` makes one of ``phisft_R1``).
+    Returns (video, depth float32); refuses anything else by name."""
+    try:
+        with np.load(os.fspath(path)) as data:
+            if not {"video", "depth"} <= set(data.files):
+                raise ValueError(f"{path}: expected arrays 'video' and 'depth', found {sorted(data.files)}")
+            video, depth = data["video"], data["depth"]
+    except (OSError, EOFError) as e:
+        raise ValueError(f"{path}: not a readable .npz ({e})") from None
+    if video.dtype != np.uint8 or video.ndim != 3:
+        raise ValueError(f"{path}: 'video' must be uint8 (T, H, W), got {video.dtype} {video.shape}")
+    if depth.shape != video.shape or not np.issubdtype(depth.dtype, np.floating):
+        raise ValueError(f"{path}: 'depth' must be float with the video's shape {video.shape}, got {depth.dtype} {depth.shape}")
+    if (np.isfinite(depth).sum(axis=(1, 2)) < 3).any():
+        raise ValueError(f"{path}: every frame needs ground truth at 3 pixels or more to fit its GBR")
+    return video, depth.astype(np.float32)
+
+
+def score_real_video(model: torch.nn.Module, video: np.ndarray, depth: np.ndarray, device: Union[str, torch.device] = "cpu") -> Dict[str, float]:
+    """Reconstruct a real video (stitched, as ``nrdepth reconstruct`` does)
+    and score it over the pixels with a ground-truth value: MAE-SN per frame
+    and from the first frame, the flat plane's per frame, and the share of
+    frames whose relief sign is read right."""
+    from .stitch import reconstruct
+
+    mask = np.isfinite(depth)
+    pred = reconstruct(video, model, device=str(device))
+    return {
+        "frame": mae_sn(pred, depth, "frame", mask=mask),
+        "first": mae_sn(pred, depth, "first", mask=mask),
+        "flat_frame": flat_baseline(depth, "frame", mask=mask),
+        "sign_correct": sign_rates(pred, depth, mask=mask)["sign_correct"],
+    }
 
 
 def relief_ratio(pred: np.ndarray, truth: np.ndarray) -> float:

@@ -34,6 +34,8 @@ _RANGES = (
     "specular",
     "shininess",
     "noise_std",
+    "blur",
+    "gamma",
 )
 _INTS = ("frames", "size", "grid", "supersample", "texture_size", "max_redraws")
 
@@ -81,6 +83,13 @@ class GeneratorConfig:
     texture_size: int = _DEFAULT["texture_size"]
     noise_std: Interval = _DEFAULT["noise_std"]
     """Standard deviation of the additive Gaussian noise."""
+    blur: Interval = _DEFAULT["blur"]
+    """Standard deviation of the camera's Gaussian blur in pixels (0: none),
+    applied to the rendered frame before the response and the noise."""
+    gamma: Interval = _DEFAULT["gamma"]
+    """Exponent of the camera's response ``v ↦ v**gamma`` (1: linear).
+    Blur and response are off by default; ranges such as ``blur=(0, 1.2)``,
+    ``gamma=(0.6, 1.6)`` make the network indifferent to a real camera's."""
     max_redraws: int = _DEFAULT["max_redraws"]
     textures: Optional[str] = None
     """A folder of PNG/JPEG images to crop textures from instead of the procedural families."""
@@ -134,7 +143,7 @@ class Clips(NamedTuple):
     depth: np.ndarray
     """float32 (n, T, H, W) depth ``camera_z − z`` at pixel centres (never NaN)."""
     params: List[Dict[str, Any]]
-    """Per clip: surface, window, lights, material, texture, noise_std, noise_seed, redraws."""
+    """Per clip: surface, window, lights, material, texture, noise_std, noise_seed, blur, gamma, redraws."""
 
 
 def generate_clips(n: int, seed: int = 0, config: Optional[GeneratorConfig] = None, start: int = 0) -> Clips:

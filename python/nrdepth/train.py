@@ -92,6 +92,18 @@ class TrainConfig:
     """A model (``model.safetensors`` or its run folder) whose weights start
     a new run (a warm start; same architecture and width); ignored on
     resume."""
+    real: Optional[str] = None
+    """A real video with ground-truth depth (``.npz``,
+    :func:`nrdepth.evaluate.load_real_video`) reconstructed and scored after
+    every epoch (``real_mae_sn_frame``, ``real_mae_sn_first``,
+    ``real_flat_frame``, ``real_sign_correct`` in ``metrics.csv``): a watch
+    on how training on generated clips carries over to real footage, which
+    validation cannot show. It never chooses the best weights (validation
+    does), so the video stays a fair test."""
+    keep_every: int = 0
+    """Also keep every N-th epoch's weights (``epochs/epoch_E.safetensors``
+    and ``.json``), so that checkpoints along a curve can be scored later;
+    0 keeps none."""
 
     def __post_init__(self) -> None:
         get_loss(self.loss)
@@ -99,6 +111,17 @@ class TrainConfig:
             raise ValueError(f"schedule: expected 'cosine' or 'constant', got {self.schedule!r}")
         if self.target not in TARGETS:
             raise ValueError(f"target: expected one of {sorted(TARGETS)}, got {self.target!r}")
+        if self.real is not None:
+            from .evaluate import load_real_video
+
+            self.real = os.fspath(self.real)
+            try:
+                load_real_video(self.real)  # refused now, not after the first epoch
+            except ValueError as e:
+                raise ValueError(f"real: {e}") from None
+        self.keep_every = _check_int("keep_every", self.keep_every)
+        if self.keep_every < 0:
+            raise ValueError(f"keep_every: expected >= 0 (0: keep no epoch's weights), got {self.keep_every}")
         if self.init is not None:
             self.init = os.fspath(self.init)
             if not os.path.exists(self.init):
@@ -145,12 +168,17 @@ class TrainConfig:
     def resumable_as(self, saved: Dict[str, Any]) -> bool:
         """Whether a run saved with config ``saved`` (a dict) may continue
         under this config: the same but for fields that do not change what
-        is computed (workers, device; init, which only starts a run) and,
+        is computed (workers, device; init, which only starts a run; real and
+        keep_every, which only watch it) and,
         with a constant schedule, epochs (it only moves the end) and lr (a
         campaign steps it down by hand)."""
-        free = ("workers", "device", "init") + (("epochs", "lr") if self.schedule == "constant" else ())
+        free = ("workers", "device", "init", "real", "keep_every") + (("epochs", "lr") if self.schedule == "constant" else ())
         mine = json.loads(json.dumps(self.as_dict()))
         saved = {"target": "depth", "amplitude": 0.0, **saved}  # runs saved before these options had their defaults
+        try:  # generator fields added since take their defaults
+            saved["generator"] = json.loads(json.dumps(GeneratorConfig.from_dict(saved["generator"]).as_dict()))
+        except (KeyError, TypeError, ValueError):
+            pass  # compared as saved
         return {k: v for k, v in mine.items() if k not in free} == {k: v for k, v in saved.items() if k not in free}
 
 
@@ -285,6 +313,11 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
     video_val, depth_val, widths_val = validation_set(config) if leader else (None, None, None)
     warm_start = _warm_start(config) if config.init is not None and not (out / "last.pt").exists() else None
     depth_val_half = torch.nn.functional.avg_pool2d(torch.from_numpy(depth_val).float(), 2).numpy() if leader else None
+    real = None
+    if leader and config.real is not None:
+        from .evaluate import load_real_video
+
+        real = load_real_video(config.real)
     if leader:
         if out.is_file():
             raise ValueError(f"out: {out} is a file; expected a run folder")
@@ -380,12 +413,17 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
         scores = evaluate_depth(pred_val, depth_val_half)
         if window_units:
             scores["relief_ratio"] = relief_ratio(pred_val, depth_val_half / widths_val[:, None, None, None])
+        if real is not None:
+            from .evaluate import score_real_video
+
+            scores.update({f"real_{k}": v for k, v in score_real_video(model, *real, device).items()})
         row = {"epoch": epoch + 1, "step": (epoch + 1) * config.steps_per_epoch,
                "clips_seen": (epoch + 1) * config.steps_per_epoch * config.batch_size * world,
                "train_seconds": round(state["seconds"], 1), "lr": schedule.get_last_lr()[0],
                "train_loss": float(np.mean(losses)), "first_step_loss": losses[0], "last_step_loss": losses[-1],
-               **{f"val_mae_sn_{k}" if k in ("frame", "first", "flat_frame", "flat_first") else f"val_{k}": v for k, v in scores.items()},
+               **{_column(k): v for k, v in scores.items()},
                "ranks_in_sync": in_sync}
+        scores = {k: v for k, v in scores.items() if not k.startswith("real_")}  # kept in the row only
         improved = scores["frame"] < state["best"]
         if improved:
             state["best"] = scores["frame"]
@@ -404,6 +442,13 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
         dist.barrier()
         dist.destroy_process_group()
     return summary
+
+
+def _column(score: str) -> str:
+    """metrics.csv's column of an epoch's score: validation's ``val_…``, the real video's ``real_…``."""
+    if score.startswith("real_"):
+        return score.replace("real_", "real_mae_sn_", 1) if score in ("real_frame", "real_first") else score
+    return f"val_mae_sn_{score}" if score in ("frame", "first", "flat_frame", "flat_first") else f"val_{score}"
 
 
 def _warm_start(config: TrainConfig) -> Dict[str, torch.Tensor]:
@@ -445,10 +490,14 @@ def _finish_epoch(out: Path, model: torch.nn.Module, checkpoint: Dict[str, Any],
     idempotent, so a resume after a kill at any point redoes what is missing
     and gives the bytes an uninterrupted run gives."""
     row, epoch = checkpoint["row"], checkpoint["row"]["epoch"]
+    units = {"depth_units": "window"} if config.amplitude > 0 else {}
+    meta = {"loss": config.loss, "validation": checkpoint["scores"], "epoch": epoch, **units}
     if checkpoint["improved"]:
         _atomic_save(checkpoint, out / "best.pt")
-        units = {"depth_units": "window"} if config.amplitude > 0 else {}
-        save_model(model, out / "model.safetensors", {"loss": config.loss, "validation": checkpoint["scores"], "epoch": epoch, **units})
+        save_model(model, out / "model.safetensors", meta)
+    if config.keep_every and epoch % config.keep_every == 0:
+        (out / "epochs").mkdir(exist_ok=True)
+        save_model(model, out / "epochs" / f"epoch_{epoch}.safetensors", meta)
     _write_metrics_row(out / "metrics.csv", row)
 
 
