@@ -37,6 +37,30 @@ def test_resuming_from_a_checkpoint_takes_the_same_steps_as_not_stopping(tmp_pat
     assert all(torch.equal(weights[0][k], weights[1][k]) for k in weights[0])
 
 
+def test_the_moving_average_of_the_weights_is_scored_saved_and_resumed(tmp_path):
+    from nrdepth.model import build_model
+
+    one_step = TrainConfig(loss="aligned", ema=0.25, **{**TINY, "epochs": 1, "steps_per_epoch": 1})
+    train(tmp_path / "one", one_step, progress=False)
+    torch.manual_seed(one_step.seed)
+    start = build_model(one_step.arch, **one_step.model_config()).state_dict()
+    checkpoint = torch.load(tmp_path / "one" / "last.pt", weights_only=False)
+    saved = load_model(tmp_path / "one" / "model.safetensors").state_dict()
+    assert any(not torch.equal(w, start[k]) for k, w in checkpoint["model"].items()), "the step changed the weights"
+    for k, w in checkpoint["model"].items():
+        expected = torch.lerp(start[k], w, 0.75) if w.is_floating_point() else w
+        assert torch.equal(checkpoint["ema"][k], expected) and torch.equal(saved[k], expected), k
+    # A run stopped after its first epoch resumes to the same average.
+    config = TrainConfig(loss="aligned", ema=0.9, **TINY)
+    train(tmp_path / "straight", config, progress=False)
+    train(tmp_path / "resumed", config, progress=False, max_epochs=1)
+    train(tmp_path / "resumed", config, progress=False)
+    a, b = (torch.load(tmp_path / d / "last.pt", weights_only=False)["ema"] for d in ("straight", "resumed"))
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    assert rows(tmp_path / "straight")[-1]["val_mae_sn_frame"] == rows(tmp_path / "resumed")[-1]["val_mae_sn_frame"]
+    assert not TrainConfig(loss="aligned", **TINY).resumable_as(config.as_dict())
+
+
 def test_weights_round_trip_through_safetensors(tmp_path):
     config = TrainConfig(loss="gbr", **{**TINY, "epochs": 1})
     summary = train(tmp_path, config, progress=False)
@@ -60,7 +84,7 @@ def test_a_folder_with_another_config_is_refused(tmp_path):
     "changes, name",
     [({"loss": "l2"}, "loss"), ({"batch_size": 0}, "batch_size"), ({"lr": -1.0}, "lr"), ({"device": "tpu"}, "device"),
      ({"target": "truth"}, "target"), ({"init": "no/such/model.safetensors"}, "init"), ({"real": "no/such/video.npz"}, "real"),
-     ({"keep_every": -1}, "keep_every")],
+     ({"keep_every": -1}, "keep_every"), ({"ema": 1.0}, "ema")],
 )
 def test_bad_train_config_is_named(changes, name):
     with pytest.raises(ValueError) as info:

@@ -100,6 +100,13 @@ class TrainConfig:
     on how training on generated clips carries over to real footage, which
     validation cannot show. It never chooses the best weights (validation
     does), so the video stays a fair test."""
+    ema: float = 0.0
+    """Decay of an exponential moving average of the weights, updated after
+    every step (``w_ema ← ema·w_ema + (1 − ema)·w``); above 0, the average
+    is what validation and ``--real`` score and what ``model.safetensors``
+    and ``epochs/`` hold (``last.pt`` keeps both). 0.999 averages over about
+    the last 1,000 steps: it smooths the step-to-step noise that a constant
+    learning rate leaves in the weights."""
     keep_every: int = 0
     """Also keep every N-th epoch's weights (``epochs/epoch_E.safetensors``
     and ``.json``), so that checkpoints along a curve can be scored later;
@@ -119,6 +126,9 @@ class TrainConfig:
                 load_real_video(self.real)  # refused now, not after the first epoch
             except ValueError as e:
                 raise ValueError(f"real: {e}") from None
+        if isinstance(self.ema, bool) or not (isinstance(self.ema, (int, float, np.floating)) and 0.0 <= self.ema < 1.0):
+            raise ValueError(f"ema: expected a decay in [0, 1) (0: no average), got {self.ema!r}")
+        self.ema = float(self.ema)
         self.keep_every = _check_int("keep_every", self.keep_every)
         if self.keep_every < 0:
             raise ValueError(f"keep_every: expected >= 0 (0: keep no epoch's weights), got {self.keep_every}")
@@ -174,7 +184,7 @@ class TrainConfig:
         campaign steps it down by hand)."""
         free = ("workers", "device", "init", "real", "keep_every") + (("epochs", "lr") if self.schedule == "constant" else ())
         mine = json.loads(json.dumps(self.as_dict()))
-        saved = {"target": "depth", "amplitude": 0.0, **saved}  # runs saved before these options had their defaults
+        saved = {"target": "depth", "amplitude": 0.0, "ema": 0.0, **saved}  # runs saved before these options had their defaults
         try:  # generator fields added since take their defaults
             saved["generator"] = json.loads(json.dumps(GeneratorConfig.from_dict(saved["generator"]).as_dict()))
         except (KeyError, TypeError, ValueError):
@@ -336,6 +346,8 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
     model = build_model(config.arch, **config.model_config()).to(device)
     if warm_start is not None:
         model.load_state_dict(warm_start, strict=False)  # _warm_start checked that theirs ⊆ ours
+    # The weights that are scored and saved: the moving average, or the model itself.
+    averaged = _frozen_copy(model) if config.ema > 0 else model
     optimiser = torch.optim.Adam(model.parameters(), lr=config.lr)
     total = config.epochs * config.steps_per_epoch
     if config.schedule == "cosine":
@@ -347,6 +359,8 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
     if last.exists():
         checkpoint = _load_checkpoint(last, device)
         model.load_state_dict(checkpoint["model"])
+        if config.ema > 0:
+            averaged.load_state_dict(checkpoint["ema"])
         optimiser.load_state_dict(checkpoint["optimiser"])
         schedule.load_state_dict(checkpoint["schedule"])
         if config.schedule == "constant":  # lr may have been stepped down for this resume
@@ -357,7 +371,7 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
         if leader and "row" in checkpoint:
             # A run killed after last.pt but before the epoch's other files
             # finishes them now, from the checkpoint: the same bytes.
-            _finish_epoch(out, model, checkpoint, config)
+            _finish_epoch(out, averaged, checkpoint, config)
     net: torch.nn.Module = model
     if distributed:
         net = torch.nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None)
@@ -393,6 +407,8 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
             loss.backward()
             optimiser.step()
             schedule.step()
+            if config.ema > 0:
+                _update_average(averaged, model, config.ema)
             losses.append(loss.item())
             if bar is not None:
                 bar.set_postfix(loss=f"{loss.item():.4g}")
@@ -409,14 +425,14 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
             in_sync = len(set(digests)) == 1
         if not leader:
             continue
-        pred_val = predict_depth(model, video_val, config.batch_size, device)
+        pred_val = predict_depth(averaged, video_val, config.batch_size, device)
         scores = evaluate_depth(pred_val, depth_val_half)
         if window_units:
             scores["relief_ratio"] = relief_ratio(pred_val, depth_val_half / widths_val[:, None, None, None])
         if real is not None:
             from .evaluate import score_real_video
 
-            scores.update({f"real_{k}": v for k, v in score_real_video(model, *real, device).items()})
+            scores.update({f"real_{k}": v for k, v in score_real_video(averaged, *real, device).items()})
         row = {"epoch": epoch + 1, "step": (epoch + 1) * config.steps_per_epoch,
                "clips_seen": (epoch + 1) * config.steps_per_epoch * config.batch_size * world,
                "train_seconds": round(state["seconds"], 1), "lr": schedule.get_last_lr()[0],
@@ -427,10 +443,11 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
         improved = scores["frame"] < state["best"]
         if improved:
             state["best"] = scores["frame"]
-        checkpoint = {"model": model.state_dict(), "optimiser": optimiser.state_dict(), "schedule": schedule.state_dict(), "state": state,
+        checkpoint = {"model": model.state_dict(), **({"ema": averaged.state_dict()} if config.ema > 0 else {}),
+                      "optimiser": optimiser.state_dict(), "schedule": schedule.state_dict(), "state": state,
                       "row": row, "improved": improved, "scores": scores}
         _atomic_save(checkpoint, last)
-        _finish_epoch(out, model, checkpoint, config)
+        _finish_epoch(out, averaged, checkpoint, config)
         if writer is not None:
             for k, v in row.items():
                 if isinstance(v, float):
@@ -442,6 +459,26 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
         dist.barrier()
         dist.destroy_process_group()
     return summary
+
+
+def _frozen_copy(model: torch.nn.Module) -> torch.nn.Module:
+    """A copy of ``model`` that no optimiser or autograd touches: the moving average's home."""
+    import copy
+
+    average = copy.deepcopy(model)
+    for p in average.parameters():
+        p.requires_grad_(False)
+    return average
+
+
+@torch.no_grad()
+def _update_average(average: torch.nn.Module, model: torch.nn.Module, decay: float) -> None:
+    """``average ← decay·average + (1 − decay)·model``, tensor by tensor (buffers too)."""
+    for a, w in zip(average.state_dict().values(), model.state_dict().values()):
+        if a.is_floating_point():
+            a.lerp_(w, 1.0 - decay)
+        else:
+            a.copy_(w)
 
 
 def _column(score: str) -> str:
