@@ -18,6 +18,7 @@ configurations side by side for the same wall-clock time and draws those rows.
 
 Runs that watch a real video (``nrdepth train --real``) get a third row:
 its MAE-SN per frame and from the first frame, and its sign-correct share.
+``paired A B`` compares two runs that saw the same clips epoch by epoch.
 
 ``train`` passes ``--batch-size 8 --epochs 100000 --schedule constant
 --validation-clips 64 --workers 0 --device cpu --quiet`` unless the
@@ -160,7 +161,8 @@ def plot(runs: List[str], out: Path, labels: List[str]) -> None:
     if real:
         real_panels(axes[2], table)
     counts = " or ".join(str(n) for n in validation_counts(runs))
-    figure.suptitle(f"Held-out validation clips ({counts} as each run's config.json says, generator seed + 1,000,003) after every epoch")
+    watched = "; bottom row: the real video each run watches (--real)" if real else ""
+    figure.suptitle(f"Held-out validation clips ({counts} as each run's config.json says, generator seed + 1,000,003, with the run's own generator settings) after every epoch{watched}")
     figure.tight_layout()
     figure.savefig(out.with_suffix(".png"), dpi=80)
     print(f"wrote {out.with_suffix('.csv')} and {out.with_suffix('.png')}")
@@ -198,6 +200,21 @@ def real_panels(axes, table: Dict[str, List[Dict[str, float]]]) -> None:
         ax.set_xlabel("clips seen"), ax.set_title(title), ax.grid(alpha=0.3), ax.legend(fontsize=8)
 
 
+def paired(a: str, b: str, key: str) -> None:
+    """Two runs that saw the same clips (same seed and batch size) compared
+    epoch by epoch: their readings move together, so the mean of the
+    per-epoch differences is far less noisy than either curve."""
+    x, y = ({int(r["epoch"]): r[key] for r in rows(Path(run)) if key in r} for run in (a, b))
+    epochs = sorted(set(x) & set(y))
+    if len(epochs) < 2:
+        raise SystemExit(f"{key}: fewer than two epochs that both runs scored")
+    d = [y[e] - x[e] for e in epochs]
+    mean = sum(d) / len(d)
+    sd = math.sqrt(sum((v - mean) ** 2 for v in d) / (len(d) - 1))
+    print(f"{key}, epochs {epochs[0]}–{epochs[-1]} ({len(d)}): {a} {sum(x[e] for e in epochs) / len(d):.4f}, {b} {sum(y[e] for e in epochs) / len(d):.4f}; "
+          f"second − first {mean:+.4f} ± {sd / math.sqrt(len(d)):.4f} (standard error; consecutive epochs are not independent), lower in {sum(v < 0 for v in d)} of {len(d)} epochs")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -208,8 +225,13 @@ def main() -> None:
     p.add_argument("runs", nargs="+", help="run folders, or chains of warm starts RUN@CLIPS+RUN")
     p.add_argument("-o", "--out", type=Path, default=Path("learning_curves"), help="output path without suffix (.csv and .png are written)")
     p.add_argument("--labels", default=None, help="comma-separated labels (default: the folder names)")
+    p = sub.add_parser("paired", help="two runs on the same clips, compared epoch by epoch")
+    p.add_argument("runs", nargs=2, help="two run folders")
+    p.add_argument("--key", default="real_mae_sn_frame", help="metrics.csv column (default: real_mae_sn_frame)")
     args = parser.parse_args()
-    if args.command == "train":
+    if args.command == "paired":
+        paired(*args.runs, args.key)
+    elif args.command == "train":
         train(args.specs, args.minutes)
     else:
         labels = args.labels.split(",") if args.labels else [Path(r.split("+")[-1]).name for r in args.runs]
