@@ -119,6 +119,11 @@ def test_a_real_video_is_scored_every_epoch_by_the_weights_of_that_epoch(tmp_pat
     np.savez(tmp_path / "bad.npz", video=clip.video[0].astype(np.float32), depth=depth)
     with pytest.raises(ValueError, match="^real: .*'video' must be uint8"):
         TrainConfig(loss="aligned", real=str(tmp_path / "bad.npz"), **TINY)
+    np.save(tmp_path / "single.npy", clip.video[0])
+    (tmp_path / "text.npz").write_text("not an archive")
+    for name, expected in (("single.npy", "single .npy array"), ("text.npz", "not a readable .npz"), ("missing.npz", "not a readable .npz")):
+        with pytest.raises(ValueError, match=f"^real: .*{expected}"):
+            TrainConfig(loss="aligned", real=str(tmp_path / name), **TINY)
 
 
 def test_two_process_torchrun_on_the_cpu_keeps_ranks_in_sync(tmp_path):

@@ -98,12 +98,18 @@ def load_real_video(path: Union[str, os.PathLike]) -> Tuple[np.ndarray, np.ndarr
     (``benchmarks/real_scales.py --write`` makes one of ``phisft_R1``).
     Returns (video, depth float32); refuses anything else by name."""
     try:
-        with np.load(os.fspath(path)) as data:
-            if not {"video", "depth"} <= set(data.files):
-                raise ValueError(f"{path}: expected arrays 'video' and 'depth', found {sorted(data.files)}")
+        data = np.load(os.fspath(path))  # allow_pickle stays off: arrays only
+    except (OSError, EOFError, ValueError) as e:
+        raise ValueError(f"{path}: not a readable .npz of arrays ({e})") from None
+    if not isinstance(data, np.lib.npyio.NpzFile):
+        raise ValueError(f"{path}: expected an .npz holding 'video' and 'depth', got a single .npy array")
+    with data:
+        if not {"video", "depth"} <= set(data.files):
+            raise ValueError(f"{path}: expected arrays 'video' and 'depth', found {sorted(data.files)}")
+        try:
             video, depth = data["video"], data["depth"]
-    except (OSError, EOFError) as e:
-        raise ValueError(f"{path}: not a readable .npz ({e})") from None
+        except ValueError as e:  # object arrays need pickle, which is refused
+            raise ValueError(f"{path}: not a readable .npz of arrays ({e})") from None
     if video.dtype != np.uint8 or video.ndim != 3:
         raise ValueError(f"{path}: 'video' must be uint8 (T, H, W), got {video.dtype} {video.shape}")
     if depth.shape != video.shape or not np.issubdtype(depth.dtype, np.floating):
