@@ -2,15 +2,27 @@
 "Reconstruction of a depth map from local patches"), by constant overlap-add.
 
 The video is cut into (16, 64, 64) patches at a hop of half a patch on every
-axis, over the video padded by half a patch in front (symmetric padding);
-each patch's predicted depth is aligned frame by frame to a coarse depth (the
-network's prediction for the whole video resized to the patch size, in
-16-frame windows) by least-squares GBR, weighted by separable triangle
-windows and added up. The windows sum to exactly one over the video, so
-stitching needs no normalisation. The alignment and overlap-add run in Rust
-(``_core.Stitcher``), fed a chunk of patches at a time, so memory does not
-grow with the patches' 8× overlap. Beyond the paper, :func:`temporal_align`
-then removes the per-frame GBR flicker.
+axis, over the video padded by half a patch in front (symmetric padding).
+Each patch's predicted depth is right only up to its own GBR per frame, so
+the patches are aligned before they are weighted by separable triangle
+windows and added up; the windows sum to exactly one over the video, so
+stitching needs no normalisation. Two alignments (``alignment``):
+
+- ``"coarse"``, the paper's: each patch on its own, frame by frame, to a
+  coarse depth (the network's prediction for the whole video resized to
+  the patch size, in 16-frame windows) by least-squares GBR. The coarse pass
+  alone then sets the video's large-scale shape.
+- ``"joint"`` (the default, beyond the paper): in each frame, all the
+  patches together, so that they agree with one another where they overlap,
+  tied to the coarse depth by a weight :data:`COARSE_WEIGHT` (the objective:
+  ``rust/joint.rs``). The large-scale shape then comes from the patches'
+  agreement as well as from the coarse pass (README, "Depth of a whole
+  video").
+
+Alignment and overlap-add run in Rust (``_core.Stitcher``,
+``_core.JointStitcher``), fed a chunk of patches at a time, so memory does
+not grow with the patches' 8× overlap. Beyond the paper,
+:func:`temporal_align` then removes the per-frame GBR flicker.
 """
 
 from __future__ import annotations
@@ -23,9 +35,18 @@ import numpy as np
 
 from . import _core
 
-__all__ = ["PatchLayout", "patch_layout", "stitch", "temporal_align", "reconstruct", "inference_model", "coarse_depth", "patch_depths"]
+__all__ = ["PatchLayout", "patch_layout", "stitch", "temporal_align", "reconstruct", "inference_model", "coarse_depth", "patch_depths",
+           "ALIGNMENTS", "COARSE_WEIGHT"]
 
 PATCH = (16, 64, 64)
+ALIGNMENTS = ("joint", "coarse")
+"""How :func:`stitch` and :func:`reconstruct` align the patches (module docstring)."""
+COARSE_WEIGHT = 0.01
+"""μ of the joint alignment: the weight of the patches' fit to the coarse
+depth against their agreement with one another. Chosen on generated
+256×256 videos (seed 2000003), where 0.01–0.1 leave the stitched score
+within ±0.003 of the paper's alignment and smaller weights cost more; on
+the real ``phisft_R1`` smaller weights score better (README)."""
 
 
 class PatchLayout(NamedTuple):
@@ -69,10 +90,14 @@ def patch_layout(shape: Tuple[int, int, int], patch: Tuple[int, int, int] = PATC
     return PatchLayout(shape, patch, tuple(pad), tuple(padded), np.asarray(origins, dtype=np.int64).reshape(-1, 3))  # type: ignore[arg-type]
 
 
-def stitch(patches: np.ndarray, coarse: np.ndarray, layout: PatchLayout) -> np.ndarray:
-    """Align each patch depth (N, Lt, Ls, Ls) to ``coarse`` (T, H, W) by
-    per-frame least-squares GBR and overlap-add with triangle windows:
-    float32 (T, H, W)."""
+def stitch(
+    patches: np.ndarray, coarse: np.ndarray, layout: PatchLayout, alignment: str = "joint", coarse_weight: float = COARSE_WEIGHT
+) -> np.ndarray:
+    """Align the patch depths (N, Lt, Ls, Ls), one per origin of ``layout``,
+    by per-frame GBRs (``alignment``: ``"joint"``, all together and tied to
+    ``coarse`` (T, H, W) by ``coarse_weight``; ``"coarse"``, each on its own to
+    ``coarse``, as the paper does) and overlap-add them with triangle
+    windows: float32 (T, H, W)."""
     patches = np.asarray(patches)
     coarse = np.asarray(coarse)
     for name, a, ndim in (("patches", patches, 4), ("coarse", coarse, 3)):
@@ -89,9 +114,21 @@ def stitch(patches: np.ndarray, coarse: np.ndarray, layout: PatchLayout) -> np.n
         raise ValueError(f"layout: not the layout of a {layout.shape} video in {layout.patch} patches; build it with patch_layout(shape)")
     if len(patches) != len(expected.origins):
         raise ValueError(f"patches: expected one patch per origin of the layout ({len(expected.origins)}), got {len(patches)}")
-    stitcher = _core.Stitcher(np.ascontiguousarray(coarse, dtype=np.float32), layout.patch)
+    stitcher = _stitcher(coarse, layout.patch, alignment, coarse_weight)
     stitcher.add(np.ascontiguousarray(patches, dtype=np.float32), np.ascontiguousarray(layout.origins, dtype=np.int64))
     return stitcher.finish()
+
+
+def _stitcher(coarse: np.ndarray, patch: Tuple[int, int, int], alignment: str, coarse_weight: float) -> Any:
+    """The streaming Rust stitcher of ``alignment`` over ``coarse``."""
+    coarse = np.ascontiguousarray(coarse, dtype=np.float32)
+    if alignment == "coarse":
+        return _core.Stitcher(coarse, patch)
+    if alignment != "joint":
+        raise ValueError(f"alignment: expected one of {ALIGNMENTS}, got {alignment!r}")
+    if isinstance(coarse_weight, bool) or not isinstance(coarse_weight, (int, float, np.integer, np.floating)) or not (0 < coarse_weight < math.inf):
+        raise ValueError(f"coarse_weight: expected a finite number > 0, got {coarse_weight!r}")
+    return _core.JointStitcher(coarse, patch, float(coarse_weight))
 
 
 def temporal_align(depth: np.ndarray) -> np.ndarray:
@@ -127,6 +164,7 @@ def reconstruct(
     roi: Optional[Tuple[int, int, int, int]] = None,
     frames: Optional[slice] = None,
     units: str = "standard",
+    alignment: str = "joint",
 ) -> np.ndarray:
     """Depth video float32 (T, H, W) of a video (T, H, W) or colour video
     (T, H, W, 3) (uint8, or float in [0, 1]; colour becomes luma, ITU-R
@@ -157,7 +195,9 @@ def reconstruct(
     ``-depth`` is the other reading. The sign is consistent over space and
     (with ``temporal``) time. Patches stream through the network and the
     stitcher a chunk at a time: memory is a few copies of the video, not of
-    its (8× overlapping) patches."""
+    its (8× overlapping) patches. ``alignment`` chooses how the patches are
+    aligned: ``"joint"`` (default) or ``"coarse"`` (the paper's; module
+    docstring)."""
     import torch
 
     from .model.io import resolve_device
@@ -173,6 +213,8 @@ def reconstruct(
         raise TypeError(f"model: expected None, a path to model.safetensors or its folder, or a torch.nn.Module, got {type(model).__name__}")
     if units not in ("standard", "pixels"):
         raise ValueError(f"units: expected 'standard' or 'pixels', got {units!r}")
+    if alignment not in ALIGNMENTS:
+        raise ValueError(f"alignment: expected one of {ALIGNMENTS}, got {alignment!r}")
     dev = resolve_device(device)
     if model is None and units == "pixels":
         from .model.io import SCALED_MODEL
@@ -183,7 +225,7 @@ def reconstruct(
         raise ValueError("units: 'pixels' needs a model that learnt the relief's scale (model.json's depth_units 'window', "
                          "nrdepth train --amplitude); this one gives depth up to scale: use units='standard'")
     layout = patch_layout(video.shape)
-    stitcher = _core.Stitcher(coarse_depth(video, net, batch_size, dev), layout.patch)
+    stitcher = _stitcher(coarse_depth(video, net, batch_size, dev), layout.patch, alignment, COARSE_WEIGHT)
     done = 0
     for origins, depth in patch_depths(video, net, layout, batch_size, dev):
         stitcher.add(depth, origins)
