@@ -2,16 +2,20 @@
 
 1. Time to reconstruct a 256×256×16 video, split into the network half
    (coarse pass + every patch, with cutting and resizing) and the Rust half
-   (alignment and overlap-add, temporal alignment), on the CPU and on CUDA
-   when present. The shipped model unless --model.
+   (alignment and overlap-add: the paper's alignment, the default, and the
+   joint one; temporal alignment), on the CPU and on CUDA when present. The
+   shipped model unless --model.
 2. The stitched MAE-SN of generated 256×256×16 videos drawn inside the
    training ranges and, as in the paper's second experiment, outside them
-   (stronger, more flexible, more folded, faster surfaces), both alignments,
-   beside the flat baseline, without temporal alignment (the default, and
-   the paper's method) and with it; and the stitched relief's contrast at the
-   32-pixel patch period (``nrdepth.grid_contrast``: seams), beside the truth's.
+   (stronger, more flexible, more folded, faster surfaces), both MAE-SN
+   alignments, beside the flat baseline: the same patches stitched with the
+   paper's alignment (each patch to the coarse pass; the default), then
+   temporal alignment, and with the joint alignment (``--coarse-weight``);
+   the coarse pass alone; and the stitched relief's contrast at the
+   32-pixel patch period (``nrdepth.grid_contrast``: seams), beside the
+   truth's, for both alignments.
 
-    python benchmarks/bench_reconstruct.py [--model PATH] [--videos 8] [--repeats 3]
+    python benchmarks/bench_reconstruct.py [--model PATH] [--videos 8] [--repeats 3] [--seed S] [--coarse-weight MU]
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ import torch
 import nrdepth
 from nrdepth.evaluate import TEST_SEED
 from nrdepth import _core
-from nrdepth.stitch import coarse_depth, inference_model, patch_depths, temporal_align
+from nrdepth.stitch import COARSE_WEIGHT, coarse_depth, inference_model, patch_depths, temporal_align
 
 
 def out_of_range(config: nrdepth.GeneratorConfig) -> nrdepth.GeneratorConfig:
@@ -45,9 +49,10 @@ def timing(model, device: str, repeats: int) -> None:
     layout = nrdepth.patch_layout(video.shape)
 
     def run() -> dict:
-        seconds = {"network": 0.0, "stitch": 0.0, "temporal": 0.0}
+        seconds = {"network": 0.0, "stitch": 0.0, "joint": 0.0, "temporal": 0.0}
         start = time.perf_counter()
-        stitcher = _core.Stitcher(coarse_depth(video, net, 8, dev), layout.patch)
+        coarse = coarse_depth(video, net, 8, dev)
+        paper, joint = _core.Stitcher(coarse, layout.patch), _core.JointStitcher(coarse, layout.patch, COARSE_WEIGHT)
         chunks = patch_depths(video, net, layout, 8, dev)
         while True:
             try:
@@ -56,44 +61,57 @@ def timing(model, device: str, repeats: int) -> None:
                 break
             middle = time.perf_counter()
             seconds["network"] += middle - start
-            stitcher.add(depth, origins)
+            paper.add(depth, origins)
+            after = time.perf_counter()
+            joint.add(depth, origins)
             start = time.perf_counter()
-            seconds["stitch"] += start - middle
+            seconds["stitch"] += after - middle
+            seconds["joint"] += start - after
         seconds["network"] += time.perf_counter() - start
-        stitched = stitcher.finish()
+        joint.finish()
+        stitched = paper.finish()
         start = time.perf_counter()
         temporal_align(stitched)
         seconds["temporal"] = time.perf_counter() - start
         return seconds
 
     run()  # warm-up
-    best = min((run() for _ in range(repeats)), key=lambda s: sum(s.values()))
+    best = min((run() for _ in range(repeats)), key=lambda s: s["network"] + s["stitch"] + s["temporal"])
     print(f"256×256×16 on {device} ({len(layout.origins)} patches + {-(-len(video) // 16)} coarse window(s), torch threads "
-          f"{torch.get_num_threads()}), best of {repeats}: total {sum(best.values()):.2f} s = network {best['network']:.2f} s "
-          f"+ stitching {best['stitch'] * 1e3:.0f} ms + temporal alignment {best['temporal'] * 1e3:.0f} ms")
+          f"{torch.get_num_threads()}), best of {repeats}: total {best['network'] + best['stitch'] + best['temporal']:.2f} s = network "
+          f"{best['network']:.2f} s + stitching {best['stitch'] * 1e3:.0f} ms + temporal alignment {best['temporal'] * 1e3:.0f} ms "
+          f"(the joint alignment instead of the paper's: {best['joint'] * 1e3:.0f} ms)")
 
 
-def accuracy(model, videos: int, device: str) -> None:
+def accuracy(model, videos: int, device: str, seed: int = TEST_SEED, coarse_weight: float = COARSE_WEIGHT) -> None:
     base = nrdepth.GeneratorConfig(size=256)
-    print(f"MAE-SN over {videos} generated 256×256×16 videos (seed {TEST_SEED}), mean ± std")
-    print(f"{'':34s}{'per frame':>18s}{'from 1st frame':>18s}")
+    dev = torch.device(device)
+    net = inference_model(model, dev)
+    joint_row = f"joint alignment (coarse weight {coarse_weight:g})"
+    print(f"MAE-SN over {videos} generated 256×256×16 videos (seed {seed}), mean ± std")
+    print(f"{'':40s}{'per frame':>18s}{'from 1st frame':>18s}")
     for name, config in (("inside training ranges", base), ("outside training ranges", out_of_range(base))):
-        clips = nrdepth.generate_clips(videos, seed=TEST_SEED, config=config)
-        rows = {"nrdepth (default, as the paper)": [], "with temporal_align": [], "flat baseline": []}
+        clips = nrdepth.generate_clips(videos, seed=seed, config=config)
+        rows = {k: [] for k in ("nrdepth (default, the paper's stitching)", "with temporal_align", joint_row, "coarse pass alone", "flat baseline")}
         grid = []
         for video, truth in zip(clips.video, clips.depth):
-            raw = nrdepth.reconstruct(video, model, device=device, temporal=False)
-            grid.append((nrdepth.grid_contrast(raw), nrdepth.grid_contrast(truth)))
-            for key, depth in (("nrdepth (default, as the paper)", raw), ("with temporal_align", temporal_align(raw))):
+            layout = nrdepth.patch_layout(video.shape)
+            coarse = coarse_depth(video, net, 8, dev)
+            patches = np.concatenate([depth for _, depth in patch_depths(video, net, layout, 8, dev)])
+            paper = nrdepth.stitch(patches, coarse, layout)
+            joint = nrdepth.stitch(patches, coarse, layout, alignment="joint", coarse_weight=coarse_weight)
+            grid.append([nrdepth.grid_contrast(d) for d in (paper, joint, truth)])
+            for key, depth in zip(rows, (paper, temporal_align(paper), joint, coarse)):
                 rows[key].append([nrdepth.mae_sn(depth, truth, a) for a in ("frame", "first")])
             rows["flat baseline"].append([nrdepth.flat_baseline(truth, a) for a in ("frame", "first")])
         print(name)
         for key, values in rows.items():
             v = np.array(values)
-            print(f"  {key:32s}{v[:, 0].mean():>9.4f} ± {v[:, 0].std():.4f}{v[:, 1].mean():>9.4f} ± {v[:, 1].std():.4f}")
+            print(f"  {key:42s}{v[:, 0].mean():>9.4f} ± {v[:, 0].std():.4f}{v[:, 1].mean():>9.4f} ± {v[:, 1].std():.4f}")
         g = np.array(grid)
-        print(f"  contrast at the 32-pixel patch period: reconstruction {g[:, 0].mean():.3f} ± {g[:, 0].std():.3f}, truth {g[:, 1].mean():.3f} "
-              f"± {g[:, 1].std():.3f} (about 1 without a grid; seams show above the truth's, missing grid frequencies below)")
+        print(f"  contrast at the 32-pixel patch period: reconstruction {g[:, 0].mean():.3f} ± {g[:, 0].std():.3f} (joint alignment "
+              f"{g[:, 1].mean():.3f} ± {g[:, 1].std():.3f}), truth {g[:, 2].mean():.3f} ± {g[:, 2].std():.3f} "
+              f"(about 1 without a grid; seams show above the truth's, missing grid frequencies below)")
 
 
 def main() -> None:
@@ -101,11 +119,13 @@ def main() -> None:
     parser.add_argument("--model", default=None, help="model.safetensors or run folder (default: the shipped model)")
     parser.add_argument("--videos", type=int, default=8)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--seed", type=int, default=TEST_SEED, help=f"generator seed of the scored videos (default {TEST_SEED}, held out)")
+    parser.add_argument("--coarse-weight", type=float, default=COARSE_WEIGHT, help=f"the joint alignment's weight on the coarse pass (default {COARSE_WEIGHT})")
     args = parser.parse_args()
     devices = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
     for device in devices:
         timing(args.model, device, args.repeats)
-    accuracy(args.model, args.videos, devices[-1])
+    accuracy(args.model, args.videos, devices[-1], args.seed, args.coarse_weight)
 
 
 if __name__ == "__main__":

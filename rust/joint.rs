@@ -7,23 +7,27 @@
 //! depth by a weight μ. For frame t, with patch-frames k (patch n at padded
 //! origin o, its frame f = t + pad_t − o_t), a_k = (u, v, p̂_k, 1) at each
 //! pixel (u, v: the pixel's centre in patch widths from the patch's centre,
-//! in [−½, ½]; p̂_k: the patch-frame's depth standardised over its pixels in
-//! the video) and GBRs g_k ∈ ℝ⁴, it minimises
+//! in [−½, ½]; p̂_k: the patch-frame's depth standardised) and GBRs
+//! g_k ∈ ℝ⁴, it minimises
 //!
 //! ```text
-//! E(g) = Σ_pix Σ_k w_k (a_kᵀg_k − S)²  +  μ Σ_k Σ_{pix ∈ Ω_k} (a_kᵀg_k − C)²,   S = Σ_k w_k a_kᵀg_k
+//! E(g) = Σ_pix Σ_k w_k (a_kᵀg_k − S)²  +  μ Σ_k Σ_{pix ∈ P_k} (a_kᵀg_k − C)²,   S = Σ_k w_k a_kᵀg_k
 //! ```
 //!
-//! over the video's pixels (Ω_k: patch-frame k's pixels inside the video;
-//! w_k: its separable triangle weight, and Σ_k w_k = 1 at every pixel, see
-//! `stitch`; C: the coarse depth). The first term is the patches'
-//! disagreement about the stitched depth S, which is the output; the second
-//! keeps the whole from drifting (the first term alone is blind to any
-//! common GBR and is zero for flat patches). μ → ∞ fits each patch to the
-//! coarse depth on its own, as the paper does (over its pixels inside the
-//! video). Normal equations: `G g = μ b` with
-//! `G_kk = Σ_Ωk (w_k − w_k² + μ) a_k a_kᵀ`, `G_kl = −Σ_{Ωk∩Ωl} w_k w_l a_k a_lᵀ`,
-//! `b_k = Σ_Ωk a_k C`: block sparse, a patch-frame meeting at most 17 others
+//! The first sum runs over the video's pixels (the patch-frames covering
+//! each; w_k: patch-frame k's separable triangle weight, and Σ_k w_k = 1 at
+//! every pixel, see `stitch`): the patches' disagreement about the stitched
+//! depth S, which is the output. The second runs over each patch-frame's
+//! pixels P_k, padding included, against the coarse depth C mirrored under
+//! the padding as the video is: the paper's fit, which keeps the whole from
+//! drifting (the first term alone is blind to any common GBR and is zero for
+//! flat patches). So μ → ∞ is the paper's alignment (tested against
+//! `stitch`). The disagreement is not counted in the padding: a video
+//! mirrored top to bottom is lit from below there, and the network reads its
+//! relief inverted. Normal equations: `G g = μ b` with
+//! `G_kk = Σ_Ωk (w_k − w_k²) a_k a_kᵀ + μ Σ_Pk a_k a_kᵀ` (Ω_k: its pixels in
+//! the video), `G_kl = −Σ_{Ωk∩Ωl} w_k w_l a_k a_lᵀ`, `b_k = Σ_Pk a_k C`:
+//! block sparse, a patch-frame meeting at most 17 others
 //! (its 3 × 3 spatial neighbourhood in the frame's two temporal windows),
 //! solved in f64 by conjugate gradients preconditioned with the 4 × 4
 //! diagonal blocks (a ridge of 1e-9 on those blocks' diagonal keeps a flat
@@ -42,7 +46,7 @@ use nalgebra::{Matrix4, Vector4};
 use rayon::prelude::*;
 
 use crate::error::{InvalidArgument, Result};
-use crate::stitch::{triangle, Layout};
+use crate::stitch::{coarse_at, triangle, Layout};
 
 /// One patch-frame of the frame being solved.
 struct PatchFrame<'a> {
@@ -57,7 +61,7 @@ struct PatchFrame<'a> {
     cols: (usize, usize),
     /// Spatial grid index (row, column) of the patch.
     cell: [usize; 2],
-    /// Standardisation of the values over the pixels inside the video.
+    /// Standardisation of the values.
     mean: f64,
     inv_std: f64,
 }
@@ -208,16 +212,9 @@ impl JointStitcher {
                     let corner = [(j * ly / 2) as isize - pad[1] as isize, (k * lx / 2) as isize - pad[2] as isize];
                     let span = |c: isize, l: usize, n: usize| (c.clamp(0, n as isize) as usize, (c + l as isize).clamp(0, n as isize) as usize);
                     let (rows, cols) = (span(corner[0], ly, hh), span(corner[1], lx, ww));
-                    let (mut sum, mut sum2, mut n) = (0.0f64, 0.0f64, 0.0f64);
-                    for y in rows.0..rows.1 {
-                        let r = (y as isize - corner[0]) as usize * lx;
-                        for x in cols.0..cols.1 {
-                            let v = values[r + (x as isize - corner[1]) as usize] as f64;
-                            sum += v;
-                            sum2 += v * v;
-                            n += 1.0;
-                        }
-                    }
+                    let n = values.len() as f64;
+                    let sum: f64 = values.iter().map(|&v| v as f64).sum();
+                    let sum2: f64 = values.iter().map(|&v| (v as f64).powi(2)).sum();
                     let mean = sum / n;
                     let var = (sum2 / n - mean * mean).max(0.0);
                     // A patch-frame flat to f32 rounding has no relief to align: p̂ = 0.
@@ -232,8 +229,13 @@ impl JointStitcher {
     /// a_k at video pixel (y, x) of patch-frame `p`, and its weight w_k.
     #[inline]
     fn design(&self, p: &PatchFrame<'_>, y: usize, x: usize) -> (Vector4<f64>, f64) {
+        self.design_local(p, (y as isize - p.corner[0]) as usize, (x as isize - p.corner[1]) as usize)
+    }
+
+    /// a_k at the patch's own pixel (py, px), and its weight w_k.
+    #[inline]
+    fn design_local(&self, p: &PatchFrame<'_>, py: usize, px: usize) -> (Vector4<f64>, f64) {
         let [_, ly, lx] = self.layout.patch;
-        let (py, px) = ((y as isize - p.corner[0]) as usize, (x as isize - p.corner[1]) as usize);
         let value = (p.values[py * lx + px] as f64 - p.mean) * p.inv_std;
         let a = Vector4::new((px as f64 + 0.5) / lx as f64 - 0.5, (py as f64 + 0.5) / ly as f64 - 0.5, value, 1.0);
         (a, p.weight_t * self.windows[1][py] as f64 * self.windows[2][px] as f64)
@@ -243,18 +245,24 @@ impl JointStitcher {
     fn solve_frame(&self, t: usize) -> Vec<f32> {
         let [_, hh, ww] = self.layout.shape;
         let mu = self.coarse_weight;
-        let coarse = &self.coarse[t * hh * ww..(t + 1) * hh * ww];
         let frames = self.patch_frames(t);
         // Blocks of G by row: (column, block), the diagonal first.
         let mut blocks: Vec<Vec<(usize, Matrix4<f64>)>> = Vec::with_capacity(frames.len());
         let mut rhs = Vec::with_capacity(frames.len());
+        let [_, ly, lx] = self.layout.patch;
         for p in &frames {
             let (mut diag, mut b) = (Matrix4::zeros(), Vector4::zeros());
             for y in p.rows.0..p.rows.1 {
                 for x in p.cols.0..p.cols.1 {
                     let (a, w) = self.design(p, y, x);
-                    diag += (w - w * w + mu) * a * a.transpose();
-                    b += mu * coarse[y * ww + x] as f64 * a;
+                    diag += (w - w * w) * a * a.transpose();
+                }
+            }
+            for py in 0..ly {
+                for px in 0..lx {
+                    let (a, _) = self.design_local(p, py, px);
+                    diag += mu * a * a.transpose();
+                    b += mu * coarse_at(&self.coarse, &self.layout, t as isize, p.corner[0] + py as isize, p.corner[1] + px as isize) as f64 * a;
                 }
             }
             diag += Matrix4::identity() * 1e-9 * (1.0 + diag.trace() / 4.0);
@@ -352,8 +360,9 @@ mod tests {
         x as f32 / (1u64 << 24) as f32 - 0.5
     }
 
-    /// A smooth depth video and its patches, each frame of each patch seen
-    /// through its own pseudo-random GBR (sign flips included).
+    /// A smooth depth video and its patches (over the video padded by
+    /// mirroring), each frame of each patch seen through its own
+    /// pseudo-random GBR (sign flips included).
     fn scene(shape: [usize; 3], patch: [usize; 3]) -> (Layout, Vec<f32>, Vec<f32>, Vec<[usize; 3]>) {
         let layout = Layout::new(shape, patch).unwrap();
         let [tt, hh, ww] = shape;
@@ -372,7 +381,9 @@ mod tests {
                 for y in 0..ly {
                     for x in 0..lx {
                         let (t, gy, gx) = (o[0] as isize + f as isize - layout.pad[0] as isize, o[1] as isize + y as isize - layout.pad[1] as isize, o[2] as isize + x as isize - layout.pad[2] as isize);
-                        patches.push(g[0] * x as f32 + g[1] * y as f32 + g[2] * depth(t, gy, gx) + g[3]);
+                        // The padding mirrors the video, as `reconstruct` pads it.
+                        let v = coarse_at(&truth, &layout, t, gy, gx);
+                        patches.push(g[0] * x as f32 + g[1] * y as f32 + g[2] * v + g[3]);
                     }
                 }
             }
@@ -482,11 +493,19 @@ mod tests {
                             row[4 * i + d] += w.sqrt() * a[d];
                         }
                         rows.push((row, 0.0));
+                    }
+                }
+            }
+            for (i, p) in frames.iter().enumerate() {
+                for py in 0..8 {
+                    for px in 0..8 {
+                        let (a, _) = stitcher.design_local(p, py, px);
                         let mut anchor = DVector::zeros(4 * k);
                         for d in 0..4 {
                             anchor[4 * i + d] = mu.sqrt() * a[d];
                         }
-                        rows.push((anchor, mu.sqrt() * coarse[(t * hh + y) * ww + x] as f64));
+                        let c = coarse_at(&coarse, &layout, t as isize, p.corner[0] + py as isize, p.corner[1] + px as isize);
+                        rows.push((anchor, mu.sqrt() * c as f64));
                     }
                 }
             }
@@ -509,6 +528,18 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A large μ is the paper's alignment: each patch fitted on its own to the
+    /// coarse depth, padding included (`stitch::stitch`).
+    #[test]
+    fn a_large_coarse_weight_is_the_papers_alignment() {
+        let (layout, truth, patches, origins) = scene([9, 20, 27], [4, 8, 8]);
+        let coarse: Vec<f32> = truth.iter().enumerate().map(|(i, v)| 0.5 * v + pseudo(i + 7)).collect();
+        let paper = crate::stitch::stitch(&patches, &origins, &coarse, &layout).unwrap();
+        let out = joint(&layout, &coarse, 1e9, &patches, &origins);
+        let err = out.iter().zip(&paper).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+        assert!(err < 1e-4, "{err}");
     }
 
     #[test]

@@ -107,7 +107,7 @@ pub fn gbr_fit(p: &[f32], c: &[f32], width: usize) -> [f64; 4] {
 
 /// Coarse depth under a patch, outside the video mirrored like the video's
 /// own padding (numpy's "symmetric": … 2 1 0 | 0 1 2 … n−1 | n−1 n−2 …).
-fn coarse_at(coarse: &[f32], layout: &Layout, t: isize, y: isize, x: isize) -> f32 {
+pub(crate) fn coarse_at(coarse: &[f32], layout: &Layout, t: isize, y: isize, x: isize) -> f32 {
     let [tt, hh, ww] = layout.shape;
     let mirror = |v: isize, n: usize| {
         let m = v.rem_euclid(2 * n as isize) as usize;

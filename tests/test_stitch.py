@@ -71,9 +71,9 @@ def test_joint_alignment_recovers_from_the_patches_what_the_coarse_depth_lacks()
     blurred = np.apply_along_axis(lambda v: np.convolve(np.pad(v, 7, mode="edge"), k, "valid"), 1, blurred)
     guess = (0.5 * blurred + 0.01 * np.arange(160)).astype(np.float32)
     score = {name: nrdepth.mae_sn(nrdepth.stitch(patches, guess, layout, **kw), truth)
-             for name, kw in {"paper": {"alignment": "coarse"}, "default": {}, "small": {"coarse_weight": 1e-5}}.items()}
-    assert score["small"] < 0.01 < 0.5 * score["paper"], score  # measured: 0.0005 and 0.065
-    assert score["default"] < 0.9 * score["paper"], score  # measured: 0.052
+             for name, kw in {"paper": {}, "joint": {"alignment": "joint"}, "small": {"alignment": "joint", "coarse_weight": 1e-5}}.items()}
+    assert score["small"] < 0.01 < 0.5 * score["paper"], score  # measured: 0.0010 and 0.065
+    assert score["joint"] < 0.9 * score["paper"], score  # measured: 0.055
 
 
 def test_joint_stitcher_needs_every_patch_once_and_names_bad_arguments():
@@ -83,7 +83,9 @@ def test_joint_stitcher_needs_every_patch_once_and_names_bad_arguments():
     coarse = np.zeros(shape, np.float32)
     for bad in (0.0, -1.0, float("nan"), float("inf"), True, "0.1"):
         with pytest.raises(ValueError, match="^coarse_weight:"):
-            nrdepth.stitch(patches, coarse, layout, coarse_weight=bad)
+            nrdepth.stitch(patches, coarse, layout, alignment="joint", coarse_weight=bad)
+        with pytest.raises(ValueError, match="^coarse_weight:"):
+            nrdepth.reconstruct(np.zeros(shape, np.uint8), alignment="joint", coarse_weight=bad)
     with pytest.raises(ValueError, match="^alignment:"):
         nrdepth.stitch(patches, coarse, layout, alignment="paper")
     with pytest.raises(ValueError, match="^alignment:"):

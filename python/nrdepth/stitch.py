@@ -8,16 +8,19 @@ the patches are aligned before they are weighted by separable triangle
 windows and added up; the windows sum to exactly one over the video, so
 stitching needs no normalisation. Two alignments (``alignment``):
 
-- ``"coarse"``, the paper's: each patch on its own, frame by frame, to a
-  coarse depth (the network's prediction for the whole video resized to
-  the patch size, in 16-frame windows) by least-squares GBR. The coarse pass
-  alone then sets the video's large-scale shape.
-- ``"joint"`` (the default, beyond the paper): in each frame, all the
-  patches together, so that they agree with one another where they overlap,
-  tied to the coarse depth by a weight :data:`COARSE_WEIGHT` (the objective:
-  ``rust/joint.rs``). The large-scale shape then comes from the patches'
-  agreement as well as from the coarse pass (README, "Depth of a whole
-  video").
+- ``"coarse"`` (the default), the paper's: each patch on its own, frame by
+  frame, to a coarse depth (the network's prediction for the whole video
+  resized to the patch size, in 16-frame windows) by least-squares GBR. The
+  coarse pass alone then sets the video's large-scale shape.
+- ``"joint"`` (beyond the paper): in each frame, all the patches together,
+  so that they agree with one another where they overlap, tied to the
+  coarse depth by a weight ``coarse_weight`` (the objective:
+  ``rust/joint.rs``; a large weight is the paper's alignment). The
+  large-scale shape then comes from the patches' agreement as well as from
+  the coarse pass. Measured (README, "Depth of a whole video"): level with
+  the paper's per frame on generated videos, better from the first frame
+  inside the training ranges, and on the real ``phisft_R1`` better for the
+  shipped model and worse for another, so it is not the default.
 
 Alignment and overlap-add run in Rust (``_core.Stitcher``,
 ``_core.JointStitcher``), fed a chunk of patches at a time, so memory does
@@ -39,14 +42,13 @@ __all__ = ["PatchLayout", "patch_layout", "stitch", "temporal_align", "reconstru
            "ALIGNMENTS", "COARSE_WEIGHT"]
 
 PATCH = (16, 64, 64)
-ALIGNMENTS = ("joint", "coarse")
+ALIGNMENTS = ("coarse", "joint")
 """How :func:`stitch` and :func:`reconstruct` align the patches (module docstring)."""
 COARSE_WEIGHT = 0.01
-"""μ of the joint alignment: the weight of the patches' fit to the coarse
-depth against their agreement with one another. Chosen on generated
-256×256 videos (seed 2000003), where 0.01–0.1 leave the stitched score
-within ±0.003 of the paper's alignment and smaller weights cost more; on
-the real ``phisft_R1`` smaller weights score better (README)."""
+"""Default μ of the joint alignment: the weight of the patches' fit to the
+coarse depth against their agreement with one another. On generated
+256×256 videos (README), 0.01 keeps the stitched score per frame within
+0.003 of the paper's alignment and smaller weights cost more."""
 
 
 class PatchLayout(NamedTuple):
@@ -91,13 +93,13 @@ def patch_layout(shape: Tuple[int, int, int], patch: Tuple[int, int, int] = PATC
 
 
 def stitch(
-    patches: np.ndarray, coarse: np.ndarray, layout: PatchLayout, alignment: str = "joint", coarse_weight: float = COARSE_WEIGHT
+    patches: np.ndarray, coarse: np.ndarray, layout: PatchLayout, alignment: str = "coarse", coarse_weight: float = COARSE_WEIGHT
 ) -> np.ndarray:
     """Align the patch depths (N, Lt, Ls, Ls), one per origin of ``layout``,
-    by per-frame GBRs (``alignment``: ``"joint"``, all together and tied to
-    ``coarse`` (T, H, W) by ``coarse_weight``; ``"coarse"``, each on its own to
-    ``coarse``, as the paper does) and overlap-add them with triangle
-    windows: float32 (T, H, W)."""
+    by per-frame GBRs (``alignment``: ``"coarse"``, each on its own to
+    ``coarse`` (T, H, W), as the paper does; ``"joint"``, all together and
+    tied to ``coarse`` by ``coarse_weight``) and overlap-add them with
+    triangle windows: float32 (T, H, W)."""
     patches = np.asarray(patches)
     coarse = np.asarray(coarse)
     for name, a, ndim in (("patches", patches, 4), ("coarse", coarse, 3)):
@@ -119,16 +121,20 @@ def stitch(
     return stitcher.finish()
 
 
-def _stitcher(coarse: np.ndarray, patch: Tuple[int, int, int], alignment: str, coarse_weight: float) -> Any:
-    """The streaming Rust stitcher of ``alignment`` over ``coarse``."""
-    coarse = np.ascontiguousarray(coarse, dtype=np.float32)
-    if alignment == "coarse":
-        return _core.Stitcher(coarse, patch)
-    if alignment != "joint":
+def _check_alignment(alignment: str, coarse_weight: float) -> float:
+    """``coarse_weight`` as a float, once ``alignment`` and it are valid."""
+    if alignment not in ALIGNMENTS:
         raise ValueError(f"alignment: expected one of {ALIGNMENTS}, got {alignment!r}")
     if isinstance(coarse_weight, bool) or not isinstance(coarse_weight, (int, float, np.integer, np.floating)) or not (0 < coarse_weight < math.inf):
         raise ValueError(f"coarse_weight: expected a finite number > 0, got {coarse_weight!r}")
-    return _core.JointStitcher(coarse, patch, float(coarse_weight))
+    return float(coarse_weight)
+
+
+def _stitcher(coarse: np.ndarray, patch: Tuple[int, int, int], alignment: str, coarse_weight: float) -> Any:
+    """The streaming Rust stitcher of ``alignment`` over ``coarse``."""
+    weight = _check_alignment(alignment, coarse_weight)
+    coarse = np.ascontiguousarray(coarse, dtype=np.float32)
+    return _core.Stitcher(coarse, patch) if alignment == "coarse" else _core.JointStitcher(coarse, patch, weight)
 
 
 def temporal_align(depth: np.ndarray) -> np.ndarray:
@@ -164,7 +170,8 @@ def reconstruct(
     roi: Optional[Tuple[int, int, int, int]] = None,
     frames: Optional[slice] = None,
     units: str = "standard",
-    alignment: str = "joint",
+    alignment: str = "coarse",
+    coarse_weight: float = COARSE_WEIGHT,
 ) -> np.ndarray:
     """Depth video float32 (T, H, W) of a video (T, H, W) or colour video
     (T, H, W, 3) (uint8, or float in [0, 1]; colour becomes luma, ITU-R
@@ -196,8 +203,8 @@ def reconstruct(
     (with ``temporal``) time. Patches stream through the network and the
     stitcher a chunk at a time: memory is a few copies of the video, not of
     its (8× overlapping) patches. ``alignment`` chooses how the patches are
-    aligned: ``"joint"`` (default) or ``"coarse"`` (the paper's; module
-    docstring)."""
+    aligned: ``"coarse"`` (the paper's, default) or ``"joint"`` with
+    ``coarse_weight`` (module docstring)."""
     import torch
 
     from .model.io import resolve_device
@@ -213,8 +220,7 @@ def reconstruct(
         raise TypeError(f"model: expected None, a path to model.safetensors or its folder, or a torch.nn.Module, got {type(model).__name__}")
     if units not in ("standard", "pixels"):
         raise ValueError(f"units: expected 'standard' or 'pixels', got {units!r}")
-    if alignment not in ALIGNMENTS:
-        raise ValueError(f"alignment: expected one of {ALIGNMENTS}, got {alignment!r}")
+    _check_alignment(alignment, coarse_weight)
     dev = resolve_device(device)
     if model is None and units == "pixels":
         from .model.io import SCALED_MODEL
@@ -225,7 +231,7 @@ def reconstruct(
         raise ValueError("units: 'pixels' needs a model that learnt the relief's scale (model.json's depth_units 'window', "
                          "nrdepth train --amplitude); this one gives depth up to scale: use units='standard'")
     layout = patch_layout(video.shape)
-    stitcher = _stitcher(coarse_depth(video, net, batch_size, dev), layout.patch, alignment, COARSE_WEIGHT)
+    stitcher = _stitcher(coarse_depth(video, net, batch_size, dev), layout.patch, alignment, coarse_weight)
     done = 0
     for origins, depth in patch_depths(video, net, layout, batch_size, dev):
         stitcher.add(depth, origins)
