@@ -146,6 +146,8 @@ def _reconstruct(args: argparse.Namespace) -> int:
     ply_relief = PLY_RELIEF if args.ply_relief is None else args.ply_relief
     if not (math.isfinite(ply_relief) and ply_relief > 0):
         raise ValueError(f"--ply-relief: expected a positive finite number, got {ply_relief}")
+    if not (math.isfinite(args.coarse_weight) and args.coarse_weight > 0):
+        raise ValueError(f"--coarse-weight: expected a positive finite number, got {args.coarse_weight}")
     out = Path(args.out) if args.out is not None else Path(Path(args.input).stem + "_depth")
     try:
         check_output_folder(out, args.overwrite, inputs=(args.input,))
@@ -326,7 +328,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--alignment", choices=("coarse", "joint"), default="coarse",
                    help="how the patches are aligned: coarse (each on its own to the coarse pass, as the paper; default) "
                    "or joint (all together, agreeing where they overlap, tied to the coarse pass by --coarse-weight)")
-    p.add_argument("--coarse-weight", type=float, default=0.01, help="the joint alignment's weight on the coarse pass (default 0.01)")
+    p.add_argument("--coarse-weight", type=float, default=0.01, help="the joint alignment's weight on the coarse pass (default 0.01; smaller trusts the patches' agreement more)")
     p.add_argument("--flip", action="store_true", help="negate the depth: the other convex/concave reading (the model assumes light from above; use for a video lit from below)")
     p.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
