@@ -1,0 +1,39 @@
+//! Stitching a 256×256×16 video from its 243 patches of 16×64×64 (all
+//! threads): the paper's alignment (each patch to the coarse depth) against
+//! the joint alignment (every patch-frame of a frame together).
+//!
+//! Run: `cargo bench --bench stitching`
+
+use std::hint::black_box;
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use nrdepth::joint::JointStitcher;
+use nrdepth::stitch::{Layout, Stitcher};
+
+fn bench(c: &mut Criterion) {
+    let layout = Layout::new([16, 256, 256], [16, 64, 64]).unwrap();
+    let origins = layout.origins();
+    let smooth = |i: usize, k: f32| ((i % 64) as f32 * 0.11 * k).sin() + ((i / 64 % 64) as f32 * 0.07 / k).cos() + (i / 4096) as f32 * 0.01;
+    let patches: Vec<f32> = (0..origins.len() * 16 * 64 * 64).map(|i| smooth(i, 1.0 + (i / 65536 % 7) as f32 * 0.1)).collect();
+    let coarse: Vec<f32> = (0..16 * 256 * 256).map(|i| smooth(i, 0.5)).collect();
+    let mut g = c.benchmark_group("stitching");
+    g.sample_size(10);
+    g.bench_function(format!("paper_256x256x16_{}_threads", rayon::current_num_threads()), |b| {
+        b.iter(|| {
+            let mut s = Stitcher::new(layout, coarse.clone()).unwrap();
+            s.add(&patches, &origins).unwrap();
+            black_box(s.finish())
+        })
+    });
+    g.bench_function(format!("joint_256x256x16_{}_threads", rayon::current_num_threads()), |b| {
+        b.iter(|| {
+            let mut s = JointStitcher::new(layout, coarse.clone(), 0.01).unwrap();
+            s.add(&patches, &origins).unwrap();
+            black_box(s.finish().unwrap())
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
