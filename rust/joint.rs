@@ -30,7 +30,7 @@
 //! block sparse, a patch-frame meeting at most 17 others
 //! (its 3 × 3 spatial neighbourhood in the frame's two temporal windows),
 //! solved in f64 by conjugate gradients preconditioned with the 4 × 4
-//! diagonal blocks (a ridge of 1e-9 on those blocks' diagonal keeps a flat
+//! diagonal blocks (a ridge of 1e-9 of a block's mean diagonal keeps a flat
 //! patch's GBR finite).
 //!
 //! Frames are independent given their patches. Patches arrive in chunks in
@@ -543,7 +543,7 @@ mod tests {
     }
 
     #[test]
-    fn order_and_chunking_give_the_same_bytes_and_release_patches() {
+    fn order_chunking_and_threads_give_the_same_bytes_and_patches_are_released() {
         let (layout, truth, patches, origins) = scene([20, 16, 24], [4, 8, 8]);
         let whole = joint(&layout, &truth, 0.01, &patches, &origins);
         let plen = 4 * 8 * 8;
@@ -555,6 +555,9 @@ mod tests {
         }
         assert!(most < origins.len() / 2, "time-major input holds {most} of {} patches", origins.len());
         assert_eq!(stitcher.finish().unwrap(), whole);
+        // One thread.
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        assert_eq!(pool.install(|| joint(&layout, &truth, 0.01, &patches, &origins)), whole);
         // Reversed order, one patch at a time.
         let mut stitcher = JointStitcher::new(layout, truth, 0.01).unwrap();
         for i in (0..origins.len()).rev() {
