@@ -7,27 +7,27 @@
 //! depth by a weight μ. For frame t, with patch-frames k (patch n at padded
 //! origin o, its frame f = t + pad_t − o_t), a_k = (u, v, p̂_k, 1) at each
 //! pixel (u, v: the pixel's centre in patch widths from the patch's centre,
-//! in [−½, ½]; p̂_k: the patch-frame's depth standardised) and GBRs
+//! in [−½, ½]; p̂_k: the patch-frame's depth standardised over Ω_k) and GBRs
 //! g_k ∈ ℝ⁴, it minimises
 //!
 //! ```text
-//! E(g) = Σ_pix Σ_k w_k (a_kᵀg_k − S)²  +  μ Σ_k Σ_{pix ∈ P_k} (a_kᵀg_k − C)²,   S = Σ_k w_k a_kᵀg_k
+//! E(g) = Σ_pix Σ_k w_k (a_kᵀg_k − S)²  +  μ Σ_k Σ_{pix ∈ Ω_k} (a_kᵀg_k − C)²,   S = Σ_k w_k a_kᵀg_k
 //! ```
 //!
-//! The first sum runs over the video's pixels (the patch-frames covering
-//! each; w_k: patch-frame k's separable triangle weight, and Σ_k w_k = 1 at
-//! every pixel, see `stitch`): the patches' disagreement about the stitched
-//! depth S, which is the output. The second runs over each patch-frame's
-//! pixels P_k, padding included, against the coarse depth C mirrored under
-//! the padding as the video is: the paper's fit, which keeps the whole from
-//! drifting (the first term alone is blind to any common GBR and is zero for
-//! flat patches). So μ → ∞ is the paper's alignment (tested against
-//! `stitch`). The disagreement is not counted in the padding: a video
-//! mirrored top to bottom is lit from below there, and the network reads its
-//! relief inverted. Normal equations: `G g = μ b` with
-//! `G_kk = Σ_Ωk (w_k − w_k²) a_k a_kᵀ + μ Σ_Pk a_k a_kᵀ` (Ω_k: its pixels in
-//! the video), `G_kl = −Σ_{Ωk∩Ωl} w_k w_l a_k a_lᵀ`, `b_k = Σ_Pk a_k C`:
-//! block sparse, a patch-frame meeting at most 17 others
+//! over the video's pixels only (Ω_k: patch-frame k's pixels inside the
+//! video; w_k: its separable triangle weight, and Σ_k w_k = 1 at every
+//! pixel, see `stitch`; C: the coarse depth). The first term is the
+//! patches' disagreement about the stitched depth S, which is the output;
+//! the second keeps the whole from drifting (the first alone is blind to any
+//! common GBR and is zero for flat patches). μ → ∞ fits each patch to the
+//! coarse depth on its own over its pixels in the video (tested); the
+//! paper's fit also counts the padding, against the coarse depth mirrored
+//! there. Neither term counts the padding: a video mirrored top to bottom
+//! is lit from below there, so the network reads its relief inverted, and
+//! fitting the mirrored coarse depth scored worse on real video (README).
+//! Normal equations: `G g = μ b` with `G_kk = Σ_Ωk (w_k − w_k² + μ) a_k a_kᵀ`,
+//! `G_kl = −Σ_{Ωk∩Ωl} w_k w_l a_k a_lᵀ`, `b_k = Σ_Ωk a_k C`: block sparse, a
+//! patch-frame meeting at most 17 others
 //! (its 3 × 3 spatial neighbourhood in the frame's two temporal windows),
 //! solved in f64 by conjugate gradients preconditioned with the 4 × 4
 //! diagonal blocks (a ridge of 1e-9 of a block's mean diagonal keeps a flat
@@ -46,7 +46,7 @@ use nalgebra::{Matrix4, Vector4};
 use rayon::prelude::*;
 
 use crate::error::{InvalidArgument, Result};
-use crate::stitch::{coarse_at, triangle, Layout};
+use crate::stitch::{triangle, Layout};
 
 /// One patch-frame of the frame being solved.
 struct PatchFrame<'a> {
@@ -212,9 +212,11 @@ impl JointStitcher {
                     let corner = [(j * ly / 2) as isize - pad[1] as isize, (k * lx / 2) as isize - pad[2] as isize];
                     let span = |c: isize, l: usize, n: usize| (c.clamp(0, n as isize) as usize, (c + l as isize).clamp(0, n as isize) as usize);
                     let (rows, cols) = (span(corner[0], ly, hh), span(corner[1], lx, ww));
-                    let n = values.len() as f64;
-                    let sum: f64 = values.iter().map(|&v| v as f64).sum();
-                    let sum2: f64 = values.iter().map(|&v| (v as f64).powi(2)).sum();
+                    let inside = (rows.0..rows.1).flat_map(|y| (cols.0..cols.1).map(move |x| (y, x)));
+                    let at = |(y, x): (usize, usize)| values[(y as isize - corner[0]) as usize * lx + (x as isize - corner[1]) as usize] as f64;
+                    let n = ((rows.1 - rows.0) * (cols.1 - cols.0)) as f64;
+                    let sum: f64 = inside.clone().map(at).sum();
+                    let sum2: f64 = inside.map(|c| at(c).powi(2)).sum();
                     let mean = sum / n;
                     let var = (sum2 / n - mean * mean).max(0.0);
                     // A patch-frame flat to f32 rounding has no relief to align: p̂ = 0.
@@ -229,13 +231,8 @@ impl JointStitcher {
     /// a_k at video pixel (y, x) of patch-frame `p`, and its weight w_k.
     #[inline]
     fn design(&self, p: &PatchFrame<'_>, y: usize, x: usize) -> (Vector4<f64>, f64) {
-        self.design_local(p, (y as isize - p.corner[0]) as usize, (x as isize - p.corner[1]) as usize)
-    }
-
-    /// a_k at the patch's own pixel (py, px), and its weight w_k.
-    #[inline]
-    fn design_local(&self, p: &PatchFrame<'_>, py: usize, px: usize) -> (Vector4<f64>, f64) {
         let [_, ly, lx] = self.layout.patch;
+        let (py, px) = ((y as isize - p.corner[0]) as usize, (x as isize - p.corner[1]) as usize);
         let value = (p.values[py * lx + px] as f64 - p.mean) * p.inv_std;
         let a = Vector4::new((px as f64 + 0.5) / lx as f64 - 0.5, (py as f64 + 0.5) / ly as f64 - 0.5, value, 1.0);
         (a, p.weight_t * self.windows[1][py] as f64 * self.windows[2][px] as f64)
@@ -249,20 +246,14 @@ impl JointStitcher {
         // Blocks of G by row: (column, block), the diagonal first.
         let mut blocks: Vec<Vec<(usize, Matrix4<f64>)>> = Vec::with_capacity(frames.len());
         let mut rhs = Vec::with_capacity(frames.len());
-        let [_, ly, lx] = self.layout.patch;
+        let coarse = &self.coarse[t * hh * ww..(t + 1) * hh * ww];
         for p in &frames {
             let (mut diag, mut b) = (Matrix4::zeros(), Vector4::zeros());
             for y in p.rows.0..p.rows.1 {
                 for x in p.cols.0..p.cols.1 {
                     let (a, w) = self.design(p, y, x);
-                    diag += (w - w * w) * a * a.transpose();
-                }
-            }
-            for py in 0..ly {
-                for px in 0..lx {
-                    let (a, _) = self.design_local(p, py, px);
-                    diag += mu * a * a.transpose();
-                    b += mu * coarse_at(&self.coarse, &self.layout, t as isize, p.corner[0] + py as isize, p.corner[1] + px as isize) as f64 * a;
+                    diag += (w - w * w + mu) * a * a.transpose();
+                    b += mu * coarse[y * ww + x] as f64 * a;
                 }
             }
             diag += Matrix4::identity() * 1e-9 * (1.0 + diag.trace() / 4.0);
@@ -353,6 +344,7 @@ fn conjugate_gradients(blocks: &[Vec<(usize, Matrix4<f64>)>], b: &[Vector4<f64>]
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::stitch::coarse_at;
     use nalgebra::{DMatrix, DVector};
 
     fn pseudo(i: usize) -> f32 {
@@ -493,19 +485,11 @@ mod tests {
                             row[4 * i + d] += w.sqrt() * a[d];
                         }
                         rows.push((row, 0.0));
-                    }
-                }
-            }
-            for (i, p) in frames.iter().enumerate() {
-                for py in 0..8 {
-                    for px in 0..8 {
-                        let (a, _) = stitcher.design_local(p, py, px);
                         let mut anchor = DVector::zeros(4 * k);
                         for d in 0..4 {
                             anchor[4 * i + d] = mu.sqrt() * a[d];
                         }
-                        let c = coarse_at(&coarse, &layout, t as isize, p.corner[0] + py as isize, p.corner[1] + px as isize);
-                        rows.push((anchor, mu.sqrt() * c as f64));
+                        rows.push((anchor, mu.sqrt() * coarse[(t * hh + y) * ww + x] as f64));
                     }
                 }
             }
@@ -530,16 +514,24 @@ mod tests {
         }
     }
 
-    /// A large μ is the paper's alignment: each patch fitted on its own to the
-    /// coarse depth, padding included (`stitch::stitch`).
+    /// A large μ fits each patch on its own to the coarse depth over its
+    /// pixels in the video: inside the video's interior, where patches have
+    /// no padding, that is the paper's alignment (`stitch::stitch`).
     #[test]
-    fn a_large_coarse_weight_is_the_papers_alignment() {
-        let (layout, truth, patches, origins) = scene([9, 20, 27], [4, 8, 8]);
+    fn a_large_coarse_weight_fits_each_patch_on_its_own() {
+        let (layout, truth, patches, origins) = scene([9, 24, 32], [4, 8, 8]);
         let coarse: Vec<f32> = truth.iter().enumerate().map(|(i, v)| 0.5 * v + pseudo(i + 7)).collect();
         let paper = crate::stitch::stitch(&patches, &origins, &coarse, &layout).unwrap();
         let out = joint(&layout, &coarse, 1e9, &patches, &origins);
-        let err = out.iter().zip(&paper).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
-        assert!(err < 1e-4, "{err}");
+        let [tt, hh, ww] = layout.shape;
+        for t in 0..tt {
+            for y in 8..hh - 8 {
+                for x in 8..ww - 8 {
+                    let i = (t * hh + y) * ww + x;
+                    assert!((out[i] - paper[i]).abs() < 1e-4, "t={t} y={y} x={x}: {} vs {}", out[i], paper[i]);
+                }
+            }
+        }
     }
 
     #[test]

@@ -14,13 +14,14 @@ stitching needs no normalisation. Two alignments (``alignment``):
   coarse pass alone then sets the video's large-scale shape.
 - ``"joint"`` (beyond the paper): in each frame, all the patches together,
   so that they agree with one another where they overlap, tied to the
-  coarse depth by a weight ``coarse_weight`` (the objective:
-  ``rust/joint.rs``; a large weight is the paper's alignment). The
+  coarse depth by a weight ``coarse_weight``, both over the video's own
+  pixels (not its mirrored padding; the objective: ``rust/joint.rs``). The
   large-scale shape then comes from the patches' agreement as well as from
-  the coarse pass. Measured (README, "Depth of a whole video"): level with
-  the paper's per frame on generated videos, better from the first frame
-  inside the training ranges, and on the real ``phisft_R1`` better for the
-  shipped model and worse for another, so it is not the default.
+  the coarse pass. Measured (README, "Depth of a whole video"): on the real
+  ``phisft_R1`` better than the paper's for every one of 24 checkpoints of
+  the campaign, level with it per frame on generated videos, but with more
+  power at the patch period along the video's borders than the truth has,
+  so it is not the default.
 
 Alignment and overlap-add run in Rust (``_core.Stitcher``,
 ``_core.JointStitcher``), fed a chunk of patches at a time, so memory does
