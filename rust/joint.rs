@@ -260,12 +260,18 @@ impl JointStitcher {
             blocks.push(vec![(blocks.len(), diag)]);
             rhs.push(b);
         }
+        // Patch-frames come window by window, each window's row-major over the
+        // grid, so a neighbour's index follows from its window and cell.
+        let [cy, cx] = [self.counts[1], self.counts[2]];
+        let neighbours = |k: usize| {
+            let [j, i] = frames[k].cell;
+            (0..frames.len() / (cy * cx)).flat_map(move |w| {
+                (j.saturating_sub(1)..(j + 2).min(cy)).flat_map(move |y| (i.saturating_sub(1)..(i + 2).min(cx)).map(move |x| (w * cy + y) * cx + x))
+            })
+        };
         for k in 0..frames.len() {
-            for l in k + 1..frames.len() {
+            for l in neighbours(k).filter(|&l| l > k) {
                 let (p, q) = (&frames[k], &frames[l]);
-                if p.cell[0].abs_diff(q.cell[0]) > 1 || p.cell[1].abs_diff(q.cell[1]) > 1 {
-                    continue;
-                }
                 let rows = (p.rows.0.max(q.rows.0), p.rows.1.min(q.rows.1));
                 let cols = (p.cols.0.max(q.cols.0), p.cols.1.min(q.cols.1));
                 if rows.0 >= rows.1 || cols.0 >= cols.1 {
