@@ -19,9 +19,9 @@ stitching needs no normalisation. Two alignments (``alignment``):
   large-scale shape then comes from the patches' agreement as well as from
   the coarse pass. Measured (README, "Depth of a whole video"): on the real
   ``phisft_R1`` better than the paper's for every one of 24 checkpoints of
-  the campaign, level with it per frame on generated videos, but with more
-  power at the patch period along the video's borders than the truth has,
-  so it is not the default.
+  the campaign, level with it per frame on generated videos; its seam
+  reading over the whole frame is above the truth's (inside the frame it
+  is close to the paper's), so it is not yet the default.
 
 Alignment and overlap-add run in Rust (``_core.Stitcher``,
 ``_core.JointStitcher``), fed a chunk of patches at a time, so memory does
