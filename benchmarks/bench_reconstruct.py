@@ -53,7 +53,7 @@ def timing(model, device: str, repeats: int) -> None:
         seconds = {"network": 0.0, "stitch": 0.0, "joint": 0.0, "temporal": 0.0}
         start = time.perf_counter()
         coarse = coarse_depth(video, net, 8, dev)
-        paper, joint = _core.Stitcher(coarse, layout.patch), _core.JointStitcher(coarse, layout.patch, COARSE_WEIGHT)
+        paper, joint = _core.Stitcher(coarse, layout.patch), _core.Stitcher(coarse, layout.patch, COARSE_WEIGHT)
         chunks = patch_depths(video, net, layout, 8, dev)
         while True:
             try:

@@ -575,47 +575,20 @@ fn patch_layout(shape: (i64, i64, i64), patch: (i64, i64, i64)) -> PyResult<(Vec
     Ok((layout.pad.to_vec(), layout.padded.to_vec(), layout.origins()))
 }
 
-/// The slice and origins of a chunk of patches (N, Lt, Ls, Ls) for a stitcher of `patch`.
-fn patch_chunk<'a>(patches: &'a numpy::PyReadonlyArray4<'_, f32>, origins: &PyReadonlyArray2<'_, i64>, patch: [usize; 3]) -> PyResult<(&'a [f32], Vec<[usize; 3]>)> {
-    let ps = patches.shape();
-    if ps[1..] != patch {
-        return Err(PyValueError::new_err(format!("patches: expected (N, {}, {}, {}), got {ps:?}", patch[0], patch[1], patch[2])));
-    }
-    let n = ps[0];
-    let origins: Vec<[usize; 3]> = rows::<i64, 3>("origins", origins)?
-        .iter()
-        .map(|o| {
-            if o.iter().any(|&v| v < 0) {
-                Err(PyValueError::new_err(format!("origins: expected non-negative (t, y, x), got {o:?}")))
-            } else {
-                Ok(o.map(|v| v as usize))
-            }
-        })
-        .collect::<PyResult<_>>()?;
-    if origins.len() != n {
-        return Err(PyValueError::new_err(format!("origins: expected one row per patch ({n}), got {}", origins.len())));
-    }
-    let p = patches.as_slice().map_err(|_| PyValueError::new_err("patches: expected a C-contiguous array"))?;
-    Ok((p, origins))
-}
-
-/// The layout of a coarse depth (T, H, W) in patches of `patch`, and the coarse depth's values.
-fn stitch_layout(coarse: &PyReadonlyArray3<'_, f32>, patch: (i64, i64, i64)) -> PyResult<(crate::stitch::Layout, Vec<f32>)> {
-    let cs = coarse.shape();
-    let ps = [patch.0, patch.1, patch.2];
-    if ps.iter().any(|&l| !(2..=1 << 12).contains(&l)) {
-        return Err(PyValueError::new_err(format!("patch: expected three sizes in [2, 4096], got {ps:?}")));
-    }
-    let layout = crate::stitch::Layout::new([cs[0], cs[1], cs[2]], ps.map(|l| l as usize)).map_err(value_error)?;
-    let c = coarse.as_slice().map_err(|_| PyValueError::new_err("coarse: expected a C-contiguous array"))?.to_vec();
-    Ok((layout, c))
+/// The two ways of aligning the patches (`crate::stitch`, `crate::joint`).
+enum Alignment {
+    Coarse(crate::stitch::Stitcher),
+    Joint(crate::joint::JointStitcher),
 }
 
 /// Streaming COLA stitcher over a coarse depth (T, H, W): `add` chunks of
 /// patches (N, Lt, Ls, Ls) with their padded origins (N, 3), then `finish`.
+/// Without `coarse_weight`, each patch is aligned to the coarse depth on its
+/// own (the paper); with it, all together (`crate::joint`: origins on the
+/// layout's grid, each once, and every patch added before `finish`).
 #[pyclass(name = "Stitcher", module = "nrdepth._core")]
 struct PyStitcher {
-    inner: Option<crate::stitch::Stitcher>,
+    inner: Option<Alignment>,
     shape: [usize; 3],
     patch: [usize; 3],
 }
@@ -623,55 +596,59 @@ struct PyStitcher {
 #[pymethods]
 impl PyStitcher {
     #[new]
-    fn new(py: Python<'_>, coarse: PyReadonlyArray3<'_, f32>, patch: (i64, i64, i64)) -> PyResult<Self> {
-        let (layout, c) = stitch_layout(&coarse, patch)?;
-        let inner = py.detach(|| crate::stitch::Stitcher::new(layout, c)).map_err(value_error)?;
+    #[pyo3(signature = (coarse, patch, coarse_weight=None))]
+    fn new(py: Python<'_>, coarse: PyReadonlyArray3<'_, f32>, patch: (i64, i64, i64), coarse_weight: Option<f64>) -> PyResult<Self> {
+        let cs = coarse.shape();
+        let ps = [patch.0, patch.1, patch.2];
+        if ps.iter().any(|&l| !(2..=1 << 12).contains(&l)) {
+            return Err(PyValueError::new_err(format!("patch: expected three sizes in [2, 4096], got {ps:?}")));
+        }
+        let layout = crate::stitch::Layout::new([cs[0], cs[1], cs[2]], ps.map(|l| l as usize)).map_err(value_error)?;
+        let c = coarse.as_slice().map_err(|_| PyValueError::new_err("coarse: expected a C-contiguous array"))?.to_vec();
+        let inner = py
+            .detach(|| match coarse_weight {
+                None => crate::stitch::Stitcher::new(layout, c).map(Alignment::Coarse),
+                Some(mu) => crate::joint::JointStitcher::new(layout, c, mu).map(Alignment::Joint),
+            })
+            .map_err(value_error)?;
         Ok(Self { inner: Some(inner), shape: layout.shape, patch: layout.patch })
     }
 
     fn add(&mut self, py: Python<'_>, patches: numpy::PyReadonlyArray4<'_, f32>, origins: PyReadonlyArray2<'_, i64>) -> PyResult<()> {
         let stitcher = self.inner.as_mut().ok_or_else(|| PyRuntimeError::new_err("Stitcher: already finished"))?;
-        let (p, origins) = patch_chunk(&patches, &origins, self.patch)?;
-        parallel(py, || stitcher.add(p, &origins))?.map_err(value_error)
+        let ps = patches.shape();
+        if ps[1..] != self.patch {
+            return Err(PyValueError::new_err(format!("patches: expected (N, {}, {}, {}), got {ps:?}", self.patch[0], self.patch[1], self.patch[2])));
+        }
+        let n = ps[0];
+        let origins: Vec<[usize; 3]> = rows::<i64, 3>("origins", &origins)?
+            .iter()
+            .map(|o| {
+                if o.iter().any(|&v| v < 0) {
+                    Err(PyValueError::new_err(format!("origins: expected non-negative (t, y, x), got {o:?}")))
+                } else {
+                    Ok(o.map(|v| v as usize))
+                }
+            })
+            .collect::<PyResult<_>>()?;
+        if origins.len() != n {
+            return Err(PyValueError::new_err(format!("origins: expected one row per patch ({n}), got {}", origins.len())));
+        }
+        let p = patches.as_slice().map_err(|_| PyValueError::new_err("patches: expected a C-contiguous array"))?;
+        parallel(py, || match stitcher {
+            Alignment::Coarse(s) => s.add(p, &origins),
+            Alignment::Joint(s) => s.add(p, &origins),
+        })?
+        .map_err(value_error)
     }
 
     fn finish<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let stitcher = self.inner.take().ok_or_else(|| PyRuntimeError::new_err("Stitcher: already finished"))?;
+        let video = match stitcher {
+            Alignment::Coarse(s) => s.finish(),
+            Alignment::Joint(s) => s.finish().map_err(value_error)?,
+        };
         let [t, h, w] = self.shape;
-        Ok(PyArray1::from_vec(py, stitcher.finish()).reshape([t, h, w])?.into_any())
-    }
-}
-
-/// Streaming joint stitcher (`crate::joint`): every patch-frame aligned
-/// together, tied to the coarse depth (T, H, W) by `coarse_weight`; `add`
-/// chunks of patches (N, Lt, Ls, Ls) at their padded origins (N, 3) on the
-/// layout's grid, then `finish` (every patch added).
-#[pyclass(name = "JointStitcher", module = "nrdepth._core")]
-struct PyJointStitcher {
-    inner: Option<crate::joint::JointStitcher>,
-    shape: [usize; 3],
-    patch: [usize; 3],
-}
-
-#[pymethods]
-impl PyJointStitcher {
-    #[new]
-    fn new(py: Python<'_>, coarse: PyReadonlyArray3<'_, f32>, patch: (i64, i64, i64), coarse_weight: f64) -> PyResult<Self> {
-        let (layout, c) = stitch_layout(&coarse, patch)?;
-        let inner = py.detach(|| crate::joint::JointStitcher::new(layout, c, coarse_weight)).map_err(value_error)?;
-        Ok(Self { inner: Some(inner), shape: layout.shape, patch: layout.patch })
-    }
-
-    fn add(&mut self, py: Python<'_>, patches: numpy::PyReadonlyArray4<'_, f32>, origins: PyReadonlyArray2<'_, i64>) -> PyResult<()> {
-        let stitcher = self.inner.as_mut().ok_or_else(|| PyRuntimeError::new_err("JointStitcher: already finished"))?;
-        let (p, origins) = patch_chunk(&patches, &origins, self.patch)?;
-        parallel(py, || stitcher.add(p, &origins))?.map_err(value_error)
-    }
-
-    fn finish<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let stitcher = self.inner.take().ok_or_else(|| PyRuntimeError::new_err("JointStitcher: already finished"))?;
-        let [t, h, w] = self.shape;
-        let video = stitcher.finish().map_err(value_error)?;
         Ok(PyArray1::from_vec(py, video).reshape([t, h, w])?.into_any())
     }
 }
@@ -705,7 +682,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(generate_clips, m)?)?;
     m.add_function(wrap_pyfunction!(patch_layout, m)?)?;
     m.add_class::<PyStitcher>()?;
-    m.add_class::<PyJointStitcher>()?;
     m.add_function(wrap_pyfunction!(temporal_align, m)?)?;
     m.add("CAMERA_Z", crate::geometry::CAMERA_Z)?;
     m.add("FFT_PERIOD", synthesis::PERIOD)?;

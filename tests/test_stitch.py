@@ -90,7 +90,7 @@ def test_joint_stitcher_needs_every_patch_once_and_names_bad_arguments():
         nrdepth.stitch(patches, coarse, layout, alignment="paper")
     with pytest.raises(ValueError, match="^alignment:"):
         nrdepth.reconstruct(np.zeros(shape, np.uint8), alignment="global")
-    stitcher = nrdepth._core.JointStitcher(coarse, layout.patch, 0.01)
+    stitcher = nrdepth._core.Stitcher(coarse, layout.patch, 0.01)
     with pytest.raises(ValueError, match="^origins:"):
         stitcher.add(patches[:1], layout.origins[:1] + 1)  # off the layout's grid
     with pytest.raises(ValueError, match="^origins:"):

@@ -23,9 +23,9 @@ stitching needs no normalisation. Two alignments (``alignment``):
   reading over the whole frame is above the truth's (inside the frame it
   is close to the paper's), so it is not yet the default.
 
-Alignment and overlap-add run in Rust (``_core.Stitcher``,
-``_core.JointStitcher``), fed a chunk of patches at a time, so memory does
-not grow with the patches' 8× overlap. Beyond the paper,
+Alignment and overlap-add run in Rust (``_core.Stitcher``, given a
+``coarse_weight`` for the joint alignment), fed a chunk of patches at a
+time, so memory does not grow with the patches' 8× overlap. Beyond the paper,
 :func:`temporal_align` then removes the per-frame GBR flicker.
 """
 
@@ -136,7 +136,7 @@ def _stitcher(coarse: np.ndarray, patch: Tuple[int, int, int], alignment: str, c
     """The streaming Rust stitcher of ``alignment`` over ``coarse``."""
     weight = _check_alignment(alignment, coarse_weight)
     coarse = np.ascontiguousarray(coarse, dtype=np.float32)
-    return _core.Stitcher(coarse, patch) if alignment == "coarse" else _core.JointStitcher(coarse, patch, weight)
+    return _core.Stitcher(coarse, patch, None if alignment == "coarse" else weight)
 
 
 def temporal_align(depth: np.ndarray) -> np.ndarray:
