@@ -1,6 +1,7 @@
 //! Stitching a 256×256×16 video from its 243 patches of 16×64×64 (all
-//! threads): the paper's alignment (each patch to the coarse depth) against
-//! the joint alignment (every patch-frame of a frame together).
+//! threads): the paper's stitch (each patch aligned to the coarse depth,
+//! triangle windows) against the default one (every patch-frame of a frame
+//! aligned together, Hann windows).
 //!
 //! Run: `cargo bench --bench stitching`
 
@@ -8,7 +9,7 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use nrdepth::joint::JointStitcher;
-use nrdepth::stitch::{Layout, Stitcher};
+use nrdepth::stitch::{Layout, Stitcher, Window};
 
 fn bench(c: &mut Criterion) {
     let layout = Layout::new([16, 256, 256], [16, 64, 64]).unwrap();
@@ -18,16 +19,16 @@ fn bench(c: &mut Criterion) {
     let coarse: Vec<f32> = (0..16 * 256 * 256).map(|i| smooth(i, 0.5)).collect();
     let mut g = c.benchmark_group("stitching");
     g.sample_size(10);
-    g.bench_function(format!("paper_256x256x16_{}_threads", rayon::current_num_threads()), |b| {
+    g.bench_function(format!("paper_stitch_256x256x16_{}_threads", rayon::current_num_threads()), |b| {
         b.iter(|| {
-            let mut s = Stitcher::new(layout, coarse.clone()).unwrap();
+            let mut s = Stitcher::new(layout, coarse.clone(), Window::Triangle).unwrap();
             s.add(&patches, &origins).unwrap();
             black_box(s.finish())
         })
     });
-    g.bench_function(format!("joint_256x256x16_{}_threads", rayon::current_num_threads()), |b| {
+    g.bench_function(format!("default_stitch_256x256x16_{}_threads", rayon::current_num_threads()), |b| {
         b.iter(|| {
-            let mut s = JointStitcher::new(layout, coarse.clone(), 0.01).unwrap();
+            let mut s = JointStitcher::new(layout, coarse.clone(), 0.005, Window::Hann).unwrap();
             s.add(&patches, &origins).unwrap();
             black_box(s.finish().unwrap())
         })

@@ -2,19 +2,20 @@
 
 1. Time to reconstruct a 256×256×16 video, split into the network half
    (coarse pass + every patch, with cutting and resizing) and the Rust half
-   (alignment and overlap-add: the paper's alignment, the default, and the
-   joint one; temporal alignment), on the CPU and on CUDA when present. The
-   shipped model unless --model.
+   (alignment and overlap-add: the default stitch, and the paper's;
+   temporal alignment), on the CPU and on CUDA when present. The shipped
+   model unless --model.
 2. The stitched MAE-SN of generated 256×256×16 videos drawn inside the
    training ranges and, as in the paper's second experiment, outside them
    (stronger, more flexible, more folded, faster surfaces), both MAE-SN
-   alignments, beside the flat baseline: the same patches stitched with the
-   paper's alignment (each patch to the coarse pass; the default), then
-   temporal alignment, and with the joint alignment (``--coarse-weight``);
-   the coarse pass alone; and the stitched relief's contrast at the
-   32-pixel patch period (``nrdepth.grid_contrast``: seams), beside the
-   truth's, for both alignments, over the whole frame and over its inner
-   192×192 pixels (one patch period left out at each border).
+   alignments, beside the flat baseline. The same patches stitched four
+   ways: the default (joint alignment, ``--coarse-weight``, Hann windows),
+   the paper's (each patch aligned to the coarse pass on its own, triangle
+   windows), and the two mixed ones; the default then temporally aligned;
+   the coarse pass alone. Then each stitch's contrast at the 32-pixel patch
+   period (``nrdepth.grid_contrast``: seams), beside the truth's, over the
+   whole frame and over its inner 192×192 pixels (one patch period left
+   out at each border).
 
     python benchmarks/bench_reconstruct.py [--model PATH] [--videos 8] [--repeats 3] [--seed S] [--coarse-weight MU]
 """
@@ -50,10 +51,10 @@ def timing(model, device: str, repeats: int) -> None:
     layout = nrdepth.patch_layout(video.shape)
 
     def run() -> dict:
-        seconds = {"network": 0.0, "stitch": 0.0, "joint": 0.0, "temporal": 0.0}
+        seconds = {"network": 0.0, "stitch": 0.0, "paper": 0.0, "temporal": 0.0}
         start = time.perf_counter()
         coarse = coarse_depth(video, net, 8, dev)
-        paper, joint = _core.Stitcher(coarse, layout.patch), _core.Stitcher(coarse, layout.patch, COARSE_WEIGHT)
+        default, paper = _core.Stitcher(coarse, layout.patch, "hann", COARSE_WEIGHT), _core.Stitcher(coarse, layout.patch, "triangle")
         chunks = patch_depths(video, net, layout, 8, dev)
         while True:
             try:
@@ -62,15 +63,19 @@ def timing(model, device: str, repeats: int) -> None:
                 break
             middle = time.perf_counter()
             seconds["network"] += middle - start
-            paper.add(depth, origins)
+            default.add(depth, origins)
             after = time.perf_counter()
-            joint.add(depth, origins)
+            paper.add(depth, origins)
             start = time.perf_counter()
             seconds["stitch"] += after - middle
-            seconds["joint"] += start - after
+            seconds["paper"] += start - after
         seconds["network"] += time.perf_counter() - start
-        joint.finish()
-        stitched = paper.finish()
+        middle = time.perf_counter()
+        stitched = default.finish()
+        after = time.perf_counter()
+        paper.finish()
+        seconds["stitch"] += after - middle
+        seconds["paper"] += time.perf_counter() - after
         start = time.perf_counter()
         temporal_align(stitched)
         seconds["temporal"] = time.perf_counter() - start
@@ -81,40 +86,46 @@ def timing(model, device: str, repeats: int) -> None:
     print(f"256×256×16 on {device} ({len(layout.origins)} patches + {-(-len(video) // 16)} coarse window(s), torch threads "
           f"{torch.get_num_threads()}), best of {repeats}: total {best['network'] + best['stitch'] + best['temporal']:.2f} s = network "
           f"{best['network']:.2f} s + stitching {best['stitch'] * 1e3:.0f} ms + temporal alignment {best['temporal'] * 1e3:.0f} ms "
-          f"(the joint alignment instead of the paper's: {best['joint'] * 1e3:.0f} ms)")
+          f"(the paper's stitch instead: {best['paper'] * 1e3:.0f} ms)")
 
 
 def accuracy(model, videos: int, device: str, seed: int = TEST_SEED, coarse_weight: float = COARSE_WEIGHT) -> None:
     base = nrdepth.GeneratorConfig(size=256)
     dev = torch.device(device)
     net = inference_model(model, dev)
-    joint_row = f"joint alignment (coarse weight {coarse_weight:g})"
+    stitches = {  # (alignment, window) → row label
+        ("joint", "hann"): f"nrdepth (default: joint alignment, coarse weight {coarse_weight:g}, Hann windows)",
+        ("coarse", "triangle"): "the paper's stitch (coarse alignment, triangle windows)",
+        ("joint", "triangle"): "joint alignment, triangle windows",
+        ("coarse", "hann"): "coarse alignment, Hann windows",
+    }
     print(f"MAE-SN over {videos} generated 256×256×16 videos (seed {seed}), mean ± std")
-    print(f"{'':40s}{'per frame':>18s}{'from 1st frame':>18s}")
+    print(f"{'':72s}{'per frame':>18s}{'from 1st frame':>18s}")
     for name, config in (("inside training ranges", base), ("outside training ranges", out_of_range(base))):
         clips = nrdepth.generate_clips(videos, seed=seed, config=config)
-        rows = {k: [] for k in ("nrdepth (default, the paper's stitching)", "with temporal_align", joint_row, "coarse pass alone", "flat baseline")}
-        grid = []
+        rows = {k: [] for k in (*stitches.values(), "the default with temporal_align", "coarse pass alone", "flat baseline")}
+        grid = {k: [] for k in (*stitches.values(), "truth")}
         for video, truth in zip(clips.video, clips.depth):
             layout = nrdepth.patch_layout(video.shape)
             coarse = coarse_depth(video, net, 8, dev)
             patches = np.concatenate([depth for _, depth in patch_depths(video, net, layout, 8, dev)])
-            paper = nrdepth.stitch(patches, coarse, layout)
-            joint = nrdepth.stitch(patches, coarse, layout, alignment="joint", coarse_weight=coarse_weight)
-            # Whole frame, and without a patch period at each border (where patches reach into the padding).
-            grid.append([nrdepth.grid_contrast(d[:, c:-c or None, c:-c or None]) for c in (0, 32) for d in (paper, joint, truth)])
-            for key, depth in zip(rows, (paper, temporal_align(paper), joint, coarse)):
+            depths = {label: nrdepth.stitch(patches, coarse, layout, alignment=a, coarse_weight=coarse_weight, window=w) for (a, w), label in stitches.items()}
+            default = depths[stitches["joint", "hann"]]
+            for key, depth in {**depths, "the default with temporal_align": temporal_align(default), "coarse pass alone": coarse}.items():
                 rows[key].append([nrdepth.mae_sn(depth, truth, a) for a in ("frame", "first")])
             rows["flat baseline"].append([nrdepth.flat_baseline(truth, a) for a in ("frame", "first")])
+            # Whole frame, and without a patch period at each border (where patches reach into the padding).
+            for key, depth in {**depths, "truth": truth}.items():
+                grid[key].append([nrdepth.grid_contrast(depth[:, c:-c or None, c:-c or None]) for c in (0, 32)])
         print(name)
         for key, values in rows.items():
             v = np.array(values)
-            print(f"  {key:42s}{v[:, 0].mean():>9.4f} ± {v[:, 0].std():.4f}{v[:, 1].mean():>9.4f} ± {v[:, 1].std():.4f}")
-        g = np.array(grid)
-        for at, label in ((0, "whole frame"), (3, "inner 192×192")):
-            print(f"  contrast at the 32-pixel patch period, {label}: reconstruction {g[:, at].mean():.3f} ± {g[:, at].std():.3f} (joint alignment "
-                  f"{g[:, at + 1].mean():.3f} ± {g[:, at + 1].std():.3f}), truth {g[:, at + 2].mean():.3f} ± {g[:, at + 2].std():.3f} "
-                  f"(about 1 without a grid; seams show above the truth's, missing grid frequencies below)")
+            print(f"  {key:72s}{v[:, 0].mean():>9.4f} ± {v[:, 0].std():.4f}{v[:, 1].mean():>9.4f} ± {v[:, 1].std():.4f}")
+        print("  contrast at the 32-pixel patch period (about 1 without a grid; seams show above the truth's, missing grid frequencies below):")
+        print(f"  {'':72s}{'whole frame':>18s}{'inner 192×192':>18s}")
+        for key, values in grid.items():
+            g = np.array(values)
+            print(f"  {key:72s}{g[:, 0].mean():>9.3f} ± {g[:, 0].std():.3f} {g[:, 1].mean():>9.3f} ± {g[:, 1].std():.3f}")
 
 
 def main() -> None:

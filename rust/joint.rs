@@ -15,7 +15,7 @@
 //! ```
 //!
 //! over the video's pixels only (Ω_k: patch-frame k's pixels inside the
-//! video; w_k: its separable triangle weight, and Σ_k w_k = 1 at every
+//! video; w_k: its separable window weight (`stitch::Window`), and Σ_k w_k = 1 at every
 //! pixel, see `stitch`; C: the coarse depth). The first term is the
 //! patches' disagreement about the stitched depth S, which is the output;
 //! the second keeps the whole from drifting (the first alone is blind to any
@@ -46,7 +46,7 @@ use nalgebra::{Matrix4, Vector4};
 use rayon::prelude::*;
 
 use crate::error::{InvalidArgument, Result};
-use crate::stitch::{triangle, Layout};
+use crate::stitch::{Layout, Window};
 
 /// One patch-frame of the frame being solved.
 struct PatchFrame<'a> {
@@ -84,7 +84,7 @@ pub struct JointStitcher {
 
 impl JointStitcher {
     /// `coarse`: the coarse depth (T, H, W); `coarse_weight`: μ > 0.
-    pub fn new(layout: Layout, coarse: Vec<f32>, coarse_weight: f64) -> Result<Self> {
+    pub fn new(layout: Layout, coarse: Vec<f32>, coarse_weight: f64, window: Window) -> Result<Self> {
         if coarse.len() != layout.shape.iter().product::<usize>() {
             return Err(InvalidArgument::new("coarse", format!("expected shape {:?}", layout.shape)));
         }
@@ -99,7 +99,7 @@ impl JointStitcher {
             video: vec![0.0; coarse.len()],
             coarse,
             coarse_weight,
-            windows: layout.patch.map(triangle),
+            windows: layout.patch.map(|l| window.weights(l)),
             patches: vec![None; counts.iter().product()],
             received: vec![false; counts.iter().product()],
             missing: vec![0; layout.shape[0]],
@@ -389,8 +389,10 @@ mod tests {
         (layout, truth, patches, origins)
     }
 
-    fn joint(layout: &Layout, coarse: &[f32], mu: f64, patches: &[f32], origins: &[[usize; 3]]) -> Vec<f32> {
-        let mut s = JointStitcher::new(*layout, coarse.to_vec(), mu).unwrap();
+    const WINDOWS: [Window; 2] = [Window::Triangle, Window::Hann];
+
+    fn joint(layout: &Layout, coarse: &[f32], mu: f64, window: Window, patches: &[f32], origins: &[[usize; 3]]) -> Vec<f32> {
+        let mut s = JointStitcher::new(*layout, coarse.to_vec(), mu, window).unwrap();
         s.add(patches, origins).unwrap();
         s.finish().unwrap()
     }
@@ -402,10 +404,10 @@ mod tests {
     fn consistent_patches_give_back_the_truth() {
         for (shape, patch) in [([9, 20, 27], [4, 8, 8]), ([5, 16, 16], [4, 8, 8])] {
             let (layout, truth, patches, origins) = scene(shape, patch);
-            for mu in [1e-3, 1.0, 1e3] {
-                let out = joint(&layout, &truth, mu, &patches, &origins);
+            for (mu, window) in [1e-3, 1.0, 1e3].into_iter().flat_map(|mu| WINDOWS.map(|w| (mu, w))) {
+                let out = joint(&layout, &truth, mu, window, &patches, &origins);
                 let err = out.iter().zip(&truth).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
-                assert!(err < 2e-3, "{shape:?} μ={mu}: {err}");
+                assert!(err < 2e-3, "{shape:?} μ={mu} {window:?}: {err}");
             }
         }
     }
@@ -440,23 +442,31 @@ mod tests {
                 .sum::<f64>()
                 / tt as f64
         };
-        let out = joint(&layout, &coarse, 1e-5, &patches, &origins);
-        let (joint_err, coarse_err) = (frame_error(&out), frame_error(&coarse));
-        assert!(joint_err < 0.1 * coarse_err, "joint {joint_err}, coarse {coarse_err}");
+        for window in WINDOWS {
+            let out = joint(&layout, &coarse, 1e-5, window, &patches, &origins);
+            let (joint_err, coarse_err) = (frame_error(&out), frame_error(&coarse));
+            assert!(joint_err < 0.1 * coarse_err, "{window:?}: joint {joint_err}, coarse {coarse_err}");
+        }
     }
 
     /// The solution is the minimiser of E(g) (module header), checked against
     /// a dense least-squares solve of the same objective on a small video.
     #[test]
     fn matches_a_dense_least_squares_solve() {
+        for window in WINDOWS {
+            matches_a_dense_least_squares_solve_with(window);
+        }
+    }
+
+    fn matches_a_dense_least_squares_solve_with(window: Window) {
         let (layout, truth, patches, origins) = scene([3, 12, 10], [4, 8, 8]);
         let [_, hh, ww] = layout.shape;
         let coarse: Vec<f32> = truth.iter().enumerate().map(|(i, v)| 0.5 * v + pseudo(i + 99) * 0.3).collect();
         let mu = 0.05;
-        let out = joint(&layout, &coarse, mu, &patches, &origins);
+        let out = joint(&layout, &coarse, mu, window, &patches, &origins);
         let plen = 4 * 8 * 8;
         let stitcher = {
-            let mut s = JointStitcher::new(layout, coarse.clone(), mu).unwrap();
+            let mut s = JointStitcher::new(layout, coarse.clone(), mu, window).unwrap();
             for (i, o) in origins.iter().enumerate() {
                 let cell: [usize; 3] = std::array::from_fn(|a| o[a] / (layout.patch[a] / 2));
                 let index = s.index(cell);
@@ -514,7 +524,7 @@ mod tests {
                         })
                         .sum();
                     let got = out[(t * hh + y) * ww + x] as f64;
-                    assert!((got - s).abs() < 1e-4 * (1.0 + s.abs()), "t={t} y={y} x={x}: {got} vs {s}");
+                    assert!((got - s).abs() < 1e-4 * (1.0 + s.abs()), "{window:?} t={t} y={y} x={x}: {got} vs {s}");
                 }
             }
         }
@@ -527,14 +537,16 @@ mod tests {
     fn a_large_coarse_weight_fits_each_patch_on_its_own() {
         let (layout, truth, patches, origins) = scene([9, 24, 32], [4, 8, 8]);
         let coarse: Vec<f32> = truth.iter().enumerate().map(|(i, v)| 0.5 * v + pseudo(i + 7)).collect();
-        let paper = crate::stitch::stitch(&patches, &origins, &coarse, &layout).unwrap();
-        let out = joint(&layout, &coarse, 1e9, &patches, &origins);
         let [tt, hh, ww] = layout.shape;
-        for t in 0..tt {
-            for y in 8..hh - 8 {
-                for x in 8..ww - 8 {
-                    let i = (t * hh + y) * ww + x;
-                    assert!((out[i] - paper[i]).abs() < 1e-4, "t={t} y={y} x={x}: {} vs {}", out[i], paper[i]);
+        for window in WINDOWS {
+            let paper = crate::stitch::stitch(&patches, &origins, &coarse, &layout, window).unwrap();
+            let out = joint(&layout, &coarse, 1e9, window, &patches, &origins);
+            for t in 0..tt {
+                for y in 8..hh - 8 {
+                    for x in 8..ww - 8 {
+                        let i = (t * hh + y) * ww + x;
+                        assert!((out[i] - paper[i]).abs() < 1e-4, "{window:?} t={t} y={y} x={x}: {} vs {}", out[i], paper[i]);
+                    }
                 }
             }
         }
@@ -543,9 +555,9 @@ mod tests {
     #[test]
     fn order_chunking_and_threads_give_the_same_bytes_and_patches_are_released() {
         let (layout, truth, patches, origins) = scene([20, 16, 24], [4, 8, 8]);
-        let whole = joint(&layout, &truth, 0.01, &patches, &origins);
+        let whole = joint(&layout, &truth, 0.01, Window::Hann, &patches, &origins);
         let plen = 4 * 8 * 8;
-        let mut stitcher = JointStitcher::new(layout, truth.clone(), 0.01).unwrap();
+        let mut stitcher = JointStitcher::new(layout, truth.clone(), 0.01, Window::Hann).unwrap();
         let mut most = 0;
         for (chunk, o) in patches.chunks(5 * plen).zip(origins.chunks(5)) {
             stitcher.add(chunk, o).unwrap();
@@ -555,9 +567,9 @@ mod tests {
         assert_eq!(stitcher.finish().unwrap(), whole);
         // One thread.
         let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-        assert_eq!(pool.install(|| joint(&layout, &truth, 0.01, &patches, &origins)), whole);
+        assert_eq!(pool.install(|| joint(&layout, &truth, 0.01, Window::Hann, &patches, &origins)), whole);
         // Reversed order, one patch at a time.
-        let mut stitcher = JointStitcher::new(layout, truth, 0.01).unwrap();
+        let mut stitcher = JointStitcher::new(layout, truth, 0.01, Window::Hann).unwrap();
         for i in (0..origins.len()).rev() {
             stitcher.add(&patches[i * plen..(i + 1) * plen], &origins[i..i + 1]).unwrap();
         }
@@ -569,10 +581,10 @@ mod tests {
         let (layout, truth, patches, origins) = scene([5, 16, 16], [4, 8, 8]);
         let plen = 4 * 8 * 8;
         let err = |r: Result<()>| r.unwrap_err().name;
-        assert_eq!(JointStitcher::new(layout, truth.clone(), 0.0).err().unwrap().name, "coarse_weight");
-        assert_eq!(JointStitcher::new(layout, truth.clone(), f64::NAN).err().unwrap().name, "coarse_weight");
-        assert_eq!(JointStitcher::new(layout, truth[1..].to_vec(), 1.0).err().unwrap().name, "coarse");
-        let mut s = JointStitcher::new(layout, truth.clone(), 1.0).unwrap();
+        assert_eq!(JointStitcher::new(layout, truth.clone(), 0.0, Window::Hann).err().unwrap().name, "coarse_weight");
+        assert_eq!(JointStitcher::new(layout, truth.clone(), f64::NAN, Window::Hann).err().unwrap().name, "coarse_weight");
+        assert_eq!(JointStitcher::new(layout, truth[1..].to_vec(), 1.0, Window::Hann).err().unwrap().name, "coarse");
+        let mut s = JointStitcher::new(layout, truth.clone(), 1.0, Window::Hann).unwrap();
         assert_eq!(err(s.add(&patches[..plen], &[[1, 0, 0]])), "origins");
         assert_eq!(err(s.add(&patches[..2 * plen], &[origins[0], origins[0]])), "origins");
         assert_eq!(err(s.add(&patches[..plen - 1], &origins[..1])), "patches");

@@ -581,8 +581,9 @@ enum Alignment {
     Joint(crate::joint::JointStitcher),
 }
 
-/// Streaming COLA stitcher over a coarse depth (T, H, W): `add` chunks of
-/// patches (N, Lt, Ls, Ls) with their padded origins (N, 3), then `finish`.
+/// Streaming COLA stitcher over a coarse depth (T, H, W) with the named
+/// window (`"hann"` or `"triangle"`): `add` chunks of patches (N, Lt, Ls, Ls)
+/// with their padded origins (N, 3), then `finish`.
 /// Without `coarse_weight`, each patch is aligned to the coarse depth on its
 /// own (the paper); with it, all together (`crate::joint`: origins on the
 /// layout's grid, each once, and every patch added before `finish`).
@@ -596,8 +597,9 @@ struct PyStitcher {
 #[pymethods]
 impl PyStitcher {
     #[new]
-    #[pyo3(signature = (coarse, patch, coarse_weight=None))]
-    fn new(py: Python<'_>, coarse: PyReadonlyArray3<'_, f32>, patch: (i64, i64, i64), coarse_weight: Option<f64>) -> PyResult<Self> {
+    #[pyo3(signature = (coarse, patch, window, coarse_weight=None))]
+    fn new(py: Python<'_>, coarse: PyReadonlyArray3<'_, f32>, patch: (i64, i64, i64), window: &str, coarse_weight: Option<f64>) -> PyResult<Self> {
+        let window = crate::stitch::Window::from_name(window).map_err(value_error)?;
         let cs = coarse.shape();
         let ps = [patch.0, patch.1, patch.2];
         if ps.iter().any(|&l| !(2..=1 << 12).contains(&l)) {
@@ -607,8 +609,8 @@ impl PyStitcher {
         let c = coarse.as_slice().map_err(|_| PyValueError::new_err("coarse: expected a C-contiguous array"))?.to_vec();
         let inner = py
             .detach(|| match coarse_weight {
-                None => crate::stitch::Stitcher::new(layout, c).map(Alignment::Coarse),
-                Some(mu) => crate::joint::JointStitcher::new(layout, c, mu).map(Alignment::Joint),
+                None => crate::stitch::Stitcher::new(layout, c, window).map(Alignment::Coarse),
+                Some(mu) => crate::joint::JointStitcher::new(layout, c, mu, window).map(Alignment::Joint),
             })
             .map_err(value_error)?;
         Ok(Self { inner: Some(inner), shape: layout.shape, patch: layout.patch })

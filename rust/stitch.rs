@@ -3,10 +3,16 @@
 //! A video of shape (T, H, W) is covered by patches of shape (Lt, Ls, Ls) at a
 //! hop of half a patch on each axis, over the video padded by half a patch at
 //! the front of each axis and at the back by enough to end on a whole hop.
-//! The triangle window `w[n] = 1 − |2n + 1 − L| / L` (n = 0 .. L − 1) has
-//! `w[n] + w[n + L/2] = 1`, so the separable windows `w_t ⊗ w_y ⊗ w_x` of the
-//! patches sum to exactly one at every sample of the original video: the
-//! overlap-add needs no normalisation.
+//! Both windows (`Window`, n = 0 .. L − 1) have `w[n] + w[n + L/2] = 1`, so
+//! the separable windows `w_t ⊗ w_y ⊗ w_x` of the patches sum to one at
+//! every sample of the original video: the overlap-add needs no
+//! normalisation. The paper's triangle `w[n] = 1 − |2n + 1 − L| / L` has kinks
+//! at a patch's ends and centre, which fall on a grid at the hop: wherever
+//! neighbouring patches disagree, the stitched depth's slope jumps there,
+//! and the grid shows in its spectrum. The Hann window
+//! `w[n] = sin²(π (n + ½) / L)` has a continuous slope, zero where the
+//! triangle kinks, so disagreement blends in without a grid (README, "Depth
+//! of a whole video").
 //!
 //! The video is expected padded symmetrically (numpy's "symmetric" mode) and
 //! the coarse depth is mirrored the same way under the padding. Each patch's
@@ -83,9 +89,34 @@ impl Layout {
     }
 }
 
-/// The triangle window of length `l` (even): COLA at hop l/2.
-pub fn triangle(l: usize) -> Vec<f32> {
-    (0..l).map(|n| 1.0 - ((2 * n + 1) as f32 - l as f32).abs() / l as f32).collect()
+/// The overlap-add window along each axis; both are COLA at hop L/2.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Window {
+    /// The paper's: `1 − |2n + 1 − L| / L`.
+    Triangle,
+    /// `sin²(π (n + ½) / L)`: no kinks, so no grid where patches disagree.
+    Hann,
+}
+
+impl Window {
+    /// The window named `"triangle"` or `"hann"`.
+    pub fn from_name(name: &str) -> Result<Self> {
+        match name {
+            "triangle" => Ok(Self::Triangle),
+            "hann" => Ok(Self::Hann),
+            _ => Err(InvalidArgument::new("window", format!("expected 'hann' or 'triangle', got {name:?}"))),
+        }
+    }
+
+    /// The window's `l` weights (`l` even).
+    pub fn weights(self, l: usize) -> Vec<f32> {
+        (0..l)
+            .map(|n| match self {
+                Self::Triangle => 1.0 - ((2 * n + 1) as f32 - l as f32).abs() / l as f32,
+                Self::Hann => (std::f64::consts::PI * (n as f64 + 0.5) / l as f64).sin().powi(2) as f32,
+            })
+            .collect()
+    }
 }
 
 /// Least-squares (α, β, λ, τ) with `α x + β y + λ p + τ ≈ c` over one frame.
@@ -130,14 +161,14 @@ pub struct Stitcher {
 
 impl Stitcher {
     /// `coarse`: the coarse depth (T, H, W) the patches are aligned to.
-    pub fn new(layout: Layout, coarse: Vec<f32>) -> Result<Self> {
+    pub fn new(layout: Layout, coarse: Vec<f32>, window: Window) -> Result<Self> {
         if coarse.len() != layout.shape.iter().product::<usize>() {
             return Err(InvalidArgument::new("coarse", format!("expected shape {:?}", layout.shape)));
         }
         if !coarse.iter().all(|v| v.is_finite()) {
             return Err(InvalidArgument::new("coarse", "expected finite values"));
         }
-        let windows = layout.patch.map(triangle);
+        let windows = layout.patch.map(|l| window.weights(l));
         Ok(Self { layout, video: vec![0.0; coarse.len()], coarse, windows })
     }
 
@@ -215,8 +246,8 @@ impl Stitcher {
 }
 
 /// Align every patch to the coarse depth and overlap-add them into (T, H, W).
-pub fn stitch(patches: &[f32], origins: &[[usize; 3]], coarse: &[f32], layout: &Layout) -> Result<Vec<f32>> {
-    let mut stitcher = Stitcher::new(*layout, coarse.to_vec())?;
+pub fn stitch(patches: &[f32], origins: &[[usize; 3]], coarse: &[f32], layout: &Layout, window: Window) -> Result<Vec<f32>> {
+    let mut stitcher = Stitcher::new(*layout, coarse.to_vec(), window)?;
     stitcher.add(patches, origins)?;
     Ok(stitcher.finish())
 }
@@ -291,15 +322,18 @@ mod tests {
 
     #[test]
     fn windows_sum_to_one_everywhere_in_the_video_borders_included() {
-        for (shape, patch) in [([16, 64, 64], [16, 64, 64]), ([21, 70, 45], [16, 64, 64]), ([5, 9, 13], [4, 8, 8]), ([1, 3, 2], [4, 8, 8])] {
-            let layout = Layout::new(shape, patch).unwrap();
-            let ones = vec![1.0f32; patch.iter().product::<usize>()];
-            let origins = layout.origins();
-            let patches: Vec<f32> = origins.iter().flat_map(|_| ones.iter().copied()).collect();
-            // Ones aligned to a constant coarse depth of one stay ones: the output is the window sum.
-            let coarse = vec![1.0f32; shape.iter().product()];
-            let sum = stitch(&patches, &origins, &coarse, &layout).unwrap();
-            assert!(sum.iter().all(|v| (v - 1.0).abs() < 1e-5), "{shape:?}: {:?}", sum.iter().fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v))));
+        for window in [Window::Triangle, Window::Hann] {
+            for (shape, patch) in [([16, 64, 64], [16, 64, 64]), ([21, 70, 45], [16, 64, 64]), ([5, 9, 13], [4, 8, 8]), ([1, 3, 2], [4, 8, 8])] {
+                let layout = Layout::new(shape, patch).unwrap();
+                let ones = vec![1.0f32; patch.iter().product::<usize>()];
+                let origins = layout.origins();
+                let patches: Vec<f32> = origins.iter().flat_map(|_| ones.iter().copied()).collect();
+                // Ones aligned to a constant coarse depth of one stay ones: the output is the window sum.
+                let coarse = vec![1.0f32; shape.iter().product()];
+                let sum = stitch(&patches, &origins, &coarse, &layout, window).unwrap();
+                let range = sum.iter().fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+                assert!(sum.iter().all(|v| (v - 1.0).abs() < 1e-5), "{window:?} {shape:?}: {range:?}");
+            }
         }
     }
 
@@ -310,8 +344,8 @@ mod tests {
         let len = 4 * 8 * 8;
         let patches: Vec<f32> = (0..origins.len() * len).map(|i| ((i * 37 % 101) as f32 * 0.1).sin()).collect();
         let coarse: Vec<f32> = (0..9 * 20 * 27).map(|i| ((i % 27) as f32 * 0.3).cos() + (i / 540) as f32 * 0.1).collect();
-        let whole = stitch(&patches, &origins, &coarse, &layout).unwrap();
-        let mut stitcher = Stitcher::new(layout, coarse).unwrap();
+        let whole = stitch(&patches, &origins, &coarse, &layout, Window::Hann).unwrap();
+        let mut stitcher = Stitcher::new(layout, coarse, Window::Hann).unwrap();
         for (chunk, o) in patches.chunks(7 * len).zip(origins.chunks(7)) {
             stitcher.add(chunk, o).unwrap();
         }
@@ -319,11 +353,34 @@ mod tests {
     }
 
     #[test]
-    fn triangle_is_cola_at_half_hop() {
-        let w = triangle(8);
-        for n in 0..4 {
-            assert!((w[n] + w[n + 4] - 1.0).abs() < 1e-7);
+    fn windows_are_cola_at_half_hop_symmetric_and_the_hann_has_no_kinks() {
+        for l in [4, 8, 16, 64] {
+            for window in [Window::Triangle, Window::Hann] {
+                let w = window.weights(l);
+                for n in 0..l / 2 {
+                    assert!((w[n] + w[n + l / 2] - 1.0).abs() < 1e-6, "{window:?} {l}");
+                    assert_eq!(w[n], w[l - 1 - n], "{window:?} {l}");
+                }
+            }
+            // How far the slope turns in one sample, against the steepest slope: the
+            // triangle's turns by its whole size at its centre (a kink at any L), the
+            // Hann's by about 2π/L of it (a continuous slope, also across the window's ends).
+            let turn = |w: &[f32]| {
+                let mut padded = vec![0.0f32];
+                padded.extend_from_slice(w);
+                padded.push(0.0);
+                let slope: Vec<f32> = padded.windows(2).map(|p| p[1] - p[0]).collect();
+                let steepest = slope.iter().fold(0.0f32, |m, d| m.max(d.abs()));
+                slope.windows(2).fold(0.0f32, |m, d| m.max((d[1] - d[0]).abs())) / steepest
+            };
+            if l >= 16 {
+                assert!(turn(&Window::Triangle.weights(l)) > 0.99, "{l}");
+                assert!(turn(&Window::Hann.weights(l)) < 1.1 * std::f32::consts::TAU / l as f32, "{l}");
+            }
         }
+        assert_eq!(Window::from_name("hann").unwrap(), Window::Hann);
+        assert_eq!(Window::from_name("triangle").unwrap(), Window::Triangle);
+        assert_eq!(Window::from_name("hanning").err().unwrap().name, "window");
     }
 
     #[test]

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Optional, Sequence
 
 from . import __version__
+from .stitch import ALIGNMENTS, COARSE_WEIGHT, WINDOWS
 
 
 def _surfaces(args: argparse.Namespace) -> int:
@@ -172,7 +173,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
             bar.update(done - bar.n)
 
     depth = reconstruct(frames, model, batch_size=args.batch_size, device=str(device), progress=progress, temporal=args.temporal_align, units=args.units,
-                        alignment=args.alignment, coarse_weight=args.coarse_weight)
+                        alignment=args.alignment, coarse_weight=args.coarse_weight, window=args.window)
     if args.flip:
         depth = -depth
     if bar is not None:
@@ -325,10 +326,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--units", choices=("standard", "pixels"), default="standard",
                    help="depth.npz's scale: standard (unit std over the video) or pixels (the relief's scale as a model trained with --amplitude reads it; "
                    "without --model, the shipped one that learnt it)")
-    p.add_argument("--alignment", choices=("coarse", "joint"), default="coarse",
-                   help="how the patches are aligned: coarse (each on its own to the coarse pass, as the paper; default) "
-                   "or joint (all together, agreeing where they overlap, tied to the coarse pass by --coarse-weight)")
-    p.add_argument("--coarse-weight", type=float, default=0.01, help="the joint alignment's weight on the coarse pass (default 0.01; smaller trusts the patches' agreement more)")
+    p.add_argument("--alignment", choices=ALIGNMENTS, default=ALIGNMENTS[0],
+                   help="how the patches are aligned: joint (all together, agreeing where they overlap, tied to the coarse pass by --coarse-weight; default) "
+                   "or coarse (each on its own to the coarse pass, as the paper)")
+    p.add_argument("--coarse-weight", type=float, default=COARSE_WEIGHT,
+                   help=f"the joint alignment's weight on the coarse pass (default {COARSE_WEIGHT}; smaller trusts the patches' agreement more)")
+    p.add_argument("--window", choices=WINDOWS, default=WINDOWS[0],
+                   help="the overlap-add window: hann (default; no seams) or triangle (the paper's; the paper's stitch is --alignment coarse --window triangle)")
     p.add_argument("--flip", action="store_true", help="negate the depth: the other convex/concave reading (the model assumes light from above; use for a video lit from below)")
     p.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -4,27 +4,33 @@
 The video is cut into (16, 64, 64) patches at a hop of half a patch on every
 axis, over the video padded by half a patch in front (symmetric padding).
 Each patch's predicted depth is right only up to its own GBR per frame, so
-the patches are aligned before they are weighted by separable triangle
-windows and added up; the windows sum to exactly one over the video, so
-stitching needs no normalisation. Two alignments (``alignment``):
+the patches are aligned before they are weighted by separable windows and
+added up; the windows sum to one over the video, so stitching needs no
+normalisation. Two alignments (``alignment``):
 
-- ``"coarse"`` (the default), the paper's: each patch on its own, frame by
-  frame, to a coarse depth (the network's prediction for the whole video
-  resized to the patch size, in 16-frame windows) by least-squares GBR. The
-  coarse pass alone then sets the video's large-scale shape.
-- ``"joint"`` (beyond the paper): in each frame, all the patches together,
-  so that they agree with one another where they overlap, tied to the
-  coarse depth by a weight ``coarse_weight``, both over the video's own
-  pixels (not its mirrored padding; the objective: ``rust/joint.rs``). The
-  large-scale shape then comes from the patches' agreement as well as from
-  the coarse pass. Measured (README, "Depth of a whole video"): on the real
-  ``phisft_R1`` better than the paper's for every one of 24 checkpoints of
-  the campaign, level with it per frame on generated videos; its seam
-  reading over the whole frame is above the truth's (inside the frame it
-  is close to the paper's), so it is not yet the default.
+- ``"joint"`` (the default; beyond the paper): in each frame, all the
+  patches together, so that they agree with one another where they
+  overlap, tied to a coarse depth (the network's prediction for the whole
+  video resized to the patch size, in 16-frame windows) by a weight
+  ``coarse_weight``, both over the video's own pixels (not its mirrored
+  padding; the objective: ``rust/joint.rs``). The large-scale shape comes
+  from the patches' agreement as well as from the coarse pass.
+- ``"coarse"``, the paper's: each patch on its own, frame by frame, to the
+  coarse depth by least-squares GBR. The coarse pass alone then sets the
+  video's large-scale shape.
 
-Alignment and overlap-add run in Rust (``_core.Stitcher``, given a
-``coarse_weight`` for the joint alignment), fed a chunk of patches at a
+Two windows (``window``): ``"hann"`` (the default), sin², and
+``"triangle"``, the paper's. The triangle's kinks, at every multiple of the
+hop, leave a grid wherever neighbouring patches disagree; the Hann window's
+slope is continuous, and its stitched depth shows no grid. The paper's
+stitch is ``alignment="coarse", window="triangle"``. Measured (README,
+"Depth of a whole video"): the default beats the paper's stitch on the
+real ``phisft_R1`` for every one of 24 checkpoints of the campaign, is
+level with it per frame on generated videos, and leaves the spectrum at
+the patch period as the truth's.
+
+Alignment and overlap-add run in Rust (``_core.Stitcher``, given a window,
+and a ``coarse_weight`` for the joint alignment), fed a chunk of patches at a
 time, so memory does not grow with the patches' 8× overlap. Beyond the paper,
 :func:`temporal_align` then removes the per-frame GBR flicker.
 """
@@ -40,17 +46,19 @@ import numpy as np
 from . import _core
 
 __all__ = ["PatchLayout", "patch_layout", "stitch", "temporal_align", "reconstruct", "inference_model", "coarse_depth", "patch_depths",
-           "ALIGNMENTS", "COARSE_WEIGHT"]
+           "ALIGNMENTS", "WINDOWS", "COARSE_WEIGHT"]
 
 PATCH = (16, 64, 64)
-ALIGNMENTS = ("coarse", "joint")
-"""How :func:`stitch` and :func:`reconstruct` align the patches (module docstring)."""
-COARSE_WEIGHT = 0.01
+ALIGNMENTS = ("joint", "coarse")
+"""How :func:`stitch` and :func:`reconstruct` align the patches, the default first (module docstring)."""
+WINDOWS = ("hann", "triangle")
+"""The overlap-add windows, the default first (module docstring)."""
+COARSE_WEIGHT = 0.005
 """Default μ of the joint alignment: the weight of the patches' fit to the
 coarse depth against their agreement with one another. On generated
-256×256 videos (README), 0.01 keeps the stitched score per frame within
-0.003 of the paper's alignment and smaller weights cost more; on the real
-``phisft_R1`` smaller weights score better still."""
+256×256 videos (README), 0.005 with Hann windows keeps the stitched score
+per frame within 0.001 of the paper's stitch and smaller weights cost
+more; on the real ``phisft_R1`` smaller weights score better still."""
 
 
 class PatchLayout(NamedTuple):
@@ -95,13 +103,18 @@ def patch_layout(shape: Tuple[int, int, int], patch: Tuple[int, int, int] = PATC
 
 
 def stitch(
-    patches: np.ndarray, coarse: np.ndarray, layout: PatchLayout, alignment: str = "coarse", coarse_weight: float = COARSE_WEIGHT
+    patches: np.ndarray,
+    coarse: np.ndarray,
+    layout: PatchLayout,
+    alignment: str = "joint",
+    coarse_weight: float = COARSE_WEIGHT,
+    window: str = "hann",
 ) -> np.ndarray:
     """Align the patch depths (N, Lt, Ls, Ls), one per origin of ``layout``,
-    by per-frame GBRs (``alignment``: ``"coarse"``, each on its own to
-    ``coarse`` (T, H, W), as the paper does; ``"joint"``, all together and
-    tied to ``coarse`` by ``coarse_weight``) and overlap-add them with
-    triangle windows: float32 (T, H, W)."""
+    by per-frame GBRs (``alignment``: ``"joint"``, all together and tied to
+    ``coarse`` (T, H, W) by ``coarse_weight``; ``"coarse"``, each on its own
+    to ``coarse``, as the paper does) and overlap-add them with ``window``
+    (``"hann"`` or the paper's ``"triangle"``): float32 (T, H, W)."""
     patches = np.asarray(patches)
     coarse = np.asarray(coarse)
     for name, a, ndim in (("patches", patches, 4), ("coarse", coarse, 3)):
@@ -118,25 +131,27 @@ def stitch(
         raise ValueError(f"layout: not the layout of a {layout.shape} video in {layout.patch} patches; build it with patch_layout(shape)")
     if len(patches) != len(expected.origins):
         raise ValueError(f"patches: expected one patch per origin of the layout ({len(expected.origins)}), got {len(patches)}")
-    stitcher = _stitcher(coarse, layout.patch, alignment, coarse_weight)
+    stitcher = _stitcher(coarse, layout.patch, alignment, coarse_weight, window)
     stitcher.add(np.ascontiguousarray(patches, dtype=np.float32), np.ascontiguousarray(layout.origins, dtype=np.int64))
     return stitcher.finish()
 
 
-def _check_alignment(alignment: str, coarse_weight: float) -> float:
-    """``coarse_weight`` as a float, once ``alignment`` and it are valid."""
+def _check_stitching(alignment: str, coarse_weight: float, window: str) -> float:
+    """``coarse_weight`` as a float, once ``alignment``, it and ``window`` are valid."""
     if alignment not in ALIGNMENTS:
         raise ValueError(f"alignment: expected one of {ALIGNMENTS}, got {alignment!r}")
+    if window not in WINDOWS:
+        raise ValueError(f"window: expected one of {WINDOWS}, got {window!r}")
     if isinstance(coarse_weight, bool) or not isinstance(coarse_weight, (int, float, np.integer, np.floating)) or not (0 < coarse_weight < math.inf):
         raise ValueError(f"coarse_weight: expected a finite number > 0, got {coarse_weight!r}")
     return float(coarse_weight)
 
 
-def _stitcher(coarse: np.ndarray, patch: Tuple[int, int, int], alignment: str, coarse_weight: float) -> Any:
-    """The streaming Rust stitcher of ``alignment`` over ``coarse``."""
-    weight = _check_alignment(alignment, coarse_weight)
+def _stitcher(coarse: np.ndarray, patch: Tuple[int, int, int], alignment: str, coarse_weight: float, window: str) -> Any:
+    """The streaming Rust stitcher of ``alignment`` and ``window`` over ``coarse``."""
+    weight = _check_stitching(alignment, coarse_weight, window)
     coarse = np.ascontiguousarray(coarse, dtype=np.float32)
-    return _core.Stitcher(coarse, patch, None if alignment == "coarse" else weight)
+    return _core.Stitcher(coarse, patch, window, None if alignment == "coarse" else weight)
 
 
 def temporal_align(depth: np.ndarray) -> np.ndarray:
@@ -172,8 +187,9 @@ def reconstruct(
     roi: Optional[Tuple[int, int, int, int]] = None,
     frames: Optional[slice] = None,
     units: str = "standard",
-    alignment: str = "coarse",
+    alignment: str = "joint",
     coarse_weight: float = COARSE_WEIGHT,
+    window: str = "hann",
 ) -> np.ndarray:
     """Depth video float32 (T, H, W) of a video (T, H, W) or colour video
     (T, H, W, 3) (uint8, or float in [0, 1]; colour becomes luma, ITU-R
@@ -196,7 +212,8 @@ def reconstruct(
     ``"window"``; without ``model``, the shipped one that learnt it,
     :data:`nrdepth.model.SCALED_MODEL`. The coarse pass sees the whole
     frame as one window, so a window width is √(H·W) pixels, the frame's
-    width when it is square). Its overall sign (convex or concave) follows
+    width when it is square, and the stitched relief is given the coarse
+    pass's scale by one least-squares factor over the video). Its overall sign (convex or concave) follows
     the training data's light-from-above prior (lights within ±70° of
     image-up, row 0 being the top): under an
     orthographic camera a surface and its mirror image under mirrored lights
@@ -205,8 +222,10 @@ def reconstruct(
     (with ``temporal``) time. Patches stream through the network and the
     stitcher a chunk at a time: memory is a few copies of the video, not of
     its (8× overlapping) patches. ``alignment`` chooses how the patches are
-    aligned: ``"coarse"`` (the paper's, default) or ``"joint"`` with
-    ``coarse_weight`` (module docstring)."""
+    aligned: ``"joint"`` with ``coarse_weight`` (the default) or
+    ``"coarse"`` (the paper's), and ``window`` how they are blended:
+    ``"hann"`` (the default) or ``"triangle"`` (the paper's; module
+    docstring)."""
     import torch
 
     from .model.io import resolve_device
@@ -222,7 +241,7 @@ def reconstruct(
         raise TypeError(f"model: expected None, a path to model.safetensors or its folder, or a torch.nn.Module, got {type(model).__name__}")
     if units not in ("standard", "pixels"):
         raise ValueError(f"units: expected 'standard' or 'pixels', got {units!r}")
-    _check_alignment(alignment, coarse_weight)
+    _check_stitching(alignment, coarse_weight, window)
     dev = resolve_device(device)
     if model is None and units == "pixels":
         from .model.io import SCALED_MODEL
@@ -233,7 +252,8 @@ def reconstruct(
         raise ValueError("units: 'pixels' needs a model that learnt the relief's scale (model.json's depth_units 'window', "
                          "nrdepth train --amplitude); this one gives depth up to scale: use units='standard'")
     layout = patch_layout(video.shape)
-    stitcher = _stitcher(coarse_depth(video, net, batch_size, dev), layout.patch, alignment, coarse_weight)
+    coarse = coarse_depth(video, net, batch_size, dev)
+    stitcher = _stitcher(coarse, layout.patch, alignment, coarse_weight, window)
     done = 0
     for origins, depth in patch_depths(video, net, layout, batch_size, dev):
         stitcher.add(depth, origins)
@@ -243,13 +263,35 @@ def reconstruct(
     depth = stitcher.finish()
     if temporal:
         depth = temporal_align(depth)
+    if units == "pixels":
+        # The coarse pass reads the relief's scale (one window the frame); the
+        # patches' fits shrink it (least squares regresses toward the fit's
+        # target, and the joint alignment's agreement term falls with the
+        # scale squared), so the stitched relief takes the coarse pass's.
+        depth = depth * _relief_scale(depth, coarse)
+        return ((depth - depth.mean(dtype=np.float64)) * np.sqrt(video.shape[1] * video.shape[2])).astype(np.float32)
     mean = depth.mean(dtype=np.float64)
-    if units == "pixels":  # the stitched patches follow the coarse pass: one window the frame
-        return ((depth - mean) * np.sqrt(video.shape[1] * video.shape[2])).astype(np.float32)
     # A network without a depth scale (GBR-invariant losses only): return a
     # canonical one rather than whatever magnitude its weights drifted to.
     std = depth.std(dtype=np.float64)
     return ((depth - mean) / (std if std > 0 else 1.0)).astype(np.float32)
+
+
+def _relief_scale(depth: np.ndarray, reference: np.ndarray) -> float:
+    """Least-squares s with s·r(depth) ≈ r(reference) over a video (T, H,
+    W), r being each frame minus its least-squares plane; 1 if ``depth`` has
+    no relief (planar frames, up to rounding)."""
+    _, h, w = depth.shape
+    y, x = np.mgrid[0:h, 0:w]
+    basis, _ = np.linalg.qr(np.stack([x.ravel(), y.ravel(), np.ones(h * w)], axis=1))
+    num = den = total = 0.0
+    for frame, ref in zip(depth, reference):
+        f = frame.ravel().astype(np.float64)
+        total += float(f @ f)
+        f -= basis @ (basis.T @ f)
+        num += float(f @ ref.ravel())  # the plane of ``ref`` is orthogonal to the residual ``f``
+        den += float(f @ f)
+    return num / den if den > 1e-12 * total else 1.0
 
 
 def inference_model(model: Union[None, str, "os.PathLike[str]"], device: "torch.device") -> "torch.nn.Module":  # noqa: F821
