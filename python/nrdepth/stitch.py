@@ -27,7 +27,7 @@ stitch is ``alignment="coarse", window="triangle"``. Measured (README,
 "Depth of a whole video"): the default beats the paper's stitch on the
 real ``phisft_R1`` for every one of 24 checkpoints of the campaign, is
 level with it per frame on generated videos, and leaves the spectrum at
-the patch period as the truth's.
+the patch period close to the truth's.
 
 Alignment and overlap-add run in Rust (``_core.Stitcher``, given a window,
 and a ``coarse_weight`` for the joint alignment), fed a chunk of patches at a
@@ -56,9 +56,10 @@ WINDOWS = ("hann", "triangle")
 COARSE_WEIGHT = 0.005
 """Default μ of the joint alignment: the weight of the patches' fit to the
 coarse depth against their agreement with one another. On generated
-256×256 videos (README), 0.005 with Hann windows keeps the stitched score
-per frame within 0.001 of the paper's stitch and smaller weights cost
-more; on the real ``phisft_R1`` smaller weights score better still."""
+256×256 videos (README), 0.005 with Hann windows keeps the shipped model's
+stitched score per frame within 0.002 of the paper's stitch and smaller
+weights cost more; on the real ``phisft_R1`` smaller weights score better
+still."""
 
 
 class PatchLayout(NamedTuple):
