@@ -255,6 +255,8 @@ def reconstruct(
     layout = patch_layout(video.shape)
     coarse = coarse_depth(video, net, batch_size, dev)
     stitcher = _stitcher(coarse, layout.patch, alignment, coarse_weight, window)
+    if units != "pixels":
+        del coarse  # the stitcher holds its own copy; only the pixel scale needs this one
     done = 0
     for origins, depth in patch_depths(video, net, layout, batch_size, dev):
         stitcher.add(depth, origins)
