@@ -1,7 +1,8 @@
 //! Stitching a 256×256×16 video from its 243 patches of 16×64×64 (all
 //! threads): the paper's stitch (each patch aligned to the coarse depth,
 //! triangle windows) against the default one (every patch-frame of a frame
-//! aligned together, Hann windows).
+//! aligned together, Hann windows, each patch tied to the frame before) and
+//! the same without the temporal tie (frames solved on their own).
 //!
 //! Run: `cargo bench --bench stitching`
 
@@ -26,13 +27,16 @@ fn bench(c: &mut Criterion) {
             black_box(s.finish())
         })
     });
-    g.bench_function(format!("default_stitch_256x256x16_{}_threads", rayon::current_num_threads()), |b| {
-        b.iter(|| {
-            let mut s = JointStitcher::new(layout, coarse.clone(), 0.005, Window::Hann).unwrap();
-            s.add(&patches, &origins).unwrap();
-            black_box(s.finish().unwrap())
-        })
-    });
+    // μ and ν: nrdepth.stitch's COARSE_WEIGHT and TEMPORAL_WEIGHT.
+    for (name, nu) in [("default", 0.015), ("untied", 0.0)] {
+        g.bench_function(format!("{name}_stitch_256x256x16_{}_threads", rayon::current_num_threads()), |b| {
+            b.iter(|| {
+                let mut s = JointStitcher::new(layout, coarse.clone(), 0.005, nu, Window::Hann).unwrap();
+                s.add(&patches, &origins).unwrap();
+                black_box(s.finish().unwrap())
+            })
+        });
+    }
     g.finish();
 }
 

@@ -1,25 +1,24 @@
-"""A prototype for the stitcher: the default stitch (joint alignment, Hann
-windows) with each patch's GBRs tied between consecutive frames,
+"""The joint alignment's temporal tie (``rust/joint.rs``): scores the
+stitcher at several temporal weights ν (``--weights``, per pixel of a patch;
+0 solves each frame on its own) beside the paper's stitch of the same
+patches, on ``bench_reconstruct.py``'s generated videos inside and outside
+the training ranges and ``bench_real.py``'s crop of ``phisft_R1``: MAE-SN
+per frame / from the first frame, paired differences to the first weight
+(mean ± standard error over the videos) and the stitch's time a video.
 
-    E(g) + Σ_{n,f} ν_{n,f} ‖g_{n,f+1} − g_{n,f}‖²,
+The stitcher's tie is causal (frame t tied to frame t − 1 as solved), so it
+streams. ``--symmetric NU`` adds the prototype it came from: the tie
+between consecutive frames both ways, ν exp(−(1 − ρ)/``--scale``) per
+patch-frame, solved for the whole video at once (scipy's sparse direct
+solver: small videos only, so not a stitcher).
 
-E the joint alignment's per-frame objective (``rust/joint.rs``), solved for
-the whole video at once (scipy's sparse direct solver: small videos only).
-``--tie uniform`` uses ν_{n,f} = ν; ``--tie adaptive`` weighs it by how much
-the patch's own reading changes, ν exp(−(1 − ρ)/``--scale``), ρ the
-correlation of the patch's two standardised frames. At ν = 0 it reproduces
-``nrdepth.stitch`` to rounding (printed). Scores, beside the default and the
-paper's stitch of the same patches, ``bench_reconstruct.py``'s generated
-videos inside and outside the training ranges and ``bench_real.py``'s crop
-of ``phisft_R1``; MAE-SN per frame / from the first frame, and paired
-differences to the default (mean ± standard error over the videos).
-
-    python benchmarks/temporal_tie.py [--model PATH] [--videos 8] [--nu 30] [--tie adaptive] [--scale 0.02]
+    python benchmarks/temporal_tie.py [--model PATH] [--videos 8] [--weights 0,0.0025,0.005,0.01,0.02] [--symmetric 30]
 """
 
 from __future__ import annotations
 
 import argparse
+import time
 
 import numpy as np
 import scipy.sparse as sp
@@ -33,8 +32,8 @@ from nrdepth.stitch import COARSE_WEIGHT, coarse_depth, inference_model, patch_d
 from real_scales import phisft_at_bin
 
 
-def tied_stitch(patches: np.ndarray, coarse: np.ndarray, mu: float, nu: float, scale: float | None) -> np.ndarray:
-    """The joint alignment with Hann windows and the temporal tie (module docstring)."""
+def tied_stitch(patches: np.ndarray, coarse: np.ndarray, mu: float, nu: float, scale: float | None, lag: int | None = None) -> np.ndarray:
+    """The joint alignment with Hann windows and the temporal tie (module docstring); ``lag``: solve in blocks (below)."""
     t_len, h, w = coarse.shape
     layout = patch_layout(coarse.shape)
     lt, ls, _ = layout.patch
@@ -93,7 +92,50 @@ def tied_stitch(patches: np.ndarray, coarse: np.ndarray, mu: float, nu: float, s
     tie = sp.csr_matrix((tie_vals, (tie_rows, tie_cols)), shape=(max(count, 1), unknowns))
     normal = (disagreement.T @ disagreement + mu * (design.T @ design) + tie.T @ tie + 1e-9 * sp.eye(unknowns)).tocsc()
     target = coarse.astype(np.float64).ravel()[np.concatenate(pixels)]
-    g = spl.spsolve(normal, mu * (design.T @ target))
+    rhs = mu * (design.T @ target)
+    if lag is None:
+        g = spl.spsolve(normal, rhs)
+        return (stitched @ g).reshape(t_len, h, w).astype(np.float32)
+    # Blocks of the temporal hop (the frames two windows of patches cover), in
+    # time order: blocks b … b + lag solved together, block b kept; the ties
+    # to frames before the first block's are held at their solved GBRs.
+    hop = lt // 2
+    block_of = lambda t: (t + pt) // hop  # noqa: E731
+    frame_cols, patch_of = {}, {}
+    for (n, t), k in index.items():
+        frame_cols.setdefault(t, []).append(k)
+        patch_of[k] = n
+    g = np.zeros(unknowns)
+    ties_back = {}  # k → (k at t − 1, ν)
+    for (n, t), k in index.items():
+        prev = index.get((n, t - 1))
+        if prev is not None:
+            rho = float(np.mean(standardised[(n, t - 1)] * standardised[(n, t)]))
+            ties_back[k] = (prev, nu * (np.exp(-(1 - rho) / scale) if scale else 1.0))
+    for b in sorted({block_of(t) for t in range(t_len)}):
+        frames = [t for t in range(t_len) if b <= block_of(t) <= b + lag]
+        ks = sorted(k for t in frames for k in frame_cols[t])
+        cols_s = np.concatenate([np.arange(4 * k, 4 * k + 4) for k in ks])
+        block = normal[cols_s][:, cols_s].tolil()
+        r = rhs[cols_s].copy()
+        where = {k: i for i, k in enumerate(ks)}
+        # ``normal`` holds each tie's ν on the diagonal at both ends: a tie to
+        # the solved frame before the first pulls toward its GBR; one to the
+        # frame after the last, not solved yet, is left out.
+        for k in frame_cols[frames[0]]:
+            if k in ties_back:
+                prev, strength = ties_back[k]
+                r[4 * where[k]:4 * where[k] + 4] += strength * g[4 * prev:4 * prev + 4]
+        for k in frame_cols[frames[-1]]:
+            nxt = index.get((patch_of[k], frames[-1] + 1))
+            if nxt is not None:
+                for j in range(4):
+                    block[4 * where[k] + j, 4 * where[k] + j] -= ties_back[nxt][1]
+        solved = spl.spsolve(block.tocsc(), r)
+        for t in frames:
+            if block_of(t) == b:
+                for k in frame_cols[t]:
+                    g[4 * k:4 * k + 4] = solved[4 * where[k]:4 * where[k] + 4]
     return (stitched @ g).reshape(t_len, h, w).astype(np.float32)
 
 
@@ -101,37 +143,52 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--model", default=None, help="model.safetensors or run folder (default: the shipped model)")
     parser.add_argument("--videos", type=int, default=8, help="generated videos a set")
-    parser.add_argument("--nu", type=float, default=30.0, help="the tie's weight ν")
-    parser.add_argument("--tie", choices=("uniform", "adaptive"), default="adaptive")
-    parser.add_argument("--scale", type=float, default=0.02, help="the adaptive tie's scale of 1 − ρ")
+    parser.add_argument("--weights", default="0,0.0025,0.005,0.01,0.02", help="the stitcher's temporal weights ν to compare, per pixel (comma-separated; the first is the reference)")
+    parser.add_argument("--symmetric", type=float, default=None, metavar="NU",
+                        help="also the symmetric tie over the whole video (scipy) at this weight ν per patch-frame, adaptive with --scale (the prototype: 30)")
+    parser.add_argument("--scale", type=float, default=0.02, help="the symmetric tie's scale of 1 − ρ")
+    parser.add_argument("--lags", default="whole", help="how the symmetric tie is solved: 'whole' (the whole video at once) or LAG, in blocks of the temporal hop, "
+                        "blocks b … b + LAG together, block b kept (comma-separated, e.g. whole,0,1)")
     args = parser.parse_args()
     cpu = torch.device("cpu")
     net = inference_model(args.model, cpu)
-    scale = args.scale if args.tie == "adaptive" else None
+    weights = [float(v) for v in args.weights.split(",")]
+    lags = [None if v == "whole" else int(v) for v in args.lags.split(",")]
     base = nrdepth.GeneratorConfig(size=256)
     clips = {name: nrdepth.generate_clips(args.videos, seed=TEST_SEED, config=config) for name, config in (("inside", base), ("outside", out_of_range(base)))}
     sets = {name: list(zip(c.video, c.depth)) for name, c in clips.items()}
     sets["phisft_R1 (4×4)"] = [phisft_at_bin(4)]
-    print(f"tie {args.tie}, ν = {args.nu:g}{f', scale {scale:g}' if scale else ''}; MAE-SN per frame / from the first frame")
+    labels = ["paper's stitch"] + [f"ν = {v:g}" for v in weights]
+    if args.symmetric is not None:
+        labels += [f"symmetric ν = {args.symmetric:g}, " + ("whole" if lag is None else f"lag {lag}") for lag in lags]
+    print(f"MAE-SN per frame / from the first frame; differences to ν = {weights[0]:g} paired over the videos (mean ± standard error); stitch time a video")
     for name, videos in sets.items():
-        rows = []
+        scores, seconds = [], np.zeros(len(labels))
         for video, truth in videos:
             mask = np.isfinite(truth) if np.isnan(truth).any() else None
             layout = patch_layout(video.shape)
             coarse = coarse_depth(video, net, 8, cpu)
             patches = np.concatenate([d for _, d in patch_depths(video, net, layout, 8, cpu)])
-            default = nrdepth.stitch(patches, coarse, layout)
-            depths = (nrdepth.stitch(patches, coarse, layout, alignment="coarse", window="triangle"), default,
-                      tied_stitch(patches, coarse, COARSE_WEIGHT, args.nu, scale))
-            untied = tied_stitch(patches, coarse, COARSE_WEIGHT, 0.0, None)
-            rows.append([nrdepth.mae_sn(d, truth, a, mask=mask) for d in depths for a in ("frame", "first")]
-                        + [float(np.abs(untied - default).max() / default.std())])
-        r = np.array(rows)
-        diff = r[:, 4:6] - r[:, 2:4]
-        se = diff.std(axis=0, ddof=1) / np.sqrt(len(r)) if len(r) > 1 else np.zeros(2)
-        print(f"{name} ({len(r)}): paper's stitch {r[:, 0].mean():.4f} / {r[:, 1].mean():.4f}, default {r[:, 2].mean():.4f} / {r[:, 3].mean():.4f}, "
-              f"tied {r[:, 4].mean():.4f} / {r[:, 5].mean():.4f}; tied − default {diff[:, 0].mean():+.4f} ± {se[0]:.4f} / {diff[:, 1].mean():+.4f} ± {se[1]:.4f}; "
-              f"ν = 0 against the default stitch: {r[:, 6].max():.1e} of its std", flush=True)
+            stitches = [lambda: nrdepth.stitch(patches, coarse, layout, alignment="coarse", window="triangle")]
+            stitches += [lambda v=v: nrdepth.stitch(patches, coarse, layout, temporal_weight=v) for v in weights]
+            if args.symmetric is not None:
+                stitches += [lambda lag=lag: tied_stitch(patches, coarse, COARSE_WEIGHT, args.symmetric, args.scale, lag) for lag in lags]
+            row = []
+            for i, run in enumerate(stitches):
+                start = time.perf_counter()
+                depth = run()
+                seconds[i] += time.perf_counter() - start
+                row.append([nrdepth.mae_sn(depth, truth, a, mask=mask) for a in ("frame", "first")])
+            scores.append(row)
+        r = np.array(scores)  # (videos, stitches, 2)
+        print(f"{name} ({len(r)} videos)")
+        for i, label in enumerate(labels):
+            line = f"  {label:>22}: {r[:, i, 0].mean():.4f} / {r[:, i, 1].mean():.4f}"
+            if i > 1:
+                diff = r[:, i] - r[:, 1]
+                se = diff.std(axis=0, ddof=1) / np.sqrt(len(r)) if len(r) > 1 else np.zeros(2)
+                line += f"   {diff[:, 0].mean():+.4f} ± {se[0]:.4f} / {diff[:, 1].mean():+.4f} ± {se[1]:.4f}"
+            print(f"{line}   {1000 * seconds[i] / len(r):.0f} ms", flush=True)
 
 
 if __name__ == "__main__":

@@ -33,12 +33,34 @@
 //! diagonal blocks (a ridge of 1e-9 of a block's mean diagonal keeps a flat
 //! patch's GBR finite).
 //!
-//! Frames are independent given their patches. Patches arrive in chunks in
-//! any order; a frame is solved as soon as every patch covering it has
-//! arrived, frames solved together run in parallel, and a patch is dropped
-//! once all its frames are solved, so time-major input keeps two temporal
-//! windows of patches in memory. The bytes depend only on the patches, not
-//! on their order, chunking or the thread count. Shapes as in `stitch`:
+//! A temporal tie (weight ν ≥ 0; ν = 0 leaves frames independent) keeps each
+//! patch's reading steady where its own depth barely changes: the frames are
+//! solved together with
+//!
+//! ```text
+//! Σ_t Σ_k ν_k ‖g_k − g_k'‖²,   ν_k = ν |Ω_k| exp(−(1 − ρ_k) / 0.02),
+//! ```
+//!
+//! k' the same patch at frame t − 1 and ρ_k the correlation of its
+//! standardised frames t − 1 and t over Ω_k. A patch is read by a network
+//! that sees all its frames, so its frames are nearly one reading; where
+//! they are (ρ → 1) the tie stops each frame's fit from following the noise
+//! of that frame's coarse depth and neighbours, and where the patch moves or
+//! deforms (1 − ρ ≫ 0.02) it lets go. To stream, frames are solved in
+//! temporal blocks of the hop (the frames that windows b − 1 and b cover,
+//! complete together), block b with block b + 1 (`LOOKAHEAD`), then block b
+//! kept; the ties of block b's first frame to the frame before pull toward
+//! its solved GBRs. A tie in only one direction (frame by frame) lags the
+//! surface and scored worse than none; solving ahead keeps the symmetric
+//! tie's gain (README). Ties add `ν_k I` to both diagonal blocks, `−ν_k I`
+//! between them, and `ν_k ĝ_k` to `b_k` toward a solved GBR ĝ_k.
+//!
+//! Patches arrive in chunks in any order; frames are solved, in time order,
+//! as soon as every patch covering them has arrived (the work of a frame or
+//! block runs in parallel), and a patch is dropped once all its frames are
+//! solved, so time-major input keeps two temporal windows of patches in
+//! memory (three while tied). The bytes depend only on the patches, not on
+//! their order, chunking or the thread count. Shapes as in `stitch`:
 //! patches (N, Lt, Ls, Ls) at padded origins (t, y, x) on the layout's grid,
 //! coarse and output (T, H, W), row-major f32.
 
@@ -47,6 +69,13 @@ use rayon::prelude::*;
 
 use crate::error::{InvalidArgument, Result};
 use crate::stitch::{Layout, Window};
+
+/// The tie's scale of 1 − ρ (module header): consecutive frames of a patch the
+/// network reads as one shape correlate above 0.98.
+const TIE_SCALE: f64 = 0.02;
+
+/// Tied, blocks solved with a block's frames: this many blocks after it.
+const LOOKAHEAD: usize = 1;
 
 /// One patch-frame of the frame being solved.
 struct PatchFrame<'a> {
@@ -61,6 +90,10 @@ struct PatchFrame<'a> {
     cols: (usize, usize),
     /// Spatial grid index (row, column) of the patch.
     cell: [usize; 2],
+    /// The patch's index in the grid (`JointStitcher::index`).
+    index: usize,
+    /// Its tie to the GBR solved at the frame before: ν_k (0: none).
+    tie: f64,
     /// Standardisation of the values.
     mean: f64,
     inv_std: f64,
@@ -71,6 +104,7 @@ pub struct JointStitcher {
     layout: Layout,
     coarse: Vec<f32>,
     coarse_weight: f64,
+    temporal_weight: f64,
     video: Vec<f32>,
     windows: [Vec<f32>; 3],
     /// Patches per axis of the grid.
@@ -80,11 +114,16 @@ pub struct JointStitcher {
     received: Vec<bool>,
     /// Per frame: covering patches still to arrive.
     missing: Vec<usize>,
+    /// Frames before this one are solved.
+    next: usize,
+    /// Each held patch's GBR at the last solved frame it covers, by grid index.
+    gbrs: Vec<Option<Vector4<f64>>>,
 }
 
 impl JointStitcher {
-    /// `coarse`: the coarse depth (T, H, W); `coarse_weight`: μ > 0.
-    pub fn new(layout: Layout, coarse: Vec<f32>, coarse_weight: f64, window: Window) -> Result<Self> {
+    /// `coarse`: the coarse depth (T, H, W); `coarse_weight`: μ > 0;
+    /// `temporal_weight`: ν ≥ 0 (module header).
+    pub fn new(layout: Layout, coarse: Vec<f32>, coarse_weight: f64, temporal_weight: f64, window: Window) -> Result<Self> {
         if coarse.len() != layout.shape.iter().product::<usize>() {
             return Err(InvalidArgument::new("coarse", format!("expected shape {:?}", layout.shape)));
         }
@@ -94,15 +133,21 @@ impl JointStitcher {
         if !(coarse_weight.is_finite() && coarse_weight > 0.0) {
             return Err(InvalidArgument::new("coarse_weight", format!("expected a finite number > 0, got {coarse_weight}")));
         }
+        if !(temporal_weight.is_finite() && temporal_weight >= 0.0) {
+            return Err(InvalidArgument::new("temporal_weight", format!("expected a finite number ≥ 0, got {temporal_weight}")));
+        }
         let counts: [usize; 3] = std::array::from_fn(|a| (layout.padded[a] - layout.patch[a]) / (layout.patch[a] / 2) + 1);
         let mut stitcher = Self {
             video: vec![0.0; coarse.len()],
             coarse,
             coarse_weight,
+            temporal_weight,
             windows: layout.patch.map(|l| window.weights(l)),
             patches: vec![None; counts.iter().product()],
             received: vec![false; counts.iter().product()],
             missing: vec![0; layout.shape[0]],
+            next: 0,
+            gbrs: vec![None; counts.iter().product()],
             counts,
             layout,
         };
@@ -117,6 +162,16 @@ impl JointStitcher {
         let (hop, pad, lt, n) = (self.layout.patch[0] / 2, self.layout.pad[0], self.layout.patch[0], self.counts[0]);
         let tp = t + pad;
         (0..n).filter(move |&i| i * hop <= tp && tp < i * hop + lt)
+    }
+
+    /// The temporal block of video frame t: the frames that windows b − 1 and b cover.
+    fn block_of(&self, t: usize) -> usize {
+        (t + self.layout.pad[0]) / (self.layout.patch[0] / 2)
+    }
+
+    /// The end of temporal block b (exclusive, at most the video's length).
+    fn block_end(&self, b: usize) -> usize {
+        ((b + 1) * (self.layout.patch[0] / 2)).saturating_sub(self.layout.pad[0]).min(self.layout.shape[0])
     }
 
     /// Video frames covered by temporal window i.
@@ -136,7 +191,8 @@ impl JointStitcher {
     }
 
     /// Add patches (N, Lt, Ls, Ls) at `origins` (padded (t, y, x), on the
-    /// layout's grid, each at most once); solve every frame they complete.
+    /// layout's grid, each at most once); solve, in time order, every frame
+    /// they complete.
     pub fn add(&mut self, patches: &[f32], origins: &[[usize; 3]]) -> Result<()> {
         let patch_len = self.layout.patch.iter().product::<usize>();
         if patches.len() != origins.len() * patch_len {
@@ -158,30 +214,37 @@ impl JointStitcher {
             }
             cells.push(cell);
         }
-        let mut ready = Vec::new();
         for (cell, patch) in cells.iter().zip(patches.chunks(patch_len)) {
             let index = self.index(*cell);
             self.received[index] = true;
             self.patches[index] = Some(patch.to_vec());
             for t in self.frames_of(cell[0]) {
                 self.missing[t] -= 1;
-                if self.missing[t] == 0 {
-                    ready.push(t);
-                }
             }
         }
-        ready.sort_unstable();
-        let this = &*self;
-        let frames: Vec<Vec<f32>> = ready.par_iter().map(|&t| this.solve_frame(t)).collect();
-        let len = self.layout.shape[1] * self.layout.shape[2];
-        for (&t, frame) in ready.iter().zip(frames) {
-            self.video[t * len..(t + 1) * len].copy_from_slice(&frame);
+        while self.next < self.layout.shape[0] {
+            // Untied, a frame is solved on its own; tied, a block with the
+            // blocks after it (module header).
+            let (keep, end) = match self.temporal_weight {
+                0.0 => (self.next + 1, self.next + 1),
+                _ => {
+                    let block = self.block_of(self.next);
+                    (self.block_end(block), self.block_end(block + LOOKAHEAD))
+                }
+            };
+            if (self.next..end).any(|t| self.missing[t] > 0) {
+                break;
+            }
+            self.solve_span(self.next..end, keep);
+            self.next = keep;
         }
         // Release patches whose frames are all solved.
+        let per_window = self.counts[1] * self.counts[2];
         for i in 0..self.counts[0] {
-            if self.frames_of(i).all(|t| self.missing[t] == 0) {
-                for j in 0..self.counts[1] * self.counts[2] {
-                    self.patches[i * self.counts[1] * self.counts[2] + j] = None;
+            if self.frames_of(i).all(|t| t < self.next) {
+                for slot in i * per_window..(i + 1) * per_window {
+                    self.patches[slot] = None;
+                    self.gbrs[slot] = None;
                 }
             }
         }
@@ -202,30 +265,44 @@ impl JointStitcher {
         let [_, hh, ww] = self.layout.shape;
         let [lt, ly, lx] = self.layout.patch;
         let pad = self.layout.pad;
-        let mut out = Vec::new();
-        for i in self.windows_of(t) {
-            let f = t + pad[0] - i * lt / 2;
-            for j in 0..self.counts[1] {
-                for k in 0..self.counts[2] {
-                    let patch = self.patches[self.index([i, j, k])].as_deref().expect("a frame is solved once all its patches arrived");
-                    let values = &patch[f * ly * lx..(f + 1) * ly * lx];
-                    let corner = [(j * ly / 2) as isize - pad[1] as isize, (k * lx / 2) as isize - pad[2] as isize];
-                    let span = |c: isize, l: usize, n: usize| (c.clamp(0, n as isize) as usize, (c + l as isize).clamp(0, n as isize) as usize);
-                    let (rows, cols) = (span(corner[0], ly, hh), span(corner[1], lx, ww));
-                    let inside = (rows.0..rows.1).flat_map(|y| (cols.0..cols.1).map(move |x| (y, x)));
-                    let at = |(y, x): (usize, usize)| values[(y as isize - corner[0]) as usize * lx + (x as isize - corner[1]) as usize] as f64;
-                    let n = ((rows.1 - rows.0) * (cols.1 - cols.0)) as f64;
-                    let sum: f64 = inside.clone().map(at).sum();
-                    let sum2: f64 = inside.map(|c| at(c).powi(2)).sum();
+        let cells: Vec<[usize; 3]> = self
+            .windows_of(t)
+            .flat_map(|i| (0..self.counts[1]).flat_map(move |j| (0..self.counts[2]).map(move |k| [i, j, k])))
+            .collect();
+        cells
+            .par_iter()
+            .map(|&[i, j, k]| {
+                let f = t + pad[0] - i * lt / 2;
+                let index = self.index([i, j, k]);
+                let patch = self.patches[index].as_deref().expect("a frame is solved once all its patches arrived");
+                let corner = [(j * ly / 2) as isize - pad[1] as isize, (k * lx / 2) as isize - pad[2] as isize];
+                let span = |c: isize, l: usize, n: usize| (c.clamp(0, n as isize) as usize, (c + l as isize).clamp(0, n as isize) as usize);
+                let (rows, cols) = (span(corner[0], ly, hh), span(corner[1], lx, ww));
+                let inside = || (rows.0..rows.1).flat_map(|y| (cols.0..cols.1).map(move |x| (y as isize - corner[0]) as usize * lx + (x as isize - corner[1]) as usize));
+                let n = ((rows.1 - rows.0) * (cols.1 - cols.0)) as f64;
+                // Mean and inverse standard deviation of the patch's frame over its pixels in the video.
+                let standardise = |values: &[f32]| {
+                    let sum: f64 = inside().map(|i| values[i] as f64).sum();
+                    let sum2: f64 = inside().map(|i| (values[i] as f64).powi(2)).sum();
                     let mean = sum / n;
                     let var = (sum2 / n - mean * mean).max(0.0);
                     // A patch-frame flat to f32 rounding has no relief to align: p̂ = 0.
-                    let inv_std = if var.sqrt() > 1e-6 * mean.abs() && var > 0.0 { 1.0 / var.sqrt() } else { 0.0 };
-                    out.push(PatchFrame { values, weight_t: self.windows[0][f] as f64, corner, rows, cols, cell: [j, k], mean, inv_std });
-                }
-            }
-        }
-        out
+                    (mean, if var.sqrt() > 1e-6 * mean.abs() && var > 0.0 { 1.0 / var.sqrt() } else { 0.0 })
+                };
+                let frame = |f: usize| &patch[f * ly * lx..(f + 1) * ly * lx];
+                let values = frame(f);
+                let (mean, inv_std) = standardise(values);
+                let tie = if self.temporal_weight > 0.0 && f > 0 && t > 0 {
+                    let before = frame(f - 1);
+                    let (mean_b, inv_std_b) = standardise(before);
+                    let rho = inside().map(|i| (values[i] as f64 - mean) * inv_std * (before[i] as f64 - mean_b) * inv_std_b).sum::<f64>() / n;
+                    self.temporal_weight * n * (-(1.0 - rho) / TIE_SCALE).exp()
+                } else {
+                    0.0
+                };
+                PatchFrame { values, weight_t: self.windows[0][f] as f64, corner, rows, cols, cell: [j, k], index, tie, mean, inv_std }
+            })
+            .collect()
     }
 
     /// a_k at video pixel (y, x) of patch-frame `p`, and its weight w_k.
@@ -238,28 +315,39 @@ impl JointStitcher {
         (a, p.weight_t * self.windows[1][py] as f64 * self.windows[2][px] as f64)
     }
 
-    /// Solve frame t: its stitched depth (H·W values).
-    fn solve_frame(&self, t: usize) -> Vec<f32> {
+    /// Frame t's patch-frames and its part of the normal equations: blocks of
+    /// G by row, (column, block) with the diagonal first, and the right-hand
+    /// side, in the frame's own indices. Each tie adds ν_k I to its
+    /// patch-frame's diagonal block; `anchored`: frame t − 1 is solved, so the
+    /// ties also pull toward its GBRs (`b_k += ν_k ĝ_k`).
+    fn assemble(&self, t: usize, anchored: bool) -> FrameSystem<'_> {
         let [_, hh, ww] = self.layout.shape;
         let mu = self.coarse_weight;
         let frames = self.patch_frames(t);
-        // Blocks of G by row: (column, block), the diagonal first.
-        let mut blocks: Vec<Vec<(usize, Matrix4<f64>)>> = Vec::with_capacity(frames.len());
-        let mut rhs = Vec::with_capacity(frames.len());
         let coarse = &self.coarse[t * hh * ww..(t + 1) * hh * ww];
-        for p in &frames {
-            let (mut diag, mut b) = (Matrix4::zeros(), Vector4::zeros());
-            for y in p.rows.0..p.rows.1 {
-                for x in p.cols.0..p.cols.1 {
-                    let (a, w) = self.design(p, y, x);
-                    diag += (w - w * w + mu) * a * a.transpose();
-                    b += mu * coarse[y * ww + x] as f64 * a;
+        let diagonal: Vec<(Matrix4<f64>, Vector4<f64>)> = frames
+            .par_iter()
+            .map(|p| {
+                let (mut diag, mut b) = (Matrix4::zeros(), Vector4::zeros());
+                for y in p.rows.0..p.rows.1 {
+                    for x in p.cols.0..p.cols.1 {
+                        let (a, w) = self.design(p, y, x);
+                        diag += (w - w * w + mu) * a * a.transpose();
+                        b += mu * coarse[y * ww + x] as f64 * a;
+                    }
                 }
-            }
-            diag += Matrix4::identity() * 1e-9 * (1.0 + diag.trace() / 4.0);
-            blocks.push(vec![(blocks.len(), diag)]);
-            rhs.push(b);
-        }
+                diag += Matrix4::identity() * 1e-9 * (1.0 + diag.trace() / 4.0);
+                if p.tie > 0.0 {
+                    diag += Matrix4::identity() * p.tie;
+                    if anchored {
+                        b += p.tie * self.gbrs[p.index].expect("a tie to a solved frame has its GBR");
+                    }
+                }
+                (diag, b)
+            })
+            .collect();
+        let mut blocks: Vec<Vec<(usize, Matrix4<f64>)>> = diagonal.iter().enumerate().map(|(k, d)| vec![(k, d.0)]).collect();
+        let rhs: Vec<Vector4<f64>> = diagonal.iter().map(|d| d.1).collect();
         // Patch-frames come window by window, each window's row-major over the
         // grid, so a neighbour's index follows from its window and cell.
         let [cy, cx] = [self.counts[1], self.counts[2]];
@@ -269,37 +357,108 @@ impl JointStitcher {
                 (j.saturating_sub(1)..(j + 2).min(cy)).flat_map(move |y| (i.saturating_sub(1)..(i + 2).min(cx)).map(move |x| (w * cy + y) * cx + x))
             })
         };
-        for k in 0..frames.len() {
-            for l in neighbours(k).filter(|&l| l > k) {
-                let (p, q) = (&frames[k], &frames[l]);
-                let rows = (p.rows.0.max(q.rows.0), p.rows.1.min(q.rows.1));
-                let cols = (p.cols.0.max(q.cols.0), p.cols.1.min(q.cols.1));
-                if rows.0 >= rows.1 || cols.0 >= cols.1 {
-                    continue;
-                }
-                let mut off = Matrix4::zeros();
-                for y in rows.0..rows.1 {
-                    for x in cols.0..cols.1 {
-                        let ((a, wa), (c, wc)) = (self.design(p, y, x), self.design(q, y, x));
-                        off -= wa * wc * a * c.transpose();
-                    }
-                }
+        let coupling: Vec<Vec<(usize, Matrix4<f64>)>> = (0..frames.len())
+            .into_par_iter()
+            .map(|k| {
+                let p = &frames[k];
+                neighbours(k)
+                    .filter(|&l| l > k)
+                    .filter_map(|l| {
+                        let q = &frames[l];
+                        let rows = (p.rows.0.max(q.rows.0), p.rows.1.min(q.rows.1));
+                        let cols = (p.cols.0.max(q.cols.0), p.cols.1.min(q.cols.1));
+                        if rows.0 >= rows.1 || cols.0 >= cols.1 {
+                            return None;
+                        }
+                        let mut off = Matrix4::zeros();
+                        for y in rows.0..rows.1 {
+                            for x in cols.0..cols.1 {
+                                let ((a, wa), (c, wc)) = (self.design(p, y, x), self.design(q, y, x));
+                                off -= wa * wc * a * c.transpose();
+                            }
+                        }
+                        Some((l, off))
+                    })
+                    .collect()
+            })
+            .collect();
+        for (k, row) in coupling.into_iter().enumerate() {
+            for (l, off) in row {
                 blocks[k].push((l, off));
                 blocks[l].push((k, off.transpose()));
             }
         }
-        let g = conjugate_gradients(&blocks, &rhs);
-        let mut out = vec![0.0f64; hh * ww];
-        for (p, gk) in frames.iter().zip(&g) {
-            for y in p.rows.0..p.rows.1 {
-                for x in p.cols.0..p.cols.1 {
-                    let (a, w) = self.design(p, y, x);
-                    out[y * ww + x] += w * a.dot(gk);
+        FrameSystem { frames, blocks, rhs }
+    }
+
+    /// Solve frames `span` together (frame `span.start` − 1 solved), tied
+    /// frame to frame: write the stitched frames up to `keep` and keep their
+    /// patches' GBRs.
+    fn solve_span(&mut self, span: std::ops::Range<usize>, keep: usize) {
+        let [_, hh, ww] = self.layout.shape;
+        let (video, solved) = {
+            let this = &*self;
+            let systems: Vec<FrameSystem<'_>> = span.clone().into_par_iter().map(|t| this.assemble(t, t == span.start)).collect();
+            let bases: Vec<usize> = systems.iter().scan(0, |n, s| Some(std::mem::replace(n, *n + s.frames.len()))).collect();
+            let mut blocks: Vec<Vec<(usize, Matrix4<f64>)>> = Vec::new();
+            let mut rhs = Vec::new();
+            for (system, &base) in systems.iter().zip(&bases) {
+                blocks.extend(system.blocks.iter().map(|row| row.iter().map(|&(l, m)| (base + l, m)).collect::<Vec<_>>()));
+                rhs.extend_from_slice(&system.rhs);
+            }
+            // Ties between frames of the span: ν_k (g_k − g_k')ᵀ(g_k − g_k'), k' the
+            // same patch one frame earlier; its own diagonal's ν_k I is in place.
+            let mut position = vec![usize::MAX; self.patches.len()];
+            for (i, (system, &base)) in systems.iter().zip(&bases).enumerate() {
+                if i > 0 {
+                    for (k, p) in system.frames.iter().enumerate().filter(|(_, p)| p.tie > 0.0) {
+                        let before = position[p.index];
+                        let tie = Matrix4::identity() * p.tie;
+                        blocks[before][0].1 += tie;
+                        blocks[before].push((base + k, -tie));
+                        blocks[base + k].push((before, -tie));
+                    }
+                }
+                for (k, p) in system.frames.iter().enumerate() {
+                    position[p.index] = base + k;
                 }
             }
+            let g = conjugate_gradients(&blocks, &rhs);
+            let len = hh * ww;
+            let mut video = vec![0.0f32; (keep - span.start) * len];
+            let mut solved = Vec::new();
+            for ((system, &base), frame) in systems.iter().zip(&bases).zip(video.chunks_mut(len)) {
+                let g = &g[base..base + system.frames.len()];
+                // Row by row, each pixel summing its patch-frames in order.
+                frame.par_chunks_mut(ww).enumerate().for_each(|(y, row)| {
+                    let mut sums = vec![0.0f64; ww];
+                    for (p, gk) in system.frames.iter().zip(g).filter(|(p, _)| (p.rows.0..p.rows.1).contains(&y)) {
+                        for x in p.cols.0..p.cols.1 {
+                            let (a, w) = this.design(p, y, x);
+                            sums[x] += w * a.dot(gk);
+                        }
+                    }
+                    for (o, s) in row.iter_mut().zip(sums) {
+                        *o = s as f32;
+                    }
+                });
+                solved.extend(system.frames.iter().map(|p| p.index).zip(g.iter().copied()));
+            }
+            (video, solved)
+        };
+        self.video[span.start * hh * ww..keep * hh * ww].copy_from_slice(&video);
+        // In time order, so each patch keeps its GBR at the last kept frame it covers.
+        for (index, g) in solved {
+            self.gbrs[index] = Some(g);
         }
-        out.into_iter().map(|v| v as f32).collect()
     }
+}
+
+/// One frame's patch-frames and its part of the normal equations (`assemble`).
+struct FrameSystem<'a> {
+    frames: Vec<PatchFrame<'a>>,
+    blocks: Vec<Vec<(usize, Matrix4<f64>)>>,
+    rhs: Vec<Vector4<f64>>,
 }
 
 /// Solve the block-sparse SPD system `G x = b` (rows of (column, 4×4 block),
@@ -310,9 +469,7 @@ fn conjugate_gradients(blocks: &[Vec<(usize, Matrix4<f64>)>], b: &[Vector4<f64>]
     let n = b.len();
     let precondition: Vec<Matrix4<f64>> = blocks.iter().map(|row| row[0].1.try_inverse().unwrap_or_else(Matrix4::zeros)).collect();
     let apply = |x: &[Vector4<f64>], out: &mut [Vector4<f64>]| {
-        for (o, row) in out.iter_mut().zip(blocks) {
-            *o = row.iter().map(|(l, m)| m * x[*l]).sum();
-        }
+        out.par_iter_mut().zip(blocks).with_min_len(256).for_each(|(o, row)| *o = row.iter().map(|(l, m)| m * x[*l]).sum());
     };
     let dot = |a: &[Vector4<f64>], c: &[Vector4<f64>]| a.iter().zip(c).map(|(u, v)| u.dot(v)).sum::<f64>();
     let mut x = vec![Vector4::zeros(); n];
@@ -362,10 +519,16 @@ mod tests {
     /// mirroring), each frame of each patch seen through its own
     /// pseudo-random GBR (sign flips included).
     fn scene(shape: [usize; 3], patch: [usize; 3]) -> (Layout, Vec<f32>, Vec<f32>, Vec<[usize; 3]>) {
+        scene_of(shape, patch, false)
+    }
+
+    /// `steady`: the depth holds still and each patch keeps one GBR over its
+    /// frames, its values jittered by noise of 2 % of the relief per frame.
+    fn scene_of(shape: [usize; 3], patch: [usize; 3], steady: bool) -> (Layout, Vec<f32>, Vec<f32>, Vec<[usize; 3]>) {
         let layout = Layout::new(shape, patch).unwrap();
         let [tt, hh, ww] = shape;
         let depth = |t: isize, y: isize, x: isize| {
-            let (t, y, x) = (t as f32, y as f32, x as f32);
+            let (t, y, x) = (if steady { 0.0 } else { t as f32 }, y as f32, x as f32);
             (0.9 * x + 0.3 * t).sin() * (0.7 * y).cos() + (0.25 * x - 0.15 * y).sin() + 0.2 * x * y / (hh * ww) as f32 + 0.1 * (0.5 * t).cos()
         };
         let truth: Vec<f32> = (0..tt * hh * ww).map(|i| depth((i / (hh * ww)) as isize, (i / ww % hh) as isize, (i % ww) as isize)).collect();
@@ -374,14 +537,16 @@ mod tests {
         let mut patches = Vec::new();
         for (n, o) in origins.iter().enumerate() {
             for f in 0..lt {
-                let g = [pseudo(4 * (n * lt + f)), pseudo(4 * (n * lt + f) + 1), 1.0 + pseudo(4 * (n * lt + f) + 2), 3.0 * pseudo(4 * (n * lt + f) + 3)];
-                let g = if (n + f) % 3 == 0 { [g[0], g[1], -g[2], g[3]] } else { g };
+                let s = if steady { n * lt } else { n * lt + f };
+                let g = [pseudo(4 * s), pseudo(4 * s + 1), 1.0 + pseudo(4 * s + 2), 3.0 * pseudo(4 * s + 3)];
+                let g = if !steady && (n + f) % 3 == 0 { [g[0], g[1], -g[2], g[3]] } else { g };
                 for y in 0..ly {
                     for x in 0..lx {
                         let (t, gy, gx) = (o[0] as isize + f as isize - layout.pad[0] as isize, o[1] as isize + y as isize - layout.pad[1] as isize, o[2] as isize + x as isize - layout.pad[2] as isize);
                         // The padding mirrors the video, as `reconstruct` pads it.
                         let v = coarse_at(&truth, &layout, t, gy, gx);
-                        patches.push(g[0] * x as f32 + g[1] * y as f32 + g[2] * v + g[3]);
+                        let noise = if steady { 0.02 * pseudo(1_000_003 + patches.len()) } else { 0.0 };
+                        patches.push(g[0] * x as f32 + g[1] * y as f32 + g[2] * (v + noise) + g[3]);
                     }
                 }
             }
@@ -391,8 +556,8 @@ mod tests {
 
     const WINDOWS: [Window; 2] = [Window::Triangle, Window::Hann];
 
-    fn joint(layout: &Layout, coarse: &[f32], mu: f64, window: Window, patches: &[f32], origins: &[[usize; 3]]) -> Vec<f32> {
-        let mut s = JointStitcher::new(*layout, coarse.to_vec(), mu, window).unwrap();
+    fn joint(layout: &Layout, coarse: &[f32], mu: f64, nu: f64, window: Window, patches: &[f32], origins: &[[usize; 3]]) -> Vec<f32> {
+        let mut s = JointStitcher::new(*layout, coarse.to_vec(), mu, nu, window).unwrap();
         s.add(patches, origins).unwrap();
         s.finish().unwrap()
     }
@@ -405,7 +570,7 @@ mod tests {
         for (shape, patch) in [([9, 20, 27], [4, 8, 8]), ([5, 16, 16], [4, 8, 8])] {
             let (layout, truth, patches, origins) = scene(shape, patch);
             for (mu, window) in [1e-3, 1.0, 1e3].into_iter().flat_map(|mu| WINDOWS.map(|w| (mu, w))) {
-                let out = joint(&layout, &truth, mu, window, &patches, &origins);
+                let out = joint(&layout, &truth, mu, 0.0, window, &patches, &origins);
                 let err = out.iter().zip(&truth).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
                 assert!(err < 2e-3, "{shape:?} μ={mu} {window:?}: {err}");
             }
@@ -443,30 +608,36 @@ mod tests {
                 / tt as f64
         };
         for window in WINDOWS {
-            let out = joint(&layout, &coarse, 1e-5, window, &patches, &origins);
+            let out = joint(&layout, &coarse, 1e-5, 0.0, window, &patches, &origins);
             let (joint_err, coarse_err) = (frame_error(&out), frame_error(&coarse));
             assert!(joint_err < 0.1 * coarse_err, "{window:?}: joint {joint_err}, coarse {coarse_err}");
         }
     }
 
-    /// The solution is the minimiser of E(g) (module header), checked against
-    /// a dense least-squares solve of the same objective on a small video.
+    /// The solution is the minimiser of E(g) (module header), frame after
+    /// frame with the temporal tie to the frame before, checked against a
+    /// dense least-squares solve of the same objective on a small video (the
+    /// tie's weights computed here from the patches).
     #[test]
     fn matches_a_dense_least_squares_solve() {
         for window in WINDOWS {
-            matches_a_dense_least_squares_solve_with(window);
+            for (steady, nu) in [(false, 0.0), (false, 0.5), (true, 0.5)] {
+                matches_a_dense_least_squares_solve_with(window, steady, nu);
+            }
         }
     }
 
-    fn matches_a_dense_least_squares_solve_with(window: Window) {
-        let (layout, truth, patches, origins) = scene([3, 12, 10], [4, 8, 8]);
+    fn matches_a_dense_least_squares_solve_with(window: Window, steady: bool, nu: f64) {
+        let (layout, truth, patches, origins) = scene_of([6, 12, 10], [4, 8, 8], steady);
         let [_, hh, ww] = layout.shape;
+        let [lt, ly, lx] = layout.patch;
         let coarse: Vec<f32> = truth.iter().enumerate().map(|(i, v)| 0.5 * v + pseudo(i + 99) * 0.3).collect();
         let mu = 0.05;
-        let out = joint(&layout, &coarse, mu, window, &patches, &origins);
+        let out = joint(&layout, &coarse, mu, nu, window, &patches, &origins);
         let plen = 4 * 8 * 8;
-        let stitcher = {
-            let mut s = JointStitcher::new(layout, coarse.clone(), mu, window).unwrap();
+        let mut tied = 0;
+        let mut stitcher = {
+            let mut s = JointStitcher::new(layout, coarse.clone(), mu, nu, window).unwrap();
             for (i, o) in origins.iter().enumerate() {
                 let cell: [usize; 3] = std::array::from_fn(|a| o[a] / (layout.patch[a] / 2));
                 let index = s.index(cell);
@@ -474,59 +645,136 @@ mod tests {
             }
             s
         };
-        for t in 0..layout.shape[0] {
-            let frames = stitcher.patch_frames(t);
-            let k = frames.len();
-            // Rows: √w_k (a_kᵀg_k − S) per pixel and patch-frame, then √μ (a_kᵀg_k − C).
+        let by_index: std::collections::HashMap<usize, usize> = origins
+            .iter()
+            .enumerate()
+            .map(|(i, o)| (stitcher.index(std::array::from_fn(|a| o[a] / (layout.patch[a] / 2))), i))
+            .collect();
+        // Untied, frame by frame; tied, blocks of the temporal hop, each solved
+        // with the block after it and kept alone (module header).
+        let hop = lt / 2;
+        let block_end = |b: usize| ((b + 1) * hop).saturating_sub(layout.pad[0]).min(layout.shape[0]);
+        let mut spans = Vec::new();
+        let mut next = 0;
+        while next < layout.shape[0] {
+            let b = (next + layout.pad[0]) / hop;
+            let (keep, end) = if nu == 0.0 { (next + 1, next + 1) } else { (block_end(b), block_end(b + LOOKAHEAD)) };
+            spans.push((next..end, keep));
+            next = keep;
+        }
+        assert!(nu == 0.0 || spans.iter().any(|(span, keep)| span.end > *keep && span.len() > 1), "the video is long enough to test solving ahead");
+        for (span, keep) in spans {
+            let systems: Vec<Vec<PatchFrame<'_>>> = span.clone().map(|t| stitcher.patch_frames(t)).collect();
+            let bases: Vec<usize> = systems.iter().scan(0, |n, f| Some(std::mem::replace(n, *n + f.len()))).collect();
+            let k = systems.iter().map(|f| f.len()).sum::<usize>();
             let mut rows: Vec<(DVector<f64>, f64)> = Vec::new();
-            for y in 0..hh {
-                for x in 0..ww {
-                    let cover: Vec<(usize, Vector4<f64>, f64)> = frames
-                        .iter()
-                        .enumerate()
-                        .filter(|(_, p)| (p.rows.0..p.rows.1).contains(&y) && (p.cols.0..p.cols.1).contains(&x))
-                        .map(|(i, p)| {
-                            let (a, w) = stitcher.design(p, y, x);
-                            (i, a, w)
-                        })
-                        .collect();
-                    for &(i, ref a, w) in &cover {
-                        let mut row = DVector::zeros(4 * k);
-                        for &(j, ref c, wj) in &cover {
-                            for d in 0..4 {
-                                row[4 * j + d] -= w.sqrt() * wj * c[d];
+            for ((t, frames), &base) in span.clone().zip(&systems).zip(&bases) {
+                // The tie's weights, from the patches' frames f − 1 and f over their pixels in the video.
+                let ties: Vec<f64> = frames
+                    .iter()
+                    .map(|p| {
+                        let f = t + layout.pad[0] - p.index / (stitcher.counts[1] * stitcher.counts[2]) * lt / 2;
+                        if nu == 0.0 || f == 0 || t == 0 {
+                            return 0.0;
+                        }
+                        let patch = &patches[by_index[&p.index] * plen..][..plen];
+                        let standardised = |f: usize| {
+                            let v: Vec<f64> = (p.rows.0..p.rows.1)
+                                .flat_map(|y| (p.cols.0..p.cols.1).map(move |x| (y, x)))
+                                .map(|(y, x)| patch[(f * ly + (y as isize - p.corner[0]) as usize) * lx + (x as isize - p.corner[1]) as usize] as f64)
+                                .collect();
+                            let n = v.len() as f64;
+                            let mean = v.iter().sum::<f64>() / n;
+                            let std = (v.iter().map(|a| (a - mean).powi(2)).sum::<f64>() / n).sqrt();
+                            v.into_iter().map(|a| (a - mean) / std).collect::<Vec<f64>>()
+                        };
+                        let (a, b) = (standardised(f - 1), standardised(f));
+                        let rho = a.iter().zip(&b).map(|(u, v)| u * v).sum::<f64>() / a.len() as f64;
+                        nu * a.len() as f64 * (-(1.0 - rho) / TIE_SCALE).exp()
+                    })
+                    .collect();
+                for (p, tie) in frames.iter().zip(&ties) {
+                    assert!((p.tie - tie).abs() <= 1e-9 * tie.max(1.0), "t={t}: tie {} vs {tie}", p.tie);
+                    tied += (*tie > 1e-3 * nu * 64.0) as usize;
+                }
+                // Rows: √w_k (a_kᵀg_k − S) per pixel and patch-frame, then √μ (a_kᵀg_k − C).
+                for y in 0..hh {
+                    for x in 0..ww {
+                        let cover: Vec<(usize, Vector4<f64>, f64)> = frames
+                            .iter()
+                            .enumerate()
+                            .filter(|(_, p)| (p.rows.0..p.rows.1).contains(&y) && (p.cols.0..p.cols.1).contains(&x))
+                            .map(|(i, p)| {
+                                let (a, w) = stitcher.design(p, y, x);
+                                (base + i, a, w)
+                            })
+                            .collect();
+                        for &(i, ref a, w) in &cover {
+                            let mut row = DVector::zeros(4 * k);
+                            for &(j, ref c, wj) in &cover {
+                                for d in 0..4 {
+                                    row[4 * j + d] -= w.sqrt() * wj * c[d];
+                                }
                             }
+                            for d in 0..4 {
+                                row[4 * i + d] += w.sqrt() * a[d];
+                            }
+                            rows.push((row, 0.0));
+                            let mut anchor = DVector::zeros(4 * k);
+                            for d in 0..4 {
+                                anchor[4 * i + d] = mu.sqrt() * a[d];
+                            }
+                            rows.push((anchor, mu.sqrt() * coarse[(t * hh + y) * ww + x] as f64));
                         }
-                        for d in 0..4 {
-                            row[4 * i + d] += w.sqrt() * a[d];
+                    }
+                }
+                // √ν_k (g_k − g_k'), k' the same patch at frame t − 1: solved before
+                // the span (its GBR), or in it (unknown).
+                for (i, (p, tie)) in frames.iter().zip(&ties).enumerate().filter(|(_, (_, tie))| **tie > 0.0) {
+                    for d in 0..4 {
+                        let mut row = DVector::zeros(4 * k);
+                        row[4 * (base + i) + d] = tie.sqrt();
+                        if t == span.start {
+                            rows.push((row, tie.sqrt() * stitcher.gbrs[p.index].unwrap()[d]));
+                        } else {
+                            let before = systems[t - span.start - 1].iter().position(|q| q.index == p.index).unwrap();
+                            row[4 * (bases[t - span.start - 1] + before) + d] = -tie.sqrt();
+                            rows.push((row, 0.0));
                         }
-                        rows.push((row, 0.0));
-                        let mut anchor = DVector::zeros(4 * k);
-                        for d in 0..4 {
-                            anchor[4 * i + d] = mu.sqrt() * a[d];
-                        }
-                        rows.push((anchor, mu.sqrt() * coarse[(t * hh + y) * ww + x] as f64));
                     }
                 }
             }
             let a = DMatrix::from_fn(rows.len(), 4 * k, |r, c| rows[r].0[c]);
             let b = DVector::from_iterator(rows.len(), rows.iter().map(|r| r.1));
-            let g = a.svd(true, true).solve(&b, 1e-14).unwrap();
-            for y in 0..hh {
-                for x in 0..ww {
-                    let s: f64 = frames
-                        .iter()
-                        .enumerate()
-                        .filter(|(_, p)| (p.rows.0..p.rows.1).contains(&y) && (p.cols.0..p.cols.1).contains(&x))
-                        .map(|(i, p)| {
-                            let (a, w) = stitcher.design(p, y, x);
-                            w * a.dot(&g.fixed_rows::<4>(4 * i).into_owned())
-                        })
-                        .sum();
-                    let got = out[(t * hh + y) * ww + x] as f64;
-                    assert!((got - s).abs() < 1e-4 * (1.0 + s.abs()), "{window:?} t={t} y={y} x={x}: {got} vs {s}");
+            let g = (a.transpose() * &a).cholesky().expect("the dense system is positive definite").solve(&(a.transpose() * b));
+            let mut solved = Vec::new();
+            for ((t, frames), &base) in span.clone().zip(&systems).zip(&bases).filter(|((t, _), _)| *t < keep) {
+                let gk = |i: usize| g.fixed_rows::<4>(4 * (base + i)).into_owned();
+                for y in 0..hh {
+                    for x in 0..ww {
+                        let s: f64 = frames
+                            .iter()
+                            .enumerate()
+                            .filter(|(_, p)| (p.rows.0..p.rows.1).contains(&y) && (p.cols.0..p.cols.1).contains(&x))
+                            .map(|(i, p)| {
+                                let (a, w) = stitcher.design(p, y, x);
+                                w * a.dot(&gk(i))
+                            })
+                            .sum();
+                        let got = out[(t * hh + y) * ww + x] as f64;
+                        assert!((got - s).abs() < 1e-4 * (1.0 + s.abs()), "{window:?} ν={nu} t={t} y={y} x={x}: {got} vs {s}");
+                    }
                 }
+                solved.extend(frames.iter().enumerate().map(|(i, p)| (p.index, gk(i))));
             }
+            drop(systems);
+            for (index, g) in solved {
+                stitcher.gbrs[index] = Some(g);
+            }
+        }
+        // The steady scene's ties hold; the changing one's mostly let go.
+        if nu > 0.0 {
+            assert!(steady == (tied > 0), "steady {steady}: {tied} patch-frames tied");
         }
     }
 
@@ -540,7 +788,7 @@ mod tests {
         let [tt, hh, ww] = layout.shape;
         for window in WINDOWS {
             let paper = crate::stitch::stitch(&patches, &origins, &coarse, &layout, window).unwrap();
-            let out = joint(&layout, &coarse, 1e9, window, &patches, &origins);
+            let out = joint(&layout, &coarse, 1e9, 0.0, window, &patches, &origins);
             for t in 0..tt {
                 for y in 8..hh - 8 {
                     for x in 8..ww - 8 {
@@ -552,12 +800,42 @@ mod tests {
         }
     }
 
+    /// Where a patch's frames are one reading (up to a little noise) and the
+    /// coarse depth flickers (each frame its own smooth error, as a network's
+    /// coarse pass), the tie steadies the stitched video: a still scene comes
+    /// back far stiller over time, and closer to the truth.
+    #[test]
+    fn the_temporal_tie_steadies_a_still_scene() {
+        let (layout, truth, patches, origins) = scene_of([12, 24, 24], [4, 8, 8], true);
+        let coarse: Vec<f32> = (0..truth.len())
+            .map(|i| {
+                let (t, y, x) = ((i / 576) as f32, (i / 24 % 24) as f32, (i % 24) as f32);
+                0.5 * truth[i] + 0.3 * (0.3 * x + 1.7 * t).sin() * (0.2 * y + 0.9 * t).cos()
+            })
+            .collect();
+        let len = 24 * 24;
+        let change = |d: &[f32]| d[len..].iter().zip(d).map(|(a, b)| (a - b).abs() as f64).sum::<f64>() / (d.len() - len) as f64;
+        let error = |d: &[f32]| d.iter().zip(&truth).map(|(a, b)| (a - b).abs() as f64).sum::<f64>() / d.len() as f64;
+        for window in WINDOWS {
+            let free = joint(&layout, &coarse, 0.01, 0.0, window, &patches, &origins);
+            let tied = joint(&layout, &coarse, 0.01, 0.5, window, &patches, &origins);
+            assert!(change(&tied) < 0.5 * change(&free), "{window:?}: frame-to-frame change {} tied, {} free", change(&tied), change(&free));
+            assert!(error(&tied) < error(&free), "{window:?}: error {} tied, {} free", error(&tied), error(&free));
+        }
+    }
+
     #[test]
     fn order_chunking_and_threads_give_the_same_bytes_and_patches_are_released() {
-        let (layout, truth, patches, origins) = scene([20, 16, 24], [4, 8, 8]);
-        let whole = joint(&layout, &truth, 0.01, Window::Hann, &patches, &origins);
+        for (steady, nu) in [(false, 0.0), (true, 0.5)] {
+            order_chunking_and_threads_with(steady, nu);
+        }
+    }
+
+    fn order_chunking_and_threads_with(steady: bool, nu: f64) {
+        let (layout, truth, patches, origins) = scene_of([20, 16, 24], [4, 8, 8], steady);
+        let whole = joint(&layout, &truth, 0.01, nu, Window::Hann, &patches, &origins);
         let plen = 4 * 8 * 8;
-        let mut stitcher = JointStitcher::new(layout, truth.clone(), 0.01, Window::Hann).unwrap();
+        let mut stitcher = JointStitcher::new(layout, truth.clone(), 0.01, nu, Window::Hann).unwrap();
         let mut most = 0;
         for (chunk, o) in patches.chunks(5 * plen).zip(origins.chunks(5)) {
             stitcher.add(chunk, o).unwrap();
@@ -567,9 +845,9 @@ mod tests {
         assert_eq!(stitcher.finish().unwrap(), whole);
         // One thread.
         let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-        assert_eq!(pool.install(|| joint(&layout, &truth, 0.01, Window::Hann, &patches, &origins)), whole);
+        assert_eq!(pool.install(|| joint(&layout, &truth, 0.01, nu, Window::Hann, &patches, &origins)), whole);
         // Reversed order, one patch at a time.
-        let mut stitcher = JointStitcher::new(layout, truth, 0.01, Window::Hann).unwrap();
+        let mut stitcher = JointStitcher::new(layout, truth, 0.01, nu, Window::Hann).unwrap();
         for i in (0..origins.len()).rev() {
             stitcher.add(&patches[i * plen..(i + 1) * plen], &origins[i..i + 1]).unwrap();
         }
@@ -581,10 +859,12 @@ mod tests {
         let (layout, truth, patches, origins) = scene([5, 16, 16], [4, 8, 8]);
         let plen = 4 * 8 * 8;
         let err = |r: Result<()>| r.unwrap_err().name;
-        assert_eq!(JointStitcher::new(layout, truth.clone(), 0.0, Window::Hann).err().unwrap().name, "coarse_weight");
-        assert_eq!(JointStitcher::new(layout, truth.clone(), f64::NAN, Window::Hann).err().unwrap().name, "coarse_weight");
-        assert_eq!(JointStitcher::new(layout, truth[1..].to_vec(), 1.0, Window::Hann).err().unwrap().name, "coarse");
-        let mut s = JointStitcher::new(layout, truth.clone(), 1.0, Window::Hann).unwrap();
+        assert_eq!(JointStitcher::new(layout, truth.clone(), 0.0, 0.0, Window::Hann).err().unwrap().name, "coarse_weight");
+        assert_eq!(JointStitcher::new(layout, truth.clone(), f64::NAN, 0.0, Window::Hann).err().unwrap().name, "coarse_weight");
+        assert_eq!(JointStitcher::new(layout, truth.clone(), 1.0, -1.0, Window::Hann).err().unwrap().name, "temporal_weight");
+        assert_eq!(JointStitcher::new(layout, truth.clone(), 1.0, f64::INFINITY, Window::Hann).err().unwrap().name, "temporal_weight");
+        assert_eq!(JointStitcher::new(layout, truth[1..].to_vec(), 1.0, 0.0, Window::Hann).err().unwrap().name, "coarse");
+        let mut s = JointStitcher::new(layout, truth.clone(), 1.0, 0.0, Window::Hann).unwrap();
         assert_eq!(err(s.add(&patches[..plen], &[[1, 0, 0]])), "origins");
         assert_eq!(err(s.add(&patches[..2 * plen], &[origins[0], origins[0]])), "origins");
         assert_eq!(err(s.add(&patches[..plen - 1], &origins[..1])), "patches");

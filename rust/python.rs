@@ -586,7 +586,8 @@ enum Alignment {
 /// with their padded origins (N, 3), then `finish`.
 /// Without `coarse_weight`, each patch is aligned to the coarse depth on its
 /// own (the paper); with it, all together (`crate::joint`: origins on the
-/// layout's grid, each once, and every patch added before `finish`).
+/// layout's grid, each once, and every patch added before `finish`), each
+/// patch's GBRs tied over time by `temporal_weight`.
 #[pyclass(name = "Stitcher", module = "nrdepth._core")]
 struct PyStitcher {
     inner: Option<Alignment>,
@@ -597,8 +598,8 @@ struct PyStitcher {
 #[pymethods]
 impl PyStitcher {
     #[new]
-    #[pyo3(signature = (coarse, patch, window, coarse_weight=None))]
-    fn new(py: Python<'_>, coarse: PyReadonlyArray3<'_, f32>, patch: (i64, i64, i64), window: &str, coarse_weight: Option<f64>) -> PyResult<Self> {
+    #[pyo3(signature = (coarse, patch, window, coarse_weight=None, temporal_weight=0.0))]
+    fn new(py: Python<'_>, coarse: PyReadonlyArray3<'_, f32>, patch: (i64, i64, i64), window: &str, coarse_weight: Option<f64>, temporal_weight: f64) -> PyResult<Self> {
         let window = crate::stitch::Window::from_name(window).map_err(value_error)?;
         let cs = coarse.shape();
         let ps = [patch.0, patch.1, patch.2];
@@ -606,11 +607,14 @@ impl PyStitcher {
             return Err(PyValueError::new_err(format!("patch: expected three sizes in [2, 4096], got {ps:?}")));
         }
         let layout = crate::stitch::Layout::new([cs[0], cs[1], cs[2]], ps.map(|l| l as usize)).map_err(value_error)?;
+        if coarse_weight.is_none() && temporal_weight != 0.0 {
+            return Err(PyValueError::new_err("temporal_weight: the joint alignment's (give coarse_weight), expected 0 without it"));
+        }
         let c = coarse.as_slice().map_err(|_| PyValueError::new_err("coarse: expected a C-contiguous array"))?.to_vec();
         let inner = py
             .detach(|| match coarse_weight {
                 None => crate::stitch::Stitcher::new(layout, c, window).map(Alignment::Coarse),
-                Some(mu) => crate::joint::JointStitcher::new(layout, c, mu, window).map(Alignment::Joint),
+                Some(mu) => crate::joint::JointStitcher::new(layout, c, mu, temporal_weight, window).map(Alignment::Joint),
             })
             .map_err(value_error)?;
         Ok(Self { inner: Some(inner), shape: layout.shape, patch: layout.patch })

@@ -219,6 +219,7 @@ def test_cli_default_output_folder_is_named_after_the_input(tmp_path, tiny_model
     (["--coarse-weight", "0.001"], {"coarse_weight": 0.001}),
     (["--alignment", "coarse", "--window", "triangle"], {"alignment": "coarse", "window": "triangle"}),  # the paper's stitch
     (["--window", "triangle"], {"window": "triangle"}),
+    (["--temporal-weight", "0"], {"temporal_weight": 0.0}),
 ])
 def test_cli_stitching_options_reach_reconstruct(tmp_path, tiny_model, flags, options):
     frames = moving_texture(t=3, h=40, w=72)
@@ -231,7 +232,7 @@ def test_cli_stitching_options_reach_reconstruct(tmp_path, tiny_model, flags, op
     default = nrdepth.reconstruct(frames, str(tiny_model), device="cpu")
     # The CLI loads the model as a module and runs it as it is, the API in the channels-last layout: float rounding apart.
     np.testing.assert_allclose(cli, chosen, atol=2e-3)
-    assert np.abs(chosen - default).max() > 2e-2  # measured: 0.24, 0.25 and 0.047
+    assert np.abs(chosen - default).max() > 2e-2  # measured: 0.24, 0.25, 0.047 and 0.38
 
 
 FLAT_SHEET_WINDOW = 1.2

@@ -8,7 +8,7 @@ import torch
 import nrdepth
 import nrdepth.model
 from nrdepth.metrics import grid_contrast
-from nrdepth.stitch import PATCH
+from nrdepth.stitch import PATCH, TEMPORAL_WEIGHT
 
 
 def smooth_video(shape, seed=0):
@@ -47,12 +47,34 @@ def distorted_patches(truth, layout, seed=1):
 @pytest.mark.parametrize("alignment", ["joint", "coarse"])
 @pytest.mark.parametrize("shape", [(16, 64, 64), (24, 100, 70), (9, 33, 130), (3, 20, 20)])
 def test_gbr_distorted_true_patches_stitch_back_to_the_truth(shape, alignment, window):
+    # Each frame of each patch under its own GBR: frames solved on their own
+    # (the tie would hold a patch's GBRs together, which these patches'
+    # arbitrary per-frame GBRs do not allow; the next test has it on).
     truth = smooth_video(shape, seed=sum(shape))
     layout = nrdepth.patch_layout(shape)
     patches = distorted_patches(truth, layout)
-    out = nrdepth.stitch(patches, truth, layout, alignment=alignment, window=window)
+    out = nrdepth.stitch(patches, truth, layout, alignment=alignment, window=window, temporal_weight=0.0)
     assert out.shape == shape and out.dtype == np.float32
     assert nrdepth.mae_sn(out, truth) < 1e-3
+    np.testing.assert_allclose(out, truth, atol=2e-3)
+
+
+@pytest.mark.parametrize("window", ["hann", "triangle"])
+@pytest.mark.parametrize("shape", [(40, 64, 64), (24, 100, 70), (9, 33, 130)])
+def test_the_temporal_tie_keeps_a_consistent_reading_of_a_still_surface_exact(shape, window):
+    # A still surface, each patch under one GBR for all its frames: the
+    # frames of a patch are one reading, the GBRs that give back the truth
+    # are the same in every frame, and the tie (at full strength, ρ = 1)
+    # costs nothing.
+    truth = np.repeat(smooth_video((1, *shape[1:]), seed=sum(shape)), shape[0], axis=0)
+    layout = nrdepth.patch_layout(shape)
+    patches = cut(truth, layout)
+    rng = np.random.default_rng(5)
+    yy, xx = np.mgrid[0 : PATCH[1], 0 : PATCH[2]]
+    for p in patches:
+        a, b, tau = rng.normal(size=3) * (0.05, 0.05, 2.0)
+        p[:] = a * xx + b * yy + rng.uniform(0.2, 5) * (-1) ** rng.integers(2) * p + tau
+    out = nrdepth.stitch(patches, truth, layout, window=window, temporal_weight=TEMPORAL_WEIGHT)
     np.testing.assert_allclose(out, truth, atol=2e-3)
 
 
@@ -60,7 +82,8 @@ def test_joint_alignment_recovers_from_the_patches_what_the_coarse_depth_lacks()
     # The coarse depth is a blurred, tilted, flattened guess; the patches are
     # the truth under random GBRs. Aligned on their own to the guess (the
     # paper), the patches inherit its errors; aligned jointly they agree with
-    # one another, and at a small coarse weight give back the truth.
+    # one another, and at a small coarse weight give back the truth (frames
+    # on their own: these patches' GBRs change arbitrarily frame to frame).
     shape = (16, 128, 160)
     truth = smooth_video(shape, seed=3)
     # Fine relief, which the blur below removes.
@@ -72,9 +95,34 @@ def test_joint_alignment_recovers_from_the_patches_what_the_coarse_depth_lacks()
     blurred = np.apply_along_axis(lambda v: np.convolve(np.pad(v, 7, mode="edge"), k, "valid"), 1, blurred)
     guess = (0.5 * blurred + 0.01 * np.arange(160)).astype(np.float32)
     score = {name: nrdepth.mae_sn(nrdepth.stitch(patches, guess, layout, **kw), truth)
-             for name, kw in {"paper": {"alignment": "coarse", "window": "triangle"}, "joint": {}, "small": {"coarse_weight": 1e-5}}.items()}
+             for name, kw in {"paper": {"alignment": "coarse", "window": "triangle"}, "joint": {"temporal_weight": 0.0},
+                              "small": {"coarse_weight": 1e-5, "temporal_weight": 0.0}}.items()}
     assert score["small"] < 0.01 < 0.5 * score["paper"], score  # measured: 0.0009 and 0.065
     assert score["joint"] < 0.9 * score["paper"], score  # measured: 0.050
+
+
+def test_the_temporal_tie_steadies_the_reading_of_a_still_surface():
+    # A still surface, each patch reading it the same in every frame through
+    # a GBR and a smooth error of its own; the coarse pass, as a network's
+    # does, flickers: each frame's carries its own smooth error. Frames solved
+    # on their own (temporal_weight=0) follow the flicker; the tie holds each
+    # patch's reading while its depth holds still, so the stitched video is
+    # stiller and closer to the truth.
+    shape = (32, 96, 96)
+    truth = np.repeat(smooth_video((1, *shape[1:]), seed=4), shape[0], axis=0)
+    layout = nrdepth.patch_layout(shape)
+    patches = cut(truth, layout)
+    rng = np.random.default_rng(2)
+    yy, xx = np.mgrid[0 : PATCH[1], 0 : PATCH[2]] / PATCH[1] - 0.5
+    for p in patches:
+        a, b, c, tau = rng.normal(size=4) * (1.0, 1.0, 0.5, 2.0)
+        p[:] = a * xx + b * yy + (1.5 + abs(c)) * (p + c * (xx**2 + yy * xx)) + tau
+    flicker = np.concatenate([smooth_video((1, *shape[1:]), seed=100 + t) for t in range(shape[0])])
+    coarse = (0.5 * truth + 0.2 * flicker).astype(np.float32)
+    change = lambda d: float(np.abs(np.diff(d, axis=0)).mean() / d.std())  # noqa: E731
+    free, tied = (nrdepth.stitch(patches, coarse, layout, temporal_weight=nu) for nu in (0.0, TEMPORAL_WEIGHT))
+    assert change(tied) < 0.5 * change(free), (change(tied), change(free))
+    assert nrdepth.mae_sn(tied, truth) < nrdepth.mae_sn(free, truth), (nrdepth.mae_sn(tied, truth), nrdepth.mae_sn(free, truth))
 
 
 def test_joint_stitcher_needs_every_patch_once_and_names_bad_arguments():
@@ -87,6 +135,14 @@ def test_joint_stitcher_needs_every_patch_once_and_names_bad_arguments():
             nrdepth.stitch(patches, coarse, layout, alignment="joint", coarse_weight=bad)
         with pytest.raises(ValueError, match="^coarse_weight:"):
             nrdepth.reconstruct(np.zeros(shape, np.uint8), alignment="joint", coarse_weight=bad)
+    for bad in (-1.0, float("nan"), float("inf"), True, "0.1"):
+        with pytest.raises(ValueError, match="^temporal_weight:"):
+            nrdepth.stitch(patches, coarse, layout, temporal_weight=bad)
+        with pytest.raises(ValueError, match="^temporal_weight:"):
+            nrdepth.reconstruct(np.zeros(shape, np.uint8), temporal_weight=bad)
+    for args in ((None, 0.5), (0.01, -0.5)):  # the paper's alignment has no tie; a negative tie
+        with pytest.raises(ValueError, match="^temporal_weight:"):
+            nrdepth._core.Stitcher(coarse, layout.patch, "hann", *args)
     with pytest.raises(ValueError, match="^alignment:"):
         nrdepth.stitch(patches, coarse, layout, alignment="paper")
     with pytest.raises(ValueError, match="^alignment:"):

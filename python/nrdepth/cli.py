@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Optional, Sequence
 
 from . import __version__
-from .stitch import ALIGNMENTS, COARSE_WEIGHT, WINDOWS
+from .stitch import ALIGNMENTS, COARSE_WEIGHT, TEMPORAL_WEIGHT, WINDOWS
 
 
 def _surfaces(args: argparse.Namespace) -> int:
@@ -149,6 +149,8 @@ def _reconstruct(args: argparse.Namespace) -> int:
         raise ValueError(f"--ply-relief: expected a positive finite number, got {ply_relief}")
     if not (math.isfinite(args.coarse_weight) and args.coarse_weight > 0):
         raise ValueError(f"--coarse-weight: expected a positive finite number, got {args.coarse_weight}")
+    if not (math.isfinite(args.temporal_weight) and args.temporal_weight >= 0):
+        raise ValueError(f"--temporal-weight: expected a finite number ≥ 0, got {args.temporal_weight}")
     out = Path(args.out) if args.out is not None else Path(Path(args.input).stem + "_depth")
     try:
         check_output_folder(out, args.overwrite, inputs=(args.input,))
@@ -173,7 +175,8 @@ def _reconstruct(args: argparse.Namespace) -> int:
             bar.update(done - bar.n)
 
     depth = reconstruct(frames, model, batch_size=args.batch_size, device=str(device), progress=progress, temporal=args.temporal_align, units=args.units,
-                        alignment=args.alignment, coarse_weight=args.coarse_weight, window=args.window)
+                        alignment=args.alignment, coarse_weight=args.coarse_weight, window=args.window,
+                        temporal_weight=args.temporal_weight)
     if args.flip:
         depth = -depth
     if bar is not None:
@@ -331,6 +334,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "or coarse (each on its own to the coarse pass, as the paper)")
     p.add_argument("--coarse-weight", type=float, default=COARSE_WEIGHT,
                    help=f"the joint alignment's weight on the coarse pass (default {COARSE_WEIGHT}; smaller trusts the patches' agreement more)")
+    p.add_argument("--temporal-weight", type=float, default=TEMPORAL_WEIGHT,
+                   help=f"the joint alignment's tie of each patch's GBR to the frame before, as much as the patch holds still (default {TEMPORAL_WEIGHT}; 0: frames on their own)")
     p.add_argument("--window", choices=WINDOWS, default=WINDOWS[0],
                    help="the overlap-add window: hann (default; no seams) or triangle (the paper's; the paper's stitch is --alignment coarse --window triangle)")
     p.add_argument("--flip", action="store_true", help="negate the depth: the other convex/concave reading (the model assumes light from above; use for a video lit from below)")

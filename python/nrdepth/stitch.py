@@ -14,7 +14,11 @@ normalisation. Two alignments (``alignment``):
   video resized to the patch size, in 16-frame windows) by a weight
   ``coarse_weight``, both over the video's own pixels (not its mirrored
   padding; the objective: ``rust/joint.rs``). The large-scale shape comes
-  from the patches' agreement as well as from the coarse pass.
+  from the patches' agreement as well as from the coarse pass. Each
+  patch's GBR is also tied to its GBR of the frame before by
+  ``temporal_weight``, as much as the patch's own depth holds still
+  (the tie lets go where it moves or deforms), so the reading of one patch
+  does not flicker with the noise of each frame's fit.
 - ``"coarse"``, the paper's: each patch on its own, frame by frame, to the
   coarse depth by least-squares GBR. The coarse pass alone then sets the
   video's large-scale shape.
@@ -30,7 +34,7 @@ level with it per frame on generated videos, and leaves the spectrum at
 the patch period close to the truth's.
 
 Alignment and overlap-add run in Rust (``_core.Stitcher``, given a window,
-and a ``coarse_weight`` for the joint alignment), fed a chunk of patches at a
+and a ``coarse_weight`` and ``temporal_weight`` for the joint alignment), fed a chunk of patches at a
 time, so memory does not grow with the patches' 8× overlap. Beyond the paper,
 :func:`temporal_align` then removes the per-frame GBR flicker.
 """
@@ -46,7 +50,7 @@ import numpy as np
 from . import _core
 
 __all__ = ["PatchLayout", "patch_layout", "stitch", "temporal_align", "reconstruct", "inference_model", "coarse_depth", "patch_depths",
-           "ALIGNMENTS", "WINDOWS", "COARSE_WEIGHT"]
+           "ALIGNMENTS", "WINDOWS", "COARSE_WEIGHT", "TEMPORAL_WEIGHT"]
 
 PATCH = (16, 64, 64)
 ALIGNMENTS = ("joint", "coarse")
@@ -60,6 +64,12 @@ coarse depth against their agreement with one another. On generated
 stitched score per frame within 0.002 of the paper's stitch and smaller
 weights cost more; on the real ``phisft_R1`` smaller weights score better
 still."""
+TEMPORAL_WEIGHT = 0.015
+"""Default ν of the joint alignment's temporal tie, per pixel of a patch
+(``rust/joint.rs``); 0 solves each frame on its own. On generated 256×256
+videos and ``phisft_R1`` (``benchmarks/temporal_tie.py``; README, "Depth of
+a whole video") ν = 0.004–0.015 gain inside the training ranges and on the
+real cloth, more as ν grows, and hold level outside the ranges."""
 
 
 class PatchLayout(NamedTuple):
@@ -110,12 +120,15 @@ def stitch(
     alignment: str = "joint",
     coarse_weight: float = COARSE_WEIGHT,
     window: str = "hann",
+    temporal_weight: float = TEMPORAL_WEIGHT,
 ) -> np.ndarray:
     """Align the patch depths (N, Lt, Ls, Ls), one per origin of ``layout``,
-    by per-frame GBRs (``alignment``: ``"joint"``, all together and tied to
-    ``coarse`` (T, H, W) by ``coarse_weight``; ``"coarse"``, each on its own
-    to ``coarse``, as the paper does) and overlap-add them with ``window``
-    (``"hann"`` or the paper's ``"triangle"``): float32 (T, H, W)."""
+    by per-frame GBRs (``alignment``: ``"joint"``, all together, tied to
+    ``coarse`` (T, H, W) by ``coarse_weight`` and each patch's to its GBR of
+    the frame before by ``temporal_weight``; ``"coarse"``, each on its own
+    to ``coarse``, as the paper does, which takes neither weight) and
+    overlap-add them with ``window`` (``"hann"`` or the paper's
+    ``"triangle"``): float32 (T, H, W)."""
     patches = np.asarray(patches)
     coarse = np.asarray(coarse)
     for name, a, ndim in (("patches", patches, 4), ("coarse", coarse, 3)):
@@ -132,27 +145,31 @@ def stitch(
         raise ValueError(f"layout: not the layout of a {layout.shape} video in {layout.patch} patches; build it with patch_layout(shape)")
     if len(patches) != len(expected.origins):
         raise ValueError(f"patches: expected one patch per origin of the layout ({len(expected.origins)}), got {len(patches)}")
-    stitcher = _stitcher(coarse, layout.patch, alignment, coarse_weight, window)
+    stitcher = _stitcher(coarse, layout.patch, alignment, coarse_weight, window, temporal_weight)
     stitcher.add(np.ascontiguousarray(patches, dtype=np.float32), np.ascontiguousarray(layout.origins, dtype=np.int64))
     return stitcher.finish()
 
 
-def _check_stitching(alignment: str, coarse_weight: float, window: str) -> float:
-    """``coarse_weight`` as a float, once ``alignment``, it and ``window`` are valid."""
+def _check_stitching(alignment: str, coarse_weight: float, window: str, temporal_weight: float) -> Tuple[float, float]:
+    """``coarse_weight`` and ``temporal_weight`` as floats, once ``alignment``, they and ``window`` are valid."""
     if alignment not in ALIGNMENTS:
         raise ValueError(f"alignment: expected one of {ALIGNMENTS}, got {alignment!r}")
     if window not in WINDOWS:
         raise ValueError(f"window: expected one of {WINDOWS}, got {window!r}")
     if isinstance(coarse_weight, bool) or not isinstance(coarse_weight, (int, float, np.integer, np.floating)) or not (0 < coarse_weight < math.inf):
         raise ValueError(f"coarse_weight: expected a finite number > 0, got {coarse_weight!r}")
-    return float(coarse_weight)
+    if isinstance(temporal_weight, bool) or not isinstance(temporal_weight, (int, float, np.integer, np.floating)) or not (0 <= temporal_weight < math.inf):
+        raise ValueError(f"temporal_weight: expected a finite number ≥ 0, got {temporal_weight!r}")
+    return float(coarse_weight), float(temporal_weight)
 
 
-def _stitcher(coarse: np.ndarray, patch: Tuple[int, int, int], alignment: str, coarse_weight: float, window: str) -> Any:
+def _stitcher(coarse: np.ndarray, patch: Tuple[int, int, int], alignment: str, coarse_weight: float, window: str, temporal_weight: float) -> Any:
     """The streaming Rust stitcher of ``alignment`` and ``window`` over ``coarse``."""
-    weight = _check_stitching(alignment, coarse_weight, window)
+    mu, nu = _check_stitching(alignment, coarse_weight, window, temporal_weight)
     coarse = np.ascontiguousarray(coarse, dtype=np.float32)
-    return _core.Stitcher(coarse, patch, window, None if alignment == "coarse" else weight)
+    if alignment == "coarse":
+        return _core.Stitcher(coarse, patch, window)
+    return _core.Stitcher(coarse, patch, window, mu, nu)
 
 
 def temporal_align(depth: np.ndarray) -> np.ndarray:
@@ -191,6 +208,7 @@ def reconstruct(
     alignment: str = "joint",
     coarse_weight: float = COARSE_WEIGHT,
     window: str = "hann",
+    temporal_weight: float = TEMPORAL_WEIGHT,
 ) -> np.ndarray:
     """Depth video float32 (T, H, W) of a video (T, H, W) or colour video
     (T, H, W, 3) (uint8, or float in [0, 1]; colour becomes luma, ITU-R
@@ -223,8 +241,8 @@ def reconstruct(
     (with ``temporal``) time. Patches stream through the network and the
     stitcher a chunk at a time: memory is a few copies of the video, not of
     its (8× overlapping) patches. ``alignment`` chooses how the patches are
-    aligned: ``"joint"`` with ``coarse_weight`` (the default) or
-    ``"coarse"`` (the paper's), and ``window`` how they are blended:
+    aligned: ``"joint"`` with ``coarse_weight`` and ``temporal_weight``
+    (the default) or ``"coarse"`` (the paper's), and ``window`` how they are blended:
     ``"hann"`` (the default) or ``"triangle"`` (the paper's; module
     docstring)."""
     import torch
@@ -242,7 +260,7 @@ def reconstruct(
         raise TypeError(f"model: expected None, a path to model.safetensors or its folder, or a torch.nn.Module, got {type(model).__name__}")
     if units not in ("standard", "pixels"):
         raise ValueError(f"units: expected 'standard' or 'pixels', got {units!r}")
-    _check_stitching(alignment, coarse_weight, window)
+    _check_stitching(alignment, coarse_weight, window, temporal_weight)
     dev = resolve_device(device)
     if model is None and units == "pixels":
         from .model.io import SCALED_MODEL
@@ -254,7 +272,7 @@ def reconstruct(
                          "nrdepth train --amplitude); this one gives depth up to scale: use units='standard'")
     layout = patch_layout(video.shape)
     coarse = coarse_depth(video, net, batch_size, dev)
-    stitcher = _stitcher(coarse, layout.patch, alignment, coarse_weight, window)
+    stitcher = _stitcher(coarse, layout.patch, alignment, coarse_weight, window, temporal_weight)
     if units != "pixels":
         del coarse  # the stitcher holds its own copy; only the pixel scale needs this one
     done = 0
