@@ -32,7 +32,7 @@ import torch
 import nrdepth
 from nrdepth.evaluate import TEST_SEED
 from nrdepth import _core
-from nrdepth.stitch import COARSE_WEIGHT, coarse_depth, inference_model, patch_depths, temporal_align
+from nrdepth.stitch import COARSE_WEIGHT, TEMPORAL_WEIGHT, coarse_depth, inference_model, patch_depths, temporal_align
 
 
 def out_of_range(config: nrdepth.GeneratorConfig) -> nrdepth.GeneratorConfig:
@@ -94,7 +94,7 @@ def accuracy(model, videos: int, device: str, seed: int = TEST_SEED, coarse_weig
     dev = torch.device(device)
     net = inference_model(model, dev)
     stitches = {  # (alignment, window) → row label
-        ("joint", "hann"): f"nrdepth (default: joint alignment, coarse weight {coarse_weight:g}, Hann windows)",
+        ("joint", "hann"): f"nrdepth (default: joint alignment, μ = {coarse_weight:g}, ν = {TEMPORAL_WEIGHT:g}, Hann windows)",
         ("coarse", "triangle"): "the paper's stitch (coarse alignment, triangle windows)",
         ("joint", "triangle"): "joint alignment, triangle windows",
         ("coarse", "hann"): "coarse alignment, Hann windows",

@@ -12,7 +12,7 @@ between consecutive frames both ways, ν exp(−(1 − ρ)/``--scale``) per
 patch-frame, solved for the whole video at once (scipy's sparse direct
 solver: small videos only, so not a stitcher).
 
-    python benchmarks/temporal_tie.py [--model PATH] [--videos 8] [--weights 0,0.0025,0.005,0.01,0.02] [--symmetric 30]
+    python benchmarks/temporal_tie.py [--model PATH] [--videos 8] [--seed S] [--weights 0,0.0025,0.005,0.01,0.02] [--symmetric 30]
 """
 
 from __future__ import annotations
@@ -143,6 +143,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--model", default=None, help="model.safetensors or run folder (default: the shipped model)")
     parser.add_argument("--videos", type=int, default=8, help="generated videos a set")
+    parser.add_argument("--seed", type=int, default=TEST_SEED, help=f"generator seed of the videos (default {TEST_SEED}, held out)")
     parser.add_argument("--weights", default="0,0.0025,0.005,0.01,0.02", help="the stitcher's temporal weights ν to compare, per pixel (comma-separated; the first is the reference)")
     parser.add_argument("--symmetric", type=float, default=None, metavar="NU",
                         help="also the symmetric tie over the whole video (scipy) at this weight ν per patch-frame, adaptive with --scale (the prototype: 30)")
@@ -155,7 +156,7 @@ def main() -> None:
     weights = [float(v) for v in args.weights.split(",")]
     lags = [None if v == "whole" else int(v) for v in args.lags.split(",")]
     base = nrdepth.GeneratorConfig(size=256)
-    clips = {name: nrdepth.generate_clips(args.videos, seed=TEST_SEED, config=config) for name, config in (("inside", base), ("outside", out_of_range(base)))}
+    clips = {name: nrdepth.generate_clips(args.videos, seed=args.seed, config=config) for name, config in (("inside", base), ("outside", out_of_range(base)))}
     sets = {name: list(zip(c.video, c.depth)) for name, c in clips.items()}
     sets["phisft_R1 (4×4)"] = [phisft_at_bin(4)]
     labels = ["paper's stitch"] + [f"ν = {v:g}" for v in weights]

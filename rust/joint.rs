@@ -92,7 +92,7 @@ struct PatchFrame<'a> {
     cell: [usize; 2],
     /// The patch's index in the grid (`JointStitcher::index`).
     index: usize,
-    /// Its tie to the GBR solved at the frame before: ν_k (0: none).
+    /// ν_k of its tie to the same patch in the frame before (0: none).
     tie: f64,
     /// Standardisation of the values.
     mean: f64,
@@ -225,12 +225,11 @@ impl JointStitcher {
         while self.next < self.layout.shape[0] {
             // Untied, a frame is solved on its own; tied, a block with the
             // blocks after it (module header).
-            let (keep, end) = match self.temporal_weight {
-                0.0 => (self.next + 1, self.next + 1),
-                _ => {
-                    let block = self.block_of(self.next);
-                    (self.block_end(block), self.block_end(block + LOOKAHEAD))
-                }
+            let (keep, end) = if self.temporal_weight == 0.0 {
+                (self.next + 1, self.next + 1)
+            } else {
+                let block = self.block_of(self.next);
+                (self.block_end(block), self.block_end(block + LOOKAHEAD))
             };
             if (self.next..end).any(|t| self.missing[t] > 0) {
                 break;
