@@ -230,8 +230,9 @@ def test_cli_stitching_options_reach_reconstruct(tmp_path, tiny_model, flags, op
         cli = saved["depth"]
     chosen = nrdepth.reconstruct(frames, str(tiny_model), device="cpu", **options)
     default = nrdepth.reconstruct(frames, str(tiny_model), device="cpu")
-    # The CLI loads the model as a module and runs it as it is, the API in the channels-last layout: float rounding apart.
-    np.testing.assert_allclose(cli, chosen, atol=2e-3)
+    # The CLI loads the model as a module and runs it as it is, the API in the channels-last layout: float rounding apart,
+    # which the joint alignment at a small coarse weight, tied over time, amplifies (measured: up to 0.0039 at μ = 0.001).
+    np.testing.assert_allclose(cli, chosen, atol=6e-3)
     assert np.abs(chosen - default).max() > 2e-2  # measured: 0.24, 0.25, 0.047 and 0.38
 
 
