@@ -6,13 +6,14 @@ the training ranges and ``bench_real.py``'s crop of ``phisft_R1``: MAE-SN
 per frame / from the first frame, paired differences to the first weight
 (mean ± standard error over the videos) and the stitch's time a video.
 
-The stitcher's tie is causal (frame t tied to frame t − 1 as solved), so it
-streams. ``--symmetric NU`` adds the prototype it came from: the tie
-between consecutive frames both ways, ν exp(−(1 − ρ)/``--scale``) per
-patch-frame, solved for the whole video at once (scipy's sparse direct
-solver: small videos only, so not a stitcher).
+The stitcher solves the tie in temporal blocks of the hop, each together
+with the block after it, so it streams. ``--symmetric NU`` adds the
+prototype it came from, in scipy: the same tie at ν exp(−(1 − ρ)/``--scale``)
+a patch-frame, solved for the whole video at once (``--lags whole``;
+scipy's sparse direct solver: small videos only, so not a stitcher) or in
+blocks, LAG blocks ahead (``--lags 1`` is the stitcher's scheme).
 
-    python benchmarks/temporal_tie.py [--model PATH] [--videos 8] [--seed S] [--weights 0,0.0025,0.005,0.01,0.02] [--symmetric 30]
+    python benchmarks/temporal_tie.py [--model PATH] [--videos 8] [--seed S] [--weights 0,0.004,0.0075,0.015] [--symmetric 30 [--lags whole,0,1]]
 """
 
 from __future__ import annotations
@@ -144,7 +145,7 @@ def main() -> None:
     parser.add_argument("--model", default=None, help="model.safetensors or run folder (default: the shipped model)")
     parser.add_argument("--videos", type=int, default=8, help="generated videos a set")
     parser.add_argument("--seed", type=int, default=TEST_SEED, help=f"generator seed of the videos (default {TEST_SEED}, held out)")
-    parser.add_argument("--weights", default="0,0.0025,0.005,0.01,0.02", help="the stitcher's temporal weights ν to compare, per pixel (comma-separated; the first is the reference)")
+    parser.add_argument("--weights", default="0,0.004,0.0075,0.015", help="the stitcher's temporal weights ν to compare, per pixel (comma-separated; the first is the reference)")
     parser.add_argument("--symmetric", type=float, default=None, metavar="NU",
                         help="also the symmetric tie over the whole video (scipy) at this weight ν per patch-frame, adaptive with --scale (the prototype: 30)")
     parser.add_argument("--scale", type=float, default=0.02, help="the symmetric tie's scale of 1 − ρ")
