@@ -429,18 +429,21 @@ impl JointStitcher {
             for ((system, &base), frame) in systems.iter().zip(&bases).zip(video.chunks_mut(len)) {
                 let g = &g[base..base + system.frames.len()];
                 // Row by row, each pixel summing its patch-frames in order.
-                frame.par_chunks_mut(ww).enumerate().for_each(|(y, row)| {
-                    let mut sums = vec![0.0f64; ww];
-                    for (p, gk) in system.frames.iter().zip(g).filter(|(p, _)| (p.rows.0..p.rows.1).contains(&y)) {
-                        for x in p.cols.0..p.cols.1 {
-                            let (a, w) = this.design(p, y, x);
-                            sums[x] += w * a.dot(gk);
+                frame.par_chunks_mut(ww).enumerate().for_each_init(
+                    || vec![0.0f64; ww],
+                    |sums, (y, row)| {
+                        sums.fill(0.0);
+                        for (p, gk) in system.frames.iter().zip(g).filter(|(p, _)| (p.rows.0..p.rows.1).contains(&y)) {
+                            for x in p.cols.0..p.cols.1 {
+                                let (a, w) = this.design(p, y, x);
+                                sums[x] += w * a.dot(gk);
+                            }
                         }
-                    }
-                    for (o, s) in row.iter_mut().zip(sums) {
-                        *o = s as f32;
-                    }
-                });
+                        for (o, s) in row.iter_mut().zip(sums.iter()) {
+                            *o = *s as f32;
+                        }
+                    },
+                );
                 solved.extend(system.frames.iter().map(|p| p.index).zip(g.iter().copied()));
             }
             (video, solved)
