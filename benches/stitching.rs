@@ -1,5 +1,5 @@
-//! Stitching a 256×256×16 video from its 243 patches of 16×64×64 (all
-//! threads): the paper's stitch (each patch aligned to the coarse depth,
+//! Stitching a 256×256×16 video from its 243 patches of 16×64×64, and a
+//! 256×256×64 one from its 729 (all threads): the paper's stitch (each patch aligned to the coarse depth,
 //! triangle windows) against the default one (every patch-frame of a frame
 //! aligned together, Hann windows, each patch tied to the frame before) and
 //! the same without the temporal tie (frames solved on their own).
@@ -13,29 +13,34 @@ use nrdepth::joint::JointStitcher;
 use nrdepth::stitch::{Layout, Stitcher, Window};
 
 fn bench(c: &mut Criterion) {
-    let layout = Layout::new([16, 256, 256], [16, 64, 64]).unwrap();
-    let origins = layout.origins();
-    let smooth = |i: usize, k: f32| ((i % 64) as f32 * 0.11 * k).sin() + ((i / 64 % 64) as f32 * 0.07 / k).cos() + (i / 4096) as f32 * 0.01;
-    let patches: Vec<f32> = (0..origins.len() * 16 * 64 * 64).map(|i| smooth(i, 1.0 + (i / 65536 % 7) as f32 * 0.1)).collect();
-    let coarse: Vec<f32> = (0..16 * 256 * 256).map(|i| smooth(i, 0.5)).collect();
     let mut g = c.benchmark_group("stitching");
     g.sample_size(10);
-    g.bench_function(format!("paper_stitch_256x256x16_{}_threads", rayon::current_num_threads()), |b| {
-        b.iter(|| {
-            let mut s = Stitcher::new(layout, coarse.clone(), Window::Triangle).unwrap();
-            s.add(&patches, &origins).unwrap();
-            black_box(s.finish())
-        })
-    });
-    // μ and ν: nrdepth.stitch's COARSE_WEIGHT and TEMPORAL_WEIGHT.
-    for (name, nu) in [("default", 0.015), ("untied", 0.0)] {
-        g.bench_function(format!("{name}_stitch_256x256x16_{}_threads", rayon::current_num_threads()), |b| {
+    // 16 frames: one span of the tied solve; 64: the streaming case, where
+    // each span reuses the frames the one before solved ahead.
+    for frames in [16, 64] {
+        let layout = Layout::new([frames, 256, 256], [16, 64, 64]).unwrap();
+        let origins = layout.origins();
+        let smooth = |i: usize, k: f32| ((i % 64) as f32 * 0.11 * k).sin() + ((i / 64 % 64) as f32 * 0.07 / k).cos() + (i / 4096) as f32 * 0.01;
+        let patches: Vec<f32> = (0..origins.len() * 16 * 64 * 64).map(|i| smooth(i, 1.0 + (i / 65536 % 7) as f32 * 0.1)).collect();
+        let coarse: Vec<f32> = (0..frames * 256 * 256).map(|i| smooth(i, 0.5)).collect();
+        let threads = rayon::current_num_threads();
+        g.bench_function(format!("paper_stitch_256x256x{frames}_{threads}_threads"), |b| {
             b.iter(|| {
-                let mut s = JointStitcher::new(layout, coarse.clone(), 0.005, nu, Window::Hann).unwrap();
+                let mut s = Stitcher::new(layout, coarse.clone(), Window::Triangle).unwrap();
                 s.add(&patches, &origins).unwrap();
-                black_box(s.finish().unwrap())
+                black_box(s.finish())
             })
         });
+        // μ and ν: nrdepth.stitch's COARSE_WEIGHT and TEMPORAL_WEIGHT.
+        for (name, nu) in [("default", 0.015), ("untied", 0.0)] {
+            g.bench_function(format!("{name}_stitch_256x256x{frames}_{threads}_threads"), |b| {
+                b.iter(|| {
+                    let mut s = JointStitcher::new(layout, coarse.clone(), 0.005, nu, Window::Hann).unwrap();
+                    s.add(&patches, &origins).unwrap();
+                    black_box(s.finish().unwrap())
+                })
+            });
+        }
     }
     g.finish();
 }

@@ -31,7 +31,7 @@
 //! (its 3 × 3 spatial neighbourhood in the frame's two temporal windows),
 //! solved in f64 by conjugate gradients preconditioned with the 4 × 4
 //! diagonal blocks (a ridge of 1e-9 of a block's mean diagonal keeps a flat
-//! patch's GBR finite).
+//! patch's GBR finite), starting from each patch's GBR in the frame before.
 //!
 //! A temporal tie (weight ν ≥ 0; ν = 0 leaves frames independent) keeps each
 //! patch's reading steady where its own depth barely changes: the frames are
@@ -53,7 +53,12 @@
 //! its solved GBRs. A tie in only one direction (frame by frame) lags the
 //! surface and scored worse than none; solving ahead keeps the symmetric
 //! tie's gain (README). Ties add `ν_k I` to both diagonal blocks, `−ν_k I`
-//! between them, and `ν_k ĝ_k` to `b_k` toward a solved GBR ĝ_k.
+//! between them, and `ν_k ĝ_k` to `b_k` toward a solved GBR ĝ_k. Block b + 1's
+//! equations are assembled once: the next span reuses them (only the anchor
+//! is new) and starts from their solution. The ties couple a patch's frames
+//! strongly, which slows block-Jacobi conjugate gradients about fivefold, so
+//! the preconditioner solves each patch's chain of tied frames exactly
+//! (block tridiagonal); untied it is block Jacobi.
 //!
 //! Patches arrive in chunks in any order; frames are solved, in time order,
 //! as soon as every patch covering them has arrived (the work of a frame or
@@ -118,6 +123,9 @@ pub struct JointStitcher {
     next: usize,
     /// Each held patch's GBR at the last solved frame it covers, by grid index.
     gbrs: Vec<Option<Vector4<f64>>>,
+    /// Tied: the frames the last span solved ahead of what it kept, with their
+    /// normal equations (without the anchor) and solution, for the next span.
+    ahead: Vec<Ahead>,
 }
 
 impl JointStitcher {
@@ -148,6 +156,7 @@ impl JointStitcher {
             missing: vec![0; layout.shape[0]],
             next: 0,
             gbrs: vec![None; counts.iter().product()],
+            ahead: Vec::new(),
             counts,
             layout,
         };
@@ -314,15 +323,14 @@ impl JointStitcher {
         (a, p.weight_t * self.windows[1][py] as f64 * self.windows[2][px] as f64)
     }
 
-    /// Frame t's patch-frames and its part of the normal equations: blocks of
-    /// G by row, (column, block) with the diagonal first, and the right-hand
-    /// side, in the frame's own indices. Each tie adds ν_k I to its
-    /// patch-frame's diagonal block; `anchored`: frame t − 1 is solved, so the
-    /// ties also pull toward its GBRs (`b_k += ν_k ĝ_k`).
-    fn assemble(&self, t: usize, anchored: bool) -> FrameSystem<'_> {
+    /// Frame t's part of the normal equations, its patch-frames `frames`
+    /// (`patch_frames(t)`): blocks of G by row, (column, block) with the
+    /// diagonal first, and the right-hand side, in the frame's own indices.
+    /// Each tie adds ν_k I to its patch-frame's diagonal block; the pull toward
+    /// a solved frame before (`b_k += ν_k ĝ_k`) is the span's (`solve_span`).
+    fn assemble(&self, t: usize, frames: &[PatchFrame<'_>]) -> Normal {
         let [_, hh, ww] = self.layout.shape;
         let mu = self.coarse_weight;
-        let frames = self.patch_frames(t);
         let coarse = &self.coarse[t * hh * ww..(t + 1) * hh * ww];
         let diagonal: Vec<(Matrix4<f64>, Vector4<f64>)> = frames
             .par_iter()
@@ -335,13 +343,7 @@ impl JointStitcher {
                         b += mu * coarse[y * ww + x] as f64 * a;
                     }
                 }
-                diag += Matrix4::identity() * 1e-9 * (1.0 + diag.trace() / 4.0);
-                if p.tie > 0.0 {
-                    diag += Matrix4::identity() * p.tie;
-                    if anchored {
-                        b += p.tie * self.gbrs[p.index].expect("a tie to a solved frame has its GBR");
-                    }
-                }
+                diag += Matrix4::identity() * (1e-9 * (1.0 + diag.trace() / 4.0) + p.tie);
                 (diag, b)
             })
             .collect();
@@ -387,48 +389,95 @@ impl JointStitcher {
                 blocks[l].push((k, off.transpose()));
             }
         }
-        FrameSystem { frames, blocks, rhs }
+        Normal { blocks, rhs }
     }
 
     /// Solve frames `span` together (frame `span.start` − 1 solved), tied
-    /// frame to frame: write the stitched frames up to `keep` and keep their
-    /// patches' GBRs.
+    /// frame to frame: write the stitched frames up to `keep`, keep their
+    /// patches' GBRs, and keep the frames after `keep` (solved ahead) for the
+    /// next span, which starts there: their normal equations are the same
+    /// but for the anchor, and their solution is where its solve starts.
     fn solve_span(&mut self, span: std::ops::Range<usize>, keep: usize) {
         let [_, hh, ww] = self.layout.shape;
-        let (video, solved) = {
+        let mut ahead: Vec<Option<Ahead>> = span.clone().map(|_| None).collect();
+        for a in std::mem::take(&mut self.ahead) {
+            if span.contains(&a.t) {
+                let i = a.t - span.start;
+                ahead[i] = Some(a);
+            }
+        }
+        let (video, solved, ahead) = {
             let this = &*self;
-            let systems: Vec<FrameSystem<'_>> = span.clone().into_par_iter().map(|t| this.assemble(t, t == span.start)).collect();
+            let systems: Vec<FrameSystem<'_>> = span
+                .clone()
+                .into_par_iter()
+                .zip(ahead)
+                .map(|(t, ahead)| {
+                    let frames = this.patch_frames(t);
+                    match ahead {
+                        Some(a) => FrameSystem { t, frames, normal: a.normal, start: Some(a.solution) },
+                        None => {
+                            let normal = this.assemble(t, &frames);
+                            FrameSystem { t, frames, normal, start: None }
+                        }
+                    }
+                })
+                .collect();
             let bases: Vec<usize> = systems.iter().scan(0, |n, s| Some(std::mem::replace(n, *n + s.frames.len()))).collect();
             let mut blocks: Vec<Vec<(usize, Matrix4<f64>)>> = Vec::new();
             let mut rhs = Vec::new();
             for (system, &base) in systems.iter().zip(&bases) {
-                blocks.extend(system.blocks.iter().map(|row| row.iter().map(|&(l, m)| (base + l, m)).collect::<Vec<_>>()));
-                rhs.extend_from_slice(&system.rhs);
+                blocks.extend(system.normal.blocks.iter().map(|row| row.iter().map(|&(l, m)| (base + l, m)).collect::<Vec<_>>()));
+                rhs.extend_from_slice(&system.normal.rhs);
             }
             // Ties between frames of the span: ν_k (g_k − g_k')ᵀ(g_k − g_k'), k' the
             // same patch one frame earlier; its own diagonal's ν_k I is in place.
+            // The first frame's ties pull toward the GBRs solved before it.
+            // The solve starts from the solution ahead where there is one, else
+            // from the patch's latest GBR.
+            // Each patch's frames tied in a row form a chain (the preconditioner's).
             let mut position = vec![usize::MAX; self.patches.len()];
+            let mut chain_of = vec![usize::MAX; self.patches.len()];
+            let mut chains: Vec<Vec<(usize, f64)>> = Vec::new();
+            let mut latest = self.gbrs.clone();
+            let mut start = Vec::with_capacity(rhs.len());
             for (i, (system, &base)) in systems.iter().zip(&bases).enumerate() {
-                if i > 0 {
-                    for (k, p) in system.frames.iter().enumerate().filter(|(_, p)| p.tie > 0.0) {
+                for (k, p) in system.frames.iter().enumerate() {
+                    if p.tie > 0.0 && i == 0 {
+                        rhs[k] += p.tie * self.gbrs[p.index].expect("a tie to a solved frame has its GBR");
+                    }
+                    if p.tie > 0.0 && i > 0 {
                         let before = position[p.index];
                         let tie = Matrix4::identity() * p.tie;
                         blocks[before][0].1 += tie;
                         blocks[before].push((base + k, -tie));
                         blocks[base + k].push((before, -tie));
+                        chains[chain_of[p.index]].push((base + k, p.tie));
+                    } else {
+                        chain_of[p.index] = chains.len();
+                        chains.push(vec![(base + k, 0.0)]);
                     }
                 }
                 for (k, p) in system.frames.iter().enumerate() {
                     position[p.index] = base + k;
+                    let g = system.start.as_ref().map_or_else(|| latest[p.index].unwrap_or_else(Vector4::zeros), |s| s[k]);
+                    latest[p.index] = Some(g);
+                    start.push(g);
                 }
             }
-            let g = conjugate_gradients(&blocks, &rhs);
+            let g = conjugate_gradients(&blocks, &chains, &rhs, start);
             let len = hh * ww;
             let mut video = vec![0.0f32; (keep - span.start) * len];
             let mut solved = Vec::new();
-            for ((system, &base), frame) in systems.iter().zip(&bases).zip(video.chunks_mut(len)) {
+            let mut ahead = Vec::new();
+            for (system, &base) in systems.into_iter().zip(&bases) {
                 let g = &g[base..base + system.frames.len()];
+                if system.t >= keep {
+                    ahead.push(Ahead { t: system.t, normal: system.normal, solution: g.to_vec() });
+                    continue;
+                }
                 // Row by row, each pixel summing its patch-frames in order.
+                let frame = &mut video[(system.t - span.start) * len..(system.t - span.start + 1) * len];
                 frame.par_chunks_mut(ww).enumerate().for_each_init(
                     || vec![0.0f64; ww],
                     |sums, (y, row)| {
@@ -446,9 +495,10 @@ impl JointStitcher {
                 );
                 solved.extend(system.frames.iter().map(|p| p.index).zip(g.iter().copied()));
             }
-            (video, solved)
+            (video, solved, ahead)
         };
         self.video[span.start * hh * ww..keep * hh * ww].copy_from_slice(&video);
+        self.ahead = ahead;
         // In time order, so each patch keeps its GBR at the last kept frame it covers.
         for (index, g) in solved {
             self.gbrs[index] = Some(g);
@@ -456,27 +506,52 @@ impl JointStitcher {
     }
 }
 
-/// One frame's patch-frames and its part of the normal equations (`assemble`).
+/// One frame of a span: its patch-frames, its part of the normal equations,
+/// and where its solve starts when it was solved ahead.
 struct FrameSystem<'a> {
+    t: usize,
     frames: Vec<PatchFrame<'a>>,
+    normal: Normal,
+    start: Option<Vec<Vector4<f64>>>,
+}
+
+/// A frame's part of the normal equations (`assemble`), in its own indices.
+struct Normal {
     blocks: Vec<Vec<(usize, Matrix4<f64>)>>,
     rhs: Vec<Vector4<f64>>,
 }
 
+/// A frame solved ahead of the frames kept (`solve_span`).
+struct Ahead {
+    t: usize,
+    normal: Normal,
+    solution: Vec<Vector4<f64>>,
+}
+
 /// Solve the block-sparse SPD system `G x = b` (rows of (column, 4×4 block),
-/// the diagonal block first) by conjugate gradients preconditioned with the
-/// inverse diagonal blocks, to a residual of 1e-10 of ‖b‖ or 2000 iterations
-/// (a few hundred at μ = 1e-3; the count grows about as 1/√μ).
-fn conjugate_gradients(blocks: &[Vec<(usize, Matrix4<f64>)>], b: &[Vector4<f64>]) -> Vec<Vector4<f64>> {
+/// the diagonal block first) by conjugate gradients from `start`, to a
+/// residual of 1e-10 of ‖b‖ or 2000 iterations. Preconditioned with G's
+/// part along `chains` (each a patch's frames tied in a row: (unknown, ν to
+/// the one before)), a block-tridiagonal system solved exactly: without ties,
+/// block Jacobi (some 50–60 iterations a frame at μ = 0.005, growing about as
+/// 1/√μ); with them it keeps the tie's strong coupling of frames from slowing
+/// the solve (`benches/stitching.rs`'s first span: 62 iterations, 317 with
+/// block Jacobi).
+fn conjugate_gradients(blocks: &[Vec<(usize, Matrix4<f64>)>], chains: &[Vec<(usize, f64)>], b: &[Vector4<f64>], start: Vec<Vector4<f64>>) -> Vec<Vector4<f64>> {
     let n = b.len();
-    let precondition: Vec<Matrix4<f64>> = blocks.iter().map(|row| row[0].1.try_inverse().unwrap_or_else(Matrix4::zeros)).collect();
+    let precondition = ChainPreconditioner::new(blocks, chains);
     let apply = |x: &[Vector4<f64>], out: &mut [Vector4<f64>]| {
         out.par_iter_mut().zip(blocks).with_min_len(256).for_each(|(o, row)| *o = row.iter().map(|(l, m)| m * x[*l]).sum());
     };
     let dot = |a: &[Vector4<f64>], c: &[Vector4<f64>]| a.iter().zip(c).map(|(u, v)| u.dot(v)).sum::<f64>();
-    let mut x = vec![Vector4::zeros(); n];
-    let mut r = b.to_vec();
-    let mut z: Vec<Vector4<f64>> = r.iter().zip(&precondition).map(|(v, m)| m * v).collect();
+    let mut x = start;
+    let mut r = vec![Vector4::zeros(); n];
+    apply(&x, &mut r);
+    for (r, b) in r.iter_mut().zip(b) {
+        *r = b - *r;
+    }
+    let mut z = vec![Vector4::zeros(); n];
+    precondition.apply(&r, &mut z);
     let mut p = z.clone();
     let mut rz = dot(&r, &z);
     let tolerance = 1e-20 * dot(b, b);
@@ -494,8 +569,8 @@ fn conjugate_gradients(blocks: &[Vec<(usize, Matrix4<f64>)>], b: &[Vector4<f64>]
         for i in 0..n {
             x[i] += step * p[i];
             r[i] -= step * gp[i];
-            z[i] = precondition[i] * r[i];
         }
+        precondition.apply(&r, &mut z);
         let rz_next = dot(&r, &z);
         let beta = rz_next / rz;
         rz = rz_next;
@@ -504,6 +579,54 @@ fn conjugate_gradients(blocks: &[Vec<(usize, Matrix4<f64>)>], b: &[Vector4<f64>]
         }
     }
     x
+}
+
+/// The part of a block-sparse SPD system along chains of unknowns, each
+/// block tridiagonal with −ν I between neighbours (the temporal ties),
+/// factorised by block elimination along each chain (the Thomas algorithm):
+/// `inverses[u]` is the inverse of u's diagonal block less what eliminating
+/// the chain before it took, D'_j = D_j − ν_j² D'_{j−1}⁻¹ (a Schur complement
+/// of an SPD matrix, so SPD).
+struct ChainPreconditioner<'a> {
+    chains: &'a [Vec<(usize, f64)>],
+    inverses: Vec<Matrix4<f64>>,
+}
+
+impl<'a> ChainPreconditioner<'a> {
+    fn new(blocks: &[Vec<(usize, Matrix4<f64>)>], chains: &'a [Vec<(usize, f64)>]) -> Self {
+        let mut inverses = vec![Matrix4::zeros(); blocks.len()];
+        for chain in chains {
+            let mut before: Option<Matrix4<f64>> = None;
+            for &(u, nu) in chain {
+                let d = match before {
+                    Some(inverse) => blocks[u][0].1 - nu * nu * inverse,
+                    None => blocks[u][0].1,
+                };
+                inverses[u] = d.try_inverse().unwrap_or_else(Matrix4::zeros);
+                before = Some(inverses[u]);
+            }
+        }
+        Self { chains, inverses }
+    }
+
+    /// z = M⁻¹ r: forward elimination r'_j = r_j + ν_j D'_{j−1}⁻¹ r'_{j−1},
+    /// then back substitution z_j = D'_j⁻¹ (r'_j + ν_{j+1} z_{j+1}).
+    fn apply(&self, r: &[Vector4<f64>], z: &mut [Vector4<f64>]) {
+        for chain in self.chains {
+            let mut carried = Vector4::zeros();
+            for (j, &(u, nu)) in chain.iter().enumerate() {
+                z[u] = if j == 0 { r[u] } else { r[u] + nu * (self.inverses[chain[j - 1].0] * carried) };
+                carried = z[u];
+            }
+            let mut after = Vector4::zeros();
+            let mut nu_after = 0.0;
+            for &(u, nu) in chain.iter().rev() {
+                after = self.inverses[u] * (z[u] + nu_after * after);
+                z[u] = after;
+                nu_after = nu;
+            }
+        }
+    }
 }
 
 #[cfg(test)]
@@ -854,6 +977,39 @@ mod tests {
             stitcher.add(&patches[i * plen..(i + 1) * plen], &origins[i..i + 1]).unwrap();
         }
         assert_eq!(stitcher.finish().unwrap(), whole);
+    }
+
+    #[test]
+    fn the_chain_preconditioner_solves_its_chains_exactly() {
+        // Unknowns 0..8 in chains of 1, 3 and 4, tied by ν; a coupling outside
+        // the chains (unknowns 2 and 3) is not the preconditioner's.
+        let chains = vec![vec![(2, 0.0)], vec![(0, 0.0), (3, 0.7), (5, 1.3)], vec![(1, 0.0), (4, 0.4), (6, 2.0), (7, 0.9)]];
+        let n = 8;
+        let mut blocks: Vec<Vec<(usize, Matrix4<f64>)>> = (0..n)
+            .map(|u| {
+                let a = Matrix4::from_fn(|i, j| pseudo(u * 16 + i * 4 + j) as f64);
+                vec![(u, a * a.transpose() + Matrix4::identity() * 5.0)]
+            })
+            .collect();
+        blocks[2].push((3, Matrix4::identity()));
+        blocks[3].push((2, Matrix4::identity()));
+        let mut m = DMatrix::<f64>::zeros(4 * n, 4 * n);
+        for (u, row) in blocks.iter().enumerate() {
+            m.fixed_view_mut::<4, 4>(4 * u, 4 * u).copy_from(&row[0].1);
+        }
+        for chain in &chains {
+            for pair in chain.windows(2) {
+                let ((u, _), (v, nu)) = (pair[0], pair[1]);
+                m.fixed_view_mut::<4, 4>(4 * u, 4 * v).copy_from(&(-nu * Matrix4::identity()));
+                m.fixed_view_mut::<4, 4>(4 * v, 4 * u).copy_from(&(-nu * Matrix4::identity()));
+            }
+        }
+        let r: Vec<Vector4<f64>> = (0..n).map(|u| Vector4::from_fn(|i, _| pseudo(500 + 4 * u + i) as f64)).collect();
+        let mut z = vec![Vector4::zeros(); n];
+        ChainPreconditioner::new(&blocks, &chains).apply(&r, &mut z);
+        let z = DVector::from_iterator(4 * n, z.iter().flat_map(|v| v.iter().copied()));
+        let r = DVector::from_iterator(4 * n, r.iter().flat_map(|v| v.iter().copied()));
+        assert!((&m * z - &r).norm() <= 1e-12 * r.norm(), "M z = r along the chains");
     }
 
     #[test]
