@@ -30,8 +30,9 @@
 //! patch-frame meeting at most 17 others
 //! (its 3 × 3 spatial neighbourhood in the frame's two temporal windows),
 //! solved in f64 by conjugate gradients preconditioned with the 4 × 4
-//! diagonal blocks (a ridge of 1e-9 of a block's mean diagonal keeps a flat
-//! patch's GBR finite), starting from each patch's GBR in the frame before.
+//! diagonal blocks (tied: below; a ridge of 1e-9 of a block's mean diagonal
+//! keeps a flat patch's GBR finite), starting from each patch's GBR in the
+//! frame before.
 //!
 //! A temporal tie (weight ν ≥ 0; ν = 0 leaves frames independent) keeps each
 //! patch's reading steady where its own depth barely changes: the frames are
