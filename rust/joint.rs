@@ -320,7 +320,7 @@ impl JointStitcher {
         let [_, ly, lx] = self.layout.patch;
         let (py, px) = ((y as isize - p.corner[0]) as usize, (x as isize - p.corner[1]) as usize);
         let value = (p.values[py * lx + px] as f64 - p.mean) * p.inv_std;
-        let a = Vector4::new((px as f64 + 0.5) / lx as f64 - 0.5, (py as f64 + 0.5) / ly as f64 - 0.5, value, 1.0);
+        let a = Vector4::new(coordinate(px, lx), coordinate(py, ly), value, 1.0);
         (a, p.weight_t * self.windows[1][py] as f64 * self.windows[2][px] as f64)
     }
 
@@ -331,21 +331,47 @@ impl JointStitcher {
     /// a solved frame before (`b_k += ν_k ĝ_k`) is the span's (`solve_span`).
     fn assemble(&self, t: usize, frames: &[PatchFrame<'_>]) -> Normal {
         let [_, hh, ww] = self.layout.shape;
+        let [_, ly, lx] = self.layout.patch;
         let mu = self.coarse_weight;
         let coarse = &self.coarse[t * hh * ww..(t + 1) * hh * ww];
+        let (wy, wx) = (&self.windows[1], &self.windows[2]);
         let diagonal: Vec<(Matrix4<f64>, Vector4<f64>)> = frames
             .par_iter()
             .map(|p| {
-                let (mut diag, mut b) = (Matrix4::zeros(), Vector4::zeros());
+                // Σ c a aᵀ (c = w − w² + μ) and Σ C a (C the coarse depth) with
+                // a = (u, v, p̂, 1): v is the row's, so each row sums over x only
+                // what varies along it.
+                let [mut uu, mut uv, mut up, mut u1, mut vv, mut vp, mut v1, mut pp, mut p1, mut one] = [0.0; 10];
+                let [mut bu, mut bv, mut bp, mut b1] = [0.0; 4];
                 for y in p.rows.0..p.rows.1 {
+                    let py = (y as isize - p.corner[0]) as usize;
+                    let (v, weight_y) = (coordinate(py, ly), p.weight_t * wy[py] as f64);
+                    let values = &p.values[py * lx..(py + 1) * lx];
+                    let [mut c0, mut cu, mut cuu, mut cp, mut cup, mut cpp, mut d0, mut du, mut dp] = [0.0; 9];
                     for x in p.cols.0..p.cols.1 {
-                        let (a, w) = self.design(p, y, x);
-                        diag += (w - w * w + mu) * a * a.transpose();
-                        b += mu * coarse[y * ww + x] as f64 * a;
+                        let px = (x as isize - p.corner[1]) as usize;
+                        let (u, w) = (coordinate(px, lx), weight_y * wx[px] as f64);
+                        let c = w - w * w + mu;
+                        let value = (values[px] as f64 - p.mean) * p.inv_std;
+                        let depth = coarse[y * ww + x] as f64;
+                        c0 += c;
+                        cu += c * u;
+                        cuu += c * u * u;
+                        cp += c * value;
+                        cup += c * u * value;
+                        cpp += c * value * value;
+                        d0 += depth;
+                        du += depth * u;
+                        dp += depth * value;
                     }
+                    (uu, uv, up, u1) = (uu + cuu, uv + v * cu, up + cup, u1 + cu);
+                    (vv, vp, v1) = (vv + v * v * c0, vp + v * cp, v1 + v * c0);
+                    (pp, p1, one) = (pp + cpp, p1 + cp, one + c0);
+                    (bu, bv, bp, b1) = (bu + du, bv + v * d0, bp + dp, b1 + d0);
                 }
+                let mut diag = Matrix4::new(uu, uv, up, u1, uv, vv, vp, v1, up, vp, pp, p1, u1, v1, p1, one);
                 diag += Matrix4::identity() * (1e-9 * (1.0 + diag.trace() / 4.0) + p.tie);
-                (diag, b)
+                (diag, mu * Vector4::new(bu, bv, bp, b1))
             })
             .collect();
         let mut blocks: Vec<Vec<(usize, Matrix4<f64>)>> = diagonal.iter().enumerate().map(|(k, d)| vec![(k, d.0)]).collect();
@@ -372,14 +398,50 @@ impl JointStitcher {
                         if rows.0 >= rows.1 || cols.0 >= cols.1 {
                             return None;
                         }
-                        let mut off = Matrix4::zeros();
+                        // −Σ w_k w_l a_k a_lᵀ: the weight is separable, w_t · ω(y) · ω(x),
+                        // so the sums of the coordinates alone over a row are the
+                        // same in every row, and each row sums over x only the
+                        // terms with a depth.
+                        let corner = |r: &PatchFrame<'_>, x: usize| (x as isize - r.corner[1]) as usize;
+                        let [mut x0, mut xu_k, mut xu_l, mut xuu] = [0.0; 4];
+                        for x in cols.0..cols.1 {
+                            let (pk, pl) = (corner(p, x), corner(q, x));
+                            let (uk, ul, o) = (coordinate(pk, lx), coordinate(pl, lx), (wx[pk] * wx[pl]) as f64);
+                            (x0, xu_k, xu_l, xuu) = (x0 + o, xu_k + o * uk, xu_l + o * ul, xuu + o * uk * ul);
+                        }
+                        let mut e = [[0.0f64; 4]; 4];
                         for y in rows.0..rows.1 {
+                            let (yk, yl) = ((y as isize - p.corner[0]) as usize, (y as isize - q.corner[0]) as usize);
+                            let (vk, vl) = (coordinate(yk, ly), coordinate(yl, ly));
+                            let weight_y = p.weight_t * q.weight_t * (wy[yk] * wy[yl]) as f64;
+                            let (values_k, values_l) = (&p.values[yk * lx..(yk + 1) * lx], &q.values[yl * lx..(yl + 1) * lx]);
+                            // Σ ω(x) times u_k p̂_l, p̂_l, p̂_k u_l, p̂_k, p̂_k p̂_l.
+                            let [mut ukpl, mut pl0, mut pkul, mut pk0, mut pkpl] = [0.0; 5];
                             for x in cols.0..cols.1 {
-                                let ((a, wa), (c, wc)) = (self.design(p, y, x), self.design(q, y, x));
-                                off -= wa * wc * a * c.transpose();
+                                let (xk, xl) = (corner(p, x), corner(q, x));
+                                let o = (wx[xk] * wx[xl]) as f64;
+                                let vk_ = (values_k[xk] as f64 - p.mean) * p.inv_std;
+                                let vl_ = (values_l[xl] as f64 - q.mean) * q.inv_std;
+                                let (ok, ol) = (o * vk_, o * vl_);
+                                ukpl += coordinate(xk, lx) * ol;
+                                pl0 += ol;
+                                pkul += coordinate(xl, lx) * ok;
+                                pk0 += ok;
+                                pkpl += ok * vl_;
+                            }
+                            let row = [
+                                [xuu, vl * xu_k, ukpl, xu_k],
+                                [vk * xu_l, vk * vl * x0, vk * pl0, vk * x0],
+                                [pkul, vl * pk0, pkpl, pk0],
+                                [xu_l, vl * x0, pl0, x0],
+                            ];
+                            for (e, row) in e.iter_mut().zip(row) {
+                                for (e, r) in e.iter_mut().zip(row) {
+                                    *e += weight_y * r;
+                                }
                             }
                         }
-                        Some((l, off))
+                        Some((l, -Matrix4::from_fn(|i, j| e[i][j])))
                     })
                     .collect()
             })
@@ -505,6 +567,13 @@ impl JointStitcher {
             self.gbrs[index] = Some(g);
         }
     }
+}
+
+/// Pixel `i` of a patch `l` pixels wide: its centre in patch widths from the
+/// patch's centre, in [−½, ½] (the u and v of a_k).
+#[inline]
+fn coordinate(i: usize, l: usize) -> f64 {
+    (i as f64 + 0.5) / l as f64 - 0.5
 }
 
 /// One frame of a span: its patch-frames, its part of the normal equations,
