@@ -420,14 +420,14 @@ impl JointStitcher {
                             for x in cols.0..cols.1 {
                                 let (xk, xl) = (corner(p, x), corner(q, x));
                                 let o = (wx[xk] * wx[xl]) as f64;
-                                let vk_ = (values_k[xk] as f64 - p.mean) * p.inv_std;
-                                let vl_ = (values_l[xl] as f64 - q.mean) * q.inv_std;
-                                let (ok, ol) = (o * vk_, o * vl_);
+                                let value_k = (values_k[xk] as f64 - p.mean) * p.inv_std;
+                                let value_l = (values_l[xl] as f64 - q.mean) * q.inv_std;
+                                let (ok, ol) = (o * value_k, o * value_l);
                                 ukpl += coordinate(xk, lx) * ol;
                                 pl0 += ol;
                                 pkul += coordinate(xl, lx) * ok;
                                 pk0 += ok;
-                                pkpl += ok * vl_;
+                                pkpl += ok * value_l;
                             }
                             let row = [
                                 [xuu, vl * xu_k, ukpl, xu_k],
