@@ -56,9 +56,14 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=None, help="RAYON_NUM_THREADS for the stitcher (default: all cores)")
     parser.add_argument("--run", choices=tuple(STITCHES), help=argparse.SUPPRESS)
     args = parser.parse_args()
-    shape = tuple(int(v) for v in args.shape.split(","))
+    try:
+        shape = tuple(int(v) for v in args.shape.split(","))
+    except ValueError:
+        shape = ()
     if len(shape) != 3 or min(shape) < 1:
         parser.error(f"--shape: expected T,H,W (positive integers), got {args.shape!r}")
+    if args.threads is not None and args.threads < 1:
+        parser.error(f"--threads: expected a positive integer, got {args.threads}")
     if args.run:
         run(args.run, shape)
         return
