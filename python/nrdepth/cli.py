@@ -96,6 +96,33 @@ def _evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _average(args: argparse.Namespace) -> int:
+    from .model import average_models, save_model
+
+    out = Path(args.out)
+    path = out if out.suffix == ".safetensors" else out / "model.safetensors"
+    if path.exists() and not args.overwrite:
+        raise ValueError(f"out: {path} exists; --overwrite replaces it")
+    if out.suffix != ".safetensors" and out.exists() and not out.is_dir():
+        raise ValueError(f"out: expected a folder or a path ending in .safetensors, got the file {out}")
+    model = average_models(args.models, args.weights)
+    shares = args.weights or [1.0] * len(args.models)
+    recipe = {"models": [str(m) for m in args.models], "weights": [w / sum(shares) for w in shares]}
+    extra = {"average": recipe, **({"depth_units": model.depth_units} if model.depth_units else {})}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    save_model(model, path, extra)
+    print(f"wrote {path} (and {path.with_suffix('.json').name}): "
+          + " + ".join(f"{w:.4g} × {m}" for w, m in zip(recipe["weights"], recipe["models"])))
+    return 0
+
+
+def _weights(text: str) -> list:
+    try:
+        return [float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
+
+
 def _azimuth(text: str) -> tuple:
     if text == "uniform":
         return (-math.pi, math.pi)
@@ -310,6 +337,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="readings of each clip averaged: 2 adds it mirrored left-right, 4 also upside down (nrdepth.predict_depth)")
     _add_generator_options(p)
     p.set_defaults(run=_evaluate)
+
+    p = sub.add_parser("average", help="average the weights of models of one lineage (a model soup)")
+    p.add_argument("out", help="output: a path ending in .safetensors, or a folder to write model.safetensors into (model.json beside it)")
+    p.add_argument("models", nargs="+", help="two or more model.safetensors files or run folders")
+    p.add_argument("--weights", type=_weights, default=None, metavar="W1,W2,...",
+                   help="one weight per model, scaled to sum to 1 (default: equal)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output model")
+    p.set_defaults(run=_average)
 
     p = sub.add_parser("reconstruct", help="depth video of a video file, an image folder or a .npy/.npz array")
     p.add_argument("input", help="video file (mp4, avi, gif, …), folder of images, or .npy/.npz (T, H, W[, 3])")

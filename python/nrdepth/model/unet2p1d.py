@@ -96,6 +96,9 @@ class TemporalContext(nn.Module):
     to the input. The fusion starts at zero, so the module starts as the
     identity (a network without it warm-starts one with it unchanged)."""
 
+    ZERO_START = "fuse"
+    """The child whose zero weights make the module the identity (:mod:`nrdepth.model.average`)."""
+
     def __init__(self, width: int, rates: Sequence[int]) -> None:
         super().__init__()
         inner = max(width // 2, 1)
@@ -116,6 +119,9 @@ class IdentityStartBlock(nn.Module):
     convolution starts at zero: x + temporal(act(spatial(x))) is the
     identity at initialisation, so a network that gains it warm-starts
     from one without it unchanged."""
+
+    ZERO_START = "temporal"
+    """The child whose zero weights make the block the identity (:mod:`nrdepth.model.average`)."""
 
     def __init__(self, width: int) -> None:
         super().__init__()
