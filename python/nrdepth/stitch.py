@@ -62,15 +62,15 @@ WINDOWS = ("hann", "triangle")
 COARSE_WEIGHT = 0.005
 """Default μ of the joint alignment: the weight of the patches' fit to the
 coarse depth against their agreement with one another. On generated
-256×256 videos (README), 0.005 with Hann windows keeps the shipped model's
-stitched score per frame within 0.002 of the paper's stitch and smaller
+256×256 videos (README), 0.005 with Hann windows kept the model shipped
+then (epoch 178)'s stitched score per frame within 0.002 of the paper's stitch and smaller
 weights cost more; on the real ``phisft_R1`` smaller weights score better
 still."""
 TEMPORAL_WEIGHT = 0.015
 """Default ν of the joint alignment's temporal tie, per pixel of a patch
 (``rust/joint.rs``); 0 solves each frame on its own. Measured with
 ``benchmarks/temporal_tie.py`` (README, "Depth of a whole video"): at 0.015
-the real ``phisft_R1`` gains (0.2323 → 0.2255 per frame), generated
+the real ``phisft_R1`` gains (epoch 178: 0.2323 → 0.2255 per frame), generated
 256×256 videos stay level per frame (within 0.002 either way over two
 draws) and gain from the first frame inside the training ranges; larger
 weights gain more on the cloth but lose outside the ranges."""
