@@ -62,9 +62,9 @@ WINDOWS = ("hann", "triangle")
 COARSE_WEIGHT = 0.005
 """Default μ of the joint alignment: the weight of the patches' fit to the
 coarse depth against their agreement with one another. On generated
-256×256 videos (README), 0.005 with Hann windows kept the model shipped
-then (epoch 178)'s stitched score per frame within 0.002 of the paper's stitch and smaller
-weights cost more; on the real ``phisft_R1`` smaller weights score better
+256×256 videos (README), 0.005 with Hann windows kept the stitched score
+of epoch 178 (shipped then) per frame within 0.002 of the paper's stitch,
+and smaller weights cost more; on the real ``phisft_R1`` smaller weights score better
 still."""
 TEMPORAL_WEIGHT = 0.015
 """Default ν of the joint alignment's temporal tie, per pixel of a patch
