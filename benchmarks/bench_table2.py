@@ -86,9 +86,10 @@ def main() -> None:
             start = time.perf_counter()
             depths["nrdepth"] = nrdepth.reconstruct(video, model)
             seconds["nrdepth"] = time.perf_counter() - start
-        tracks = clip_tracks(clip.params[0], config, noise=args.noise, seed=i)
-        W = measurement_matrix(tracks.xy)
-        Rs = cameras(W)
+        if {"CSF2", "KSTA"} & set(methods):  # the tracks and cameras only the baselines use
+            tracks = clip_tracks(clip.params[0], config, noise=args.noise, seed=i)
+            W = measurement_matrix(tracks.xy)
+            Rs = cameras(W)
         for name, method in (("CSF2", csf2), ("KSTA", ksta)):
             if name not in methods:
                 continue
