@@ -75,7 +75,8 @@ def average_models(models: Sequence[ModelLike], weights: Optional[Sequence[float
     result = build_model(architecture_name(target), **target.config)
     result.load_state_dict(averaged)
     for i, state in enumerate(states):
-        _check_embedding(i, loaded[i], {**reference, **{k: torch.zeros_like(reference[k]) for k in zero if k not in state}, **state}, result)
+        if i != largest:  # the largest is its own embedding
+            _check_embedding(i, loaded[i], {**reference, **{k: torch.zeros_like(reference[k]) for k in zero if k not in state}, **state}, result)
     result.depth_units = units.pop()
     return result.eval()
 
