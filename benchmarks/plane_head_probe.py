@@ -40,7 +40,7 @@ import nrdepth
 from nrdepth.evaluate import TEST_SEED
 from nrdepth.losses import aligned_clip_signed_loss
 from nrdepth.metrics import mae_sn
-from nrdepth.model import DEFAULT_MODEL, load_model
+from nrdepth.model import DEFAULT_MODEL, UNet2p1D, load_model
 from nrdepth.train import VALIDATION_SEED_OFFSET, OnlineBatches, evaluate_depth
 
 
@@ -89,6 +89,8 @@ def read(net: nn.Module, clips: "nrdepth.Clips", control: bool) -> tuple:
     truth = half(np.stack([nrdepth.observable_depth(d, p) for d, p in zip(clips.depth, clips.params)])) if control else None
     with torch.no_grad():
         parts = [features(net, v[i : i + 8], None if truth is None else truth[i : i + 8]) for i in range(0, len(v), 8)]
+        # features() repeats the network's forward pass to reach its levels: it must give the network's depth.
+        torch.testing.assert_close(parts[0][0], net(v[:8])[:, 0])
     return torch.cat([p[0] for p in parts]), torch.cat([p[1] for p in parts])
 
 
@@ -108,6 +110,8 @@ def main() -> None:
     args = parser.parse_args()
     torch.manual_seed(0)
     net = load_model(DEFAULT_MODEL if args.model == "default" else args.model, device="cpu").eval()
+    if not isinstance(net, UNet2p1D):
+        parser.error(f"--model: expected a unet2p1d-family model (its levels are what the head reads), got {type(net).__name__}")
     net.requires_grad_(False)
     config = nrdepth.GeneratorConfig()
     val = nrdepth.generate_clips(64, seed=VALIDATION_SEED_OFFSET, config=config)  # the campaign's validation clips (seed 0)
