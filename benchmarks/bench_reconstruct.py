@@ -32,7 +32,8 @@ import torch
 import nrdepth
 from nrdepth.evaluate import TEST_SEED
 from nrdepth import _core
-from nrdepth.stitch import COARSE_WEIGHT, TEMPORAL_WEIGHT, coarse_depth, inference_model, patch_depths, temporal_align
+from nrdepth.reconstruct import coarse_depth, inference_model, patch_depths
+from nrdepth.stitch import COARSE_WEIGHT, TEMPORAL_WEIGHT, temporal_align
 
 
 def out_of_range(config: nrdepth.GeneratorConfig) -> nrdepth.GeneratorConfig:

@@ -23,7 +23,7 @@ import torch
 import nrdepth
 from bench_reconstruct import out_of_range
 from nrdepth.evaluate import TEST_SEED
-from nrdepth.stitch import coarse_depth, inference_model, patch_depths
+from nrdepth.reconstruct import coarse_depth, inference_model, patch_depths
 
 
 def main() -> None:

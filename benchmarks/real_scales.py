@@ -45,7 +45,8 @@ import torch
 import nrdepth
 from nrdepth.metrics import flat_baseline, mae_sn, relief_signs
 from nrdepth.model import DEFAULT_MODEL, load_model, predict_depth
-from nrdepth.stitch import coarse_depth, inference_model, patch_depths, patch_layout
+from nrdepth.reconstruct import coarse_depth, inference_model, patch_depths
+from nrdepth.stitch import patch_layout
 from nrdepth.videoio import read_video
 
 from bench_real import DATA

@@ -29,7 +29,8 @@ import torch
 import nrdepth
 from bench_reconstruct import out_of_range  # this script's folder is on sys.path
 from nrdepth.evaluate import TEST_SEED
-from nrdepth.stitch import COARSE_WEIGHT, coarse_depth, inference_model, patch_depths, patch_layout
+from nrdepth.reconstruct import coarse_depth, inference_model, patch_depths
+from nrdepth.stitch import COARSE_WEIGHT, patch_layout
 from real_scales import phisft_at_bin
 
 

@@ -222,7 +222,7 @@ def test_cli_default_output_folder_is_named_after_the_input(tmp_path, tiny_model
     (["--temporal-weight", "0"], {"temporal_weight": 0.0}),
 ])
 def test_cli_stitching_options_reach_reconstruct(tmp_path, tiny_model, flags, options):
-    frames = moving_texture(t=3, h=40, w=72)
+    frames = moving_texture(t=12, h=40, w=72)  # the field pass's windows of 3 frames agree too well for the temporal tie to act
     np.save(tmp_path / "clip.npy", frames)
     out = tmp_path / "out"
     assert main(["reconstruct", str(tmp_path / "clip.npy"), "-o", str(out), "--model", str(tiny_model), "--device", "cpu", "--quiet", *flags]) == 0
@@ -233,7 +233,7 @@ def test_cli_stitching_options_reach_reconstruct(tmp_path, tiny_model, flags, op
     # The CLI loads the model as a module and runs it as it is, the API in the channels-last layout: float rounding apart,
     # which the joint alignment at a small coarse weight, tied over time, amplifies (measured: up to 0.0039 at μ = 0.001).
     np.testing.assert_allclose(cli, chosen, atol=6e-3)
-    assert np.abs(chosen - default).max() > 2e-2  # measured: 0.24, 0.25, 0.047 and 0.38
+    assert np.abs(chosen - default).max() > 2e-2  # measured: 0.22, 5.1, 0.11 and 0.12
 
 
 FLAT_SHEET_WINDOW = 1.2

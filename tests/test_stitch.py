@@ -246,7 +246,7 @@ def test_coarse_pass_commutes_with_a_left_right_mirror():
     """The coarse pass averages its readings of the video and of the mirrored
     video, so mirroring the input mirrors its depth, whatever the network;
     a plain single reading by a network that is not mirror-symmetric fails."""
-    from nrdepth.stitch import coarse_depth
+    from nrdepth.reconstruct import coarse_depth
 
     torch.manual_seed(0)
     net = nrdepth.model.build_model("unet2p1d").eval()
@@ -294,7 +294,7 @@ def test_streaming_stitcher_refuses_misshapen_chunks_and_reuse():
 
 
 def test_relief_scale_undoes_a_shrunk_relief_whatever_each_frames_plane():
-    from nrdepth.stitch import _relief_scale
+    from nrdepth.reconstruct import _relief_scale
 
     reference = smooth_video((4, 40, 56), seed=2).astype(np.float64)
     y, x = np.mgrid[0:40, 0:56]

@@ -158,7 +158,7 @@ def _frames(text: str) -> slice:
 
 def _reconstruct(args: argparse.Namespace) -> int:
     from .model.io import SCALED_MODEL, load_model, resolve_device
-    from .stitch import reconstruct
+    from .reconstruct import reconstruct
     from .videoio import PLY_RELIEF, check_output_folder, read_video, save_reconstruction, select
 
     # Everything that can be refused is checked before any work or writing.

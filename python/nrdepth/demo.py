@@ -37,7 +37,7 @@ def run_demo(
     ground-truth and reconstructed depth, MAE-SN of the reconstruction and of
     the flat baseline for both alignments, and the seconds each step took.
     ``progress(done, total)`` is called as patches are predicted."""
-    from .stitch import reconstruct
+    from .reconstruct import reconstruct
 
     config = config or GeneratorConfig(size=size)
     start = time.perf_counter()

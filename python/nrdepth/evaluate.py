@@ -124,7 +124,7 @@ def score_real_video(model: torch.nn.Module, video: np.ndarray, depth: np.ndarra
     and score it over the pixels with a ground-truth value: MAE-SN per frame
     and from the first frame, the flat plane's per frame, and the share of
     frames whose relief sign is read right."""
-    from .stitch import reconstruct
+    from .reconstruct import reconstruct
 
     mask = np.isfinite(depth)
     pred = reconstruct(video, model, device=str(device))

@@ -22,7 +22,7 @@ from typing import Dict, Literal, Optional, Tuple
 
 import numpy as np
 
-__all__ = ["mae_sn", "flat_baseline", "gbr_fit", "gbr_align", "relief_signs", "sign_rates", "grid_contrast"]
+__all__ = ["mae_sn", "flat_baseline", "gbr_fit", "gbr_align", "relief_signs", "sign_rates", "grid_contrast", "sparse_mae", "sparse_baselines"]
 
 Align = Literal["frame", "first", "first_offset"]
 
@@ -216,3 +216,62 @@ def grid_contrast(depth: np.ndarray, period: int = 32) -> float:
     if not logs:
         raise ValueError("depth: no relief power at the grid's frequencies or beside them (planar frames?); the contrast is undefined")
     return float(np.exp(np.mean(logs)))
+
+
+def sparse_mae(depth: np.ndarray, uv: np.ndarray, z: np.ndarray) -> float:
+    """Mean absolute error, in the units of ``z``, of a depth video against
+    sparse 3-D ground truth (``kinect_paper``'s ``gt_mdh.npz``; its README's
+    fair score): ``depth`` (F, H, W) holds the frames that carry ground
+    truth, ``uv`` (F, 2, N) the points' pixel positions (column, row;
+    pixel centres at integers) and ``z`` (F, N) their true depths. The
+    depth is sampled bilinearly at ``uv`` and fitted per frame by least
+    squares, ``a·u + b·v + λ·depth + t ≈ z`` (the GBR in image coordinates,
+    λ's sign free, as MAE-SN). Points outside the frame are an error."""
+    depth, uv, z = np.asarray(depth, np.float64), np.asarray(uv, np.float64), np.asarray(z, np.float64)
+    if depth.ndim != 3:
+        raise ValueError(f"depth: expected (F, H, W), got shape {depth.shape}")
+    if uv.shape != (len(depth), 2, z.shape[-1]) or z.shape != (len(depth), uv.shape[-1]):
+        raise ValueError(f"uv, z: expected (F, 2, N) and (F, N) with F = {len(depth)}, got {uv.shape} and {z.shape}")
+    _, h, w = depth.shape
+    u, v = uv[:, 0], uv[:, 1]
+    if u.min() < 0 or v.min() < 0 or u.max() > w - 1 or v.max() > h - 1:
+        raise ValueError(f"uv: points outside the {w}×{h} frame")
+    errors = []
+    for f in range(len(depth)):
+        sample = _bilinear(depth[f], u[f], v[f])
+        design = np.stack([u[f], v[f], sample, np.ones_like(sample)], axis=1)
+        coef, *_ = np.linalg.lstsq(design, z[f], rcond=None)
+        errors.append(np.abs(design @ coef - z[f]))
+    return float(np.mean(errors))
+
+
+def sparse_baselines(uv: np.ndarray, z: np.ndarray) -> Dict[str, float]:
+    """The references beside :func:`sparse_mae`, fitted the same way, in the
+    units of ``z``: ``"plane"`` (a flat prediction: a·u + b·v + t),
+    ``"bowl"`` (a fixed paraboloid (u − u₀)² + (v − v₀)² under the GBR, the
+    same in every frame: a shape-blind prior; any centre fits the same) and
+    ``"quadratic"`` (the best quadratic in u, v fitted to the truth, 6
+    parameters a frame: the best a smooth prior could reach)."""
+    uv, z = np.asarray(uv, np.float64), np.asarray(z, np.float64)
+    out: Dict[str, list] = {"plane": [], "bowl": [], "quadratic": []}
+    for f in range(len(z)):
+        u, v = uv[f, 0], uv[f, 1]
+        one = np.ones_like(u)
+        designs = {"plane": [u, v, one], "bowl": [u, v, u * u + v * v, one], "quadratic": [u, v, u * u, u * v, v * v, one]}
+        for name, columns in designs.items():
+            a = np.stack(columns, axis=1)
+            coef, *_ = np.linalg.lstsq(a, z[f], rcond=None)
+            out[name].append(np.abs(a @ coef - z[f]))
+    return {name: float(np.mean(e)) for name, e in out.items()}
+
+
+def _bilinear(image: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``image`` sampled at columns ``u`` and rows ``v`` (inside the image) by bilinear interpolation."""
+    h, w = image.shape
+    x0 = np.clip(np.floor(u).astype(int), 0, w - 2) if w > 1 else np.zeros(len(u), int)
+    y0 = np.clip(np.floor(v).astype(int), 0, h - 2) if h > 1 else np.zeros(len(v), int)
+    fx, fy = u - x0, v - y0
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    top = image[y0, x0] * (1 - fx) + image[y0, x1] * fx
+    bottom = image[y1, x0] * (1 - fx) + image[y1, x1] * fx
+    return top * (1 - fy) + bottom * fy

@@ -46,6 +46,10 @@ from torch import nn
 from .parts import NEGATIVE_SLOPE
 
 
+STD_FLOOR = 1e-3
+"""Added to the input's standard deviation before dividing by it (a flat clip stays finite)."""
+
+
 def _act() -> nn.Module:
     return nn.LeakyReLU(NEGATIVE_SLOPE, inplace=True)
 
@@ -178,7 +182,13 @@ class UNet2p1D(nn.Module):
             raise ValueError(f"video: expected H and W divisible by 8, got H={h}, W={w}")
         flat = video.flatten(1)
         mean, std = flat.mean(1), flat.std(1)
-        x = (video - mean.view(-1, 1, 1, 1, 1)) / (std.view(-1, 1, 1, 1, 1) + 1e-3)
+        return self.forward_standardised((video - mean.view(-1, 1, 1, 1, 1)) / (std.view(-1, 1, 1, 1, 1) + STD_FLOOR))
+
+    def forward_standardised(self, x: torch.Tensor) -> torch.Tensor:
+        """The network after its input standardisation, given ``x`` already
+        standardised (by a statistic of the caller's choice: the tiled fine
+        pass of ``nrdepth.reconstruct`` uses one for the whole video, so a
+        tile's output does not depend on which tile it was cut in)."""
         l1 = self.level1(self.stem(x))
         l2 = self.level2(l1)
         l3 = self.level3(l2)

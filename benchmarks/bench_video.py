@@ -1,0 +1,239 @@
+"""The main job at video scale: the tiled fine pass against the patch-by-patch
+one, in one run, on this machine's threads.
+
+1. Cost. For a generated 256×256×16 video and the real ``kinect_paper``
+   (640×480×191, whole frame), each fine pass in a fresh process: wall time,
+   peak RSS, and where the time goes (coarse pass, network, cutting and
+   resizing windows, stitch); the ratio of the two; the network work per
+   output voxel (64×64×16 patch-equivalents computed divided by those the
+   video holds) and the network's achieved GFLOP/s beside a torch sgemm
+   measured in the same run.
+2. The tiled field against one untiled pass over the same frames (the
+   tiles' seams): the largest and mean difference, in standard deviations
+   of the field.
+3. Accuracy, paired per video: MAE-SN per frame and from the first frame of
+   ``--videos`` generated 256×256×16 videos inside the training ranges and
+   as many outside them (``bench_reconstruct.out_of_range``), a fresh seed,
+   reconstructed both ways; the mean paired difference ± its standard error.
+4. The real videos both ways: ``phisft_R1`` (MAE-SN, ``bench_real.phisft``'s
+   crop) and ``kinect_paper`` on its sparse ground truth (mm, the whole
+   sheet).
+
+    python benchmarks/bench_video.py [--videos 32] [--seed 4000001] [--threads 2] [--skip-accuracy]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+import nrdepth
+from nrdepth.reconstruct import MARGIN, PATCH, TILE, coarse_depth, field_frames, field_windows, inference_model, patch_depths, tile_plan
+from nrdepth.stitch import COARSE_WEIGHT, TEMPORAL_WEIGHT, _stitcher
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_real import DATA, KINECT_ROI, kinect_score, kinect_truth  # noqa: E402
+from bench_reconstruct import out_of_range  # noqa: E402
+
+PATCH_VOXELS = int(np.prod(PATCH))
+
+
+def load(name: str) -> np.ndarray:
+    if name == "generated":
+        from nrdepth.evaluate import TEST_SEED
+
+        return nrdepth.generate_clips(1, seed=TEST_SEED, config=nrdepth.GeneratorConfig(size=256)).video[0]
+    from nrdepth.videoio import read_video
+
+    return read_video(DATA / "kinect_paper").frames
+
+
+def flops_per_voxel(net: torch.nn.Module) -> float:
+    from torch.utils.flop_counter import FlopCounterMode
+
+    with torch.inference_mode(), FlopCounterMode(display=False) as counter:
+        net(torch.rand(1, 1, *PATCH))
+    return counter.get_total_flops() / PATCH_VOXELS
+
+
+def sgemm_rate(n: int = 2048, repeats: int = 5) -> float:
+    a, b = torch.rand(n, n), torch.rand(n, n)
+    torch.mm(a, b)
+    start = time.perf_counter()
+    for _ in range(repeats):
+        torch.mm(a, b)
+    return 2 * n**3 * repeats / (time.perf_counter() - start) / 1e9
+
+
+def job(name: str, fine: str) -> dict:
+    """Reconstructions of video ``name`` through ``fine``, in a process of
+    their own (for its peak RSS): the first (cold: the network's kernels
+    are set up for each new shape) and, for videos of a few seconds, a
+    second one (warm), timed by stage."""
+    video = load(name)
+    net = inference_model(None, torch.device("cpu"))
+    first = run(video, net, fine)
+    if first["total"] > 20:
+        return first
+    return {**run(video, net, fine), "cold": first["total"]}
+
+
+def run(video: np.ndarray, net: torch.nn.Module, fine: str) -> dict:
+    """One reconstruction, timed by stage."""
+    dev = torch.device("cpu")
+    layout = nrdepth.patch_layout(video.shape)
+    seconds = {}
+    start = time.perf_counter()
+    coarse = coarse_depth(video, net, 8, dev)
+    seconds["coarse pass"] = time.perf_counter() - start
+    stitcher = _stitcher(coarse, layout.patch, "joint", COARSE_WEIGHT, "hann", TEMPORAL_WEIGHT)
+    del coarse
+    network = {"seconds": 0.0}
+
+    def timed(spans):
+        while True:
+            t0 = time.perf_counter()
+            item = next(spans, None)
+            network["seconds"] += time.perf_counter() - t0
+            if item is None:
+                return
+            yield item
+
+    if fine == "field":
+        windows = field_windows(layout, timed(field_frames(video, net, dev)))
+        computed = sum(np.prod([b - a for a, b in tile]) for tile in tile_plan(video.shape, net))
+    else:
+        windows = patch_depths(video, net, layout, 8, dev)
+        computed = len(layout.origins) * PATCH_VOXELS
+    cut = stitch = 0.0
+    while True:
+        t0 = time.perf_counter()
+        try:
+            origins, depth = next(windows)
+        except StopIteration:
+            break
+        t1 = time.perf_counter()
+        stitcher.add(depth, origins)
+        cut, stitch = cut + t1 - t0, stitch + time.perf_counter() - t1
+    t0 = time.perf_counter()
+    stitcher.finish()
+    stitch += time.perf_counter() - t0
+    if fine == "field":
+        seconds["network"] = network["seconds"]
+        seconds["cutting, resizing"] = cut - network["seconds"]
+    else:
+        seconds["network, cutting, resizing"] = cut
+    seconds["stitch"] = stitch
+    total = time.perf_counter() - start
+    return {"seconds": seconds, "total": total, "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+            "work": computed / video.size, "shape": list(video.shape), "network_voxels": float(computed)}
+
+
+def cost(threads: int) -> None:
+    net = inference_model(None, torch.device("cpu"))
+    per_voxel = flops_per_voxel(net)
+    sgemm = sgemm_rate()
+    print(f"network: {per_voxel * PATCH_VOXELS / 1e9:.2f} GFLOP a 64×64×16 patch; torch sgemm on {threads} threads: {sgemm:.1f} GFLOP/s")
+    for name in ("generated", "kinect_paper"):
+        runs = {}
+        for fine in ("patches", "field"):
+            out = subprocess.run([sys.executable, __file__, "--job", name, fine, "--threads", str(threads)], check=True, capture_output=True, text=True)
+            runs[fine] = json.loads(out.stdout.strip().splitlines()[-1])
+        t, h, w = runs["field"]["shape"]
+        print(f"\n{name}, {w}×{h}×{t}:")
+        print(f"  {'fine pass':10s}{'time s':>9s}{'peak MB':>10s}{'work/voxel':>12s}   where the time goes")
+        for fine, r in runs.items():
+            parts = ", ".join(f"{k} {v:.1f}" for k, v in r["seconds"].items())
+            cold = f" (first run in the process: {r['cold']:.1f} s)" if "cold" in r else ""
+            print(f"  {fine:10s}{r['total']:>9.1f}{r['peak_mb']:>10.0f}{r['work']:>12.2f}   {parts}{cold}")
+        f = runs["field"]
+        rate = f["network_voxels"] * per_voxel / f["seconds"]["network"] / 1e9
+        print(f"  ratio patches/field: time {runs['patches']['total'] / f['total']:.2f}×, network work {runs['patches']['work'] / f['work']:.2f}×; "
+              f"field network {rate:.1f} GFLOP/s = {100 * rate / sgemm:.0f} % of sgemm")
+
+
+def seams() -> None:
+    video = load("kinect_paper")[:64]
+    dev = torch.device("cpu")
+    net = inference_model(None, dev)
+    untiled = np.concatenate([d for _, d in field_frames(video, net, dev, video.shape, (0, 0, 0))])
+    tiled = np.concatenate([d for _, d in field_frames(video, net, dev)])
+    diff = np.abs(tiled - untiled) / untiled.std()
+    print(f"\nseams: kinect_paper's first 64 frames, tiles {TILE} with margins {MARGIN} against one untiled pass: "
+          f"max {diff.max():.4f}, mean {diff.mean():.5f}, 99.9th percentile {np.quantile(diff, 0.999):.4f} (standard deviations of the field)")
+
+
+def paired(label: str, a: list, b: list) -> str:
+    d = np.asarray(b) - np.asarray(a)
+    return f"{label} {np.mean(a):.4f} → {np.mean(b):.4f} ({np.mean(d):+.4f} ± {np.std(d, ddof=1) / np.sqrt(len(d)):.4f})"
+
+
+def accuracy(videos: int, seed: int) -> None:
+    net = inference_model(None, torch.device("cpu"))
+    base = nrdepth.GeneratorConfig(size=256)
+    print(f"\naccuracy, {videos} + {videos} generated 256×256×16 videos (seed {seed}), MAE-SN patches → field (paired difference ± s.e.):")
+    for label, config in (("inside", base), ("outside", out_of_range(base))):
+        clips = nrdepth.generate_clips(videos, seed=seed, config=config)
+        scores = {fine: {"frame": [], "first": []} for fine in ("patches", "field")}
+        flat = {"frame": [], "first": []}
+        for video, truth in zip(clips.video, clips.depth):
+            for fine in scores:
+                depth = nrdepth.reconstruct(video, net, device="cpu", fine=fine)
+                for align in ("frame", "first"):
+                    scores[fine][align].append(nrdepth.mae_sn(depth, truth, align))
+            for align in flat:
+                flat[align].append(nrdepth.flat_baseline(truth, align))
+        print(f"  {label:8s}" + "; ".join(paired(a, scores["patches"][a], scores["field"][a]) for a in ("frame", "first"))
+              + f"; flat {np.mean(flat['frame']):.4f} / {np.mean(flat['first']):.4f}")
+
+
+def real() -> None:
+    from nrdepth.metrics import flat_baseline as flat, mae_sn
+    from nrdepth.videoio import read_video
+
+    net = inference_model(None, torch.device("cpu"))
+    data = np.load(DATA / "phisft_R1" / "derived_q4.npz")
+    video, truth = data["gray"][:, 110:218, 106:214], data["depth"][:, 110:218, 106:214]
+    mask = np.isfinite(truth)
+    print("\nphisft_R1 (108×108 crop of the 270×480 grid), MAE-SN per frame / from the first frame:")
+    for fine in ("patches", "field"):
+        depth = nrdepth.reconstruct(video, net, device="cpu", fine=fine)
+        print(f"  {fine:8s}{mae_sn(depth, truth, 'frame', mask=mask):.4f} / {mae_sn(depth, truth, 'first', mask=mask):.4f}")
+    print(f"  {'plane':8s}{flat(truth, 'frame', mask=mask):.4f} / {flat(truth, 'first', mask=mask):.4f}")
+    x, y, w, h = KINECT_ROI
+    frames = read_video(DATA / "kinect_paper").frames[:, y : y + h, x : x + w]
+    gt = kinect_truth()
+    print(f"kinect_paper (the sheet, {w}×{h}×{len(frames)}), MAE on the sparse ground truth, mm:")
+    for fine in ("patches", "field"):
+        print(f"  {fine:8s}{kinect_score(nrdepth.reconstruct(frames, net, device='cpu', fine=fine), gt):.2f}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--videos", type=int, default=32, help="generated videos inside and as many outside the training ranges")
+    parser.add_argument("--seed", type=int, default=4000001, help="generator seed of the scored videos (fresh: not the validation or held-out seeds)")
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--skip-accuracy", action="store_true", help="cost and seams only")
+    parser.add_argument("--job", nargs=2, metavar=("VIDEO", "FINE"), help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    torch.set_num_threads(args.threads)
+    if args.job:
+        print(json.dumps(job(*args.job)))
+        return
+    cost(args.threads)
+    seams()
+    if not args.skip_accuracy:
+        real()
+        accuracy(args.videos, args.seed)
+
+
+if __name__ == "__main__":
+    main()

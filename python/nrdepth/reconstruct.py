@@ -1,0 +1,477 @@
+"""The main job: a video in, its depth video out.
+
+:func:`reconstruct` selects the frames and region, optionally shrinks the
+video to a working resolution (``max_side``), runs the coarse pass (the
+whole video at the patch size, :func:`coarse_depth`), then the fine pass,
+aligns and overlap-adds its 16×64×64 windows with the stitcher
+(:mod:`nrdepth.stitch`), and gives the depth its units and, after
+``max_side``, the video's resolution back.
+
+Two fine passes (``fine``) feed the stitcher the same windows, at the same
+origins (:func:`~nrdepth.stitch.patch_layout`):
+
+- ``"field"`` (the default): the network runs **once** over the video, in
+  large tiles (:data:`TILE` frames × rows × columns) that overlap by
+  :data:`MARGIN` on every side, discarded: each output voxel is computed
+  once (plus the margins), not eight times. The networks are fully
+  convolutional, so a tile's output away from its edges is the output of
+  one pass over the whole video. Tiles end at the video's own borders, where
+  the network's zero padding stands in for what lies outside, as at every
+  edge of a training clip. The tiles' half-resolution depth is assembled into
+  one field, upsampled once, mirrored into the layout's padding, and the
+  windows are cut from it. The input is standardised with **one statistic
+  for the whole video** (its mean and standard deviation), not per tile, so
+  a tile's output does not depend on where the tile boundaries fall: at the
+  default margins the tiled field stays within 1 % of the video's standard
+  deviation of one untiled pass (``tests/test_reconstruct.py``), and no
+  seam shows (``benchmarks/bench_video.py``).
+- ``"patches"``: every window through the network on its own, standardised
+  per window (the paper's way; 8× the network work).
+
+Frames flow through in time order: the fine pass computes a span of frames,
+the windows it completes go to the stitcher, and frames no window needs any
+more are dropped, so the fine pass's memory does not grow with the video's
+length.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from contextlib import nullcontext
+from typing import Any, Callable, Iterator, Optional, Tuple, Union
+
+import numpy as np
+
+from .stitch import COARSE_WEIGHT, PATCH, TEMPORAL_WEIGHT, PatchLayout, _check_stitching, _stitcher, patch_layout, temporal_align
+from .videoio import select, to_gray
+
+__all__ = ["reconstruct", "coarse_depth", "patch_depths", "field_frames", "field_windows", "tile_plan", "inference_model", "working_shape",
+           "FINE_PASSES", "TILE", "GPU_TILE", "MARGIN"]
+
+FINE_PASSES = ("field", "patches")
+"""The fine passes of :func:`reconstruct`, the default first (module docstring)."""
+TILE = (32, 320, 320)
+"""Default core of a fine-pass tile on the CPU: frames, rows, columns (rows
+and columns multiples of 8, the networks' coarsest stride). With
+:data:`MARGIN` a tile holds at most 48 × 448 × 448 input voxels (≈ 200
+bytes of activations each). Larger tiles pay less margin but run slower
+per voxel on a 2-core CPU (cache); on ``kinect_paper`` this core beat
+(32, 256, 256) by 14 % (``benchmarks/bench_video.py``, docs/benchmarks.md)."""
+GPU_TILE = (64, 512, 512)
+"""Default core of a tile on CUDA, where larger tiles keep the device busy."""
+MARGIN = (8, 64, 64)
+"""Overlap of a tile on each side, discarded: frames, rows, columns. One
+output voxel's input gradient has 0.9 % of its mass more than 8 frames and
+2.3 % more than 64 pixels away; at these margins the tiled field of the
+real ``kinect_paper`` differs from one untiled pass by 0.06 % of its
+standard deviation on average (48-pixel margins: 0.5 %, with seams up to
+half a standard deviation; ``benchmarks/bench_video.py`` prints it)."""
+
+
+def _resize(frames: np.ndarray, size: Tuple[int, int]) -> np.ndarray:
+    """Bilinear resize of (T, H, W) float frames to (T, *size) (area-averaged when shrinking)."""
+    import torch
+
+    x = torch.from_numpy(np.ascontiguousarray(frames, dtype=np.float32)).unsqueeze(1)
+    shrink = size[0] < frames.shape[1] or size[1] < frames.shape[2]
+    mode = "area" if shrink else "bilinear"
+    y = torch.nn.functional.interpolate(x, size=size, mode=mode, **({} if shrink else {"align_corners": False}))
+    return y[:, 0].numpy()
+
+
+def _as_unit_float(frames: np.ndarray) -> np.ndarray:
+    return frames.astype(np.float32) / 255.0 if frames.dtype == np.uint8 else frames.astype(np.float32)
+
+
+def working_shape(shape: Tuple[int, int], max_side: Optional[int]) -> Tuple[int, int]:
+    """The (H, W) a frame of ``shape`` is reconstructed at: shrunk, keeping
+    its aspect, so that its longer side is at most ``max_side`` (``None``:
+    as it is); never enlarged."""
+    h, w = shape
+    if max_side is None or max(h, w) <= max_side:
+        return h, w
+    scale = max_side / max(h, w)
+    return max(1, round(h * scale)), max(1, round(w * scale))
+
+
+def inference_model(model: Union[None, str, "os.PathLike[str]"], device: "torch.device") -> "torch.nn.Module":  # noqa: F821
+    """The network :func:`reconstruct` runs: ``load_model(model)`` on
+    ``device`` in the channels-last 3D layout (≈ 1.4× faster on the CPU)."""
+    import torch
+
+    from .model.io import load_model
+
+    return load_model(model, device=str(device)).to(memory_format=torch.channels_last_3d)
+
+
+def coarse_depth(video: np.ndarray, net: "torch.nn.Module", batch_size: int, device: "torch.device", readings: int = 2) -> np.ndarray:  # noqa: F821
+    """The coarse pass of :func:`reconstruct`: the whole video (T, H, W)
+    resized to the patch side, in 16-frame windows (the last one mirrored),
+    through the network, and its depth resized back: float32 (T, H, W).
+    Each window is read ``readings`` times (:func:`~nrdepth.model.predict_depth`),
+    by default twice, as it is and mirrored left-right, the two depths
+    averaged: the mirror keeps image-up (so the light prior, and the
+    relief's sign), and this one reading sets every patch's large-scale
+    shape, so halving its variance pays (docs/stitching.md); the pass runs
+    one network window per 16 frames, so reading it twice is nearly free."""
+    from .model.io import predict_depth
+
+    lt, ls, _ = PATCH
+    t, h, w = video.shape
+    windows = -(-t // lt)
+    small = np.pad(_resize(_as_unit_float(video), (ls, ls)), ((0, windows * lt - t), (0, 0), (0, 0)), mode="symmetric")
+    small = small.reshape(windows, lt, ls, ls)
+    coarse = predict_depth(net, small, batch_size, device, readings=readings)
+    return _resize(coarse.reshape(windows * lt, ls // 2, ls // 2)[:t], (h, w))
+
+
+def patch_depths(
+    video: np.ndarray,
+    net: "torch.nn.Module",  # noqa: F821
+    layout: PatchLayout,
+    batch_size: int,
+    device: "torch.device",  # noqa: F821
+    chunk: int = 64,
+) -> Iterator[Tuple[np.ndarray, np.ndarray]]:
+    """The ``"patches"`` fine pass: for ``chunk`` patches at a time of the
+    symmetrically padded video, their origins (n, 3) and depths
+    (n, 16, 64, 64) (the network's half-resolution output upsampled)."""
+    from .model.io import predict_depth
+
+    lt, ls, _ = PATCH
+    back = [layout.padded[a] - layout.shape[a] - layout.pad[a] for a in range(3)]
+    padded = np.pad(video, [(layout.pad[a], back[a]) for a in range(3)], mode="symmetric")  # the input's dtype
+    for i in range(0, len(layout.origins), chunk):
+        origins = layout.origins[i : i + chunk]
+        patches = np.stack([padded[t : t + lt, y : y + ls, x : x + ls] for t, y, x in origins])  # scaled by predict_depth
+        half = predict_depth(net, patches, batch_size, device)
+        yield origins, _resize(half.reshape(-1, *half.shape[2:]), (ls, ls)).reshape(len(half), lt, ls, ls)
+
+
+def _spans(length: int, core: int, margin: int, align: int) -> list:
+    """Tiles along one axis of ``length`` (a multiple of ``align``): cores
+    of at most ``core`` (about equal, their bounds multiples of ``align``),
+    each widened by ``margin`` on both sides within the axis. Tuples (lo,
+    hi, keep_lo, keep_hi): compute [lo, hi), keep [keep_lo, keep_hi)."""
+    count = -(-length // core)
+    bounds = [min(length, -(-round(i * length / count) // align) * align) for i in range(count + 1)]
+    bounds = sorted(set(bounds))
+    return [(max(0, a - margin), min(length, b + margin), a, b) for a, b in zip(bounds[:-1], bounds[1:])]
+
+
+def _time_multiple(net: "torch.nn.Module") -> int:  # noqa: F821
+    """The frame count a network's input must be a multiple of: 4 for the
+    paper's U-Net (it pools time twice), 1 for the (2+1)D networks."""
+    from .model.unet import UNet3D
+
+    return 4 if isinstance(net, UNet3D) else 1
+
+
+def _video_statistic(video: np.ndarray) -> Tuple[float, float]:
+    """Mean and standard deviation (unbiased, as the network's own) of a
+    video's unit-float values, in float64 (exact for uint8, by histogram)."""
+    if video.dtype == np.uint8:
+        counts = np.bincount(video.ravel(), minlength=256).astype(np.float64)
+        values = np.arange(256) / 255.0
+        n = counts.sum()
+        mean = float(counts @ values / n)
+        var = float(counts @ (values - mean) ** 2 / max(n - 1, 1))
+    else:
+        mean = float(video.mean(dtype=np.float64))
+        var = float(video.var(dtype=np.float64, ddof=1)) if video.size > 1 else 0.0
+    return mean, math.sqrt(var)
+
+
+def _check_sizes(name: str, value: Any) -> Tuple[int, int, int]:
+    try:
+        t, y, x = (int(v) for v in value if not isinstance(v, bool) and int(v) == v)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected three integers (frames, rows, columns), got {value!r}") from None
+    return t, y, x
+
+
+def field_frames(
+    video: np.ndarray,
+    net: "torch.nn.Module",  # noqa: F821
+    device: "torch.device",  # noqa: F821
+    tile: Optional[Tuple[int, int, int]] = None,
+    margin: Tuple[int, int, int] = MARGIN,
+) -> Iterator[Tuple[int, np.ndarray]]:
+    """The network's depth of a video (T, H, W), computed in overlapping
+    tiles, one span of frames at a time: pairs (t0, depth) of the first
+    frame's index and float32 depth (n, H, W) at the video's resolution
+    (the network's half-resolution output assembled, then upsampled
+    bilinearly once), in time order, covering every frame once. ``tile``:
+    a tile's core (frames, rows, columns; :data:`TILE`, or
+    :data:`GPU_TILE` on CUDA); ``margin``: its overlap on each side,
+    discarded (:data:`MARGIN`)."""
+    import torch
+
+    from .model.unet2p1d import STD_FLOOR
+
+    tile = (GPU_TILE if device.type == "cuda" else TILE) if tile is None else _check_sizes("tile", tile)
+    margin = _check_sizes("margin", margin)
+    if min(tile) < 1 or tile[1] % 8 or tile[2] % 8:
+        raise ValueError(f"tile: expected positive sizes, rows and columns multiples of 8, got {tile}")
+    if min(margin) < 0 or margin[1] % 8 or margin[2] % 8:
+        raise ValueError(f"margin: expected sizes ≥ 0, rows and columns multiples of 8, got {margin}")
+    t, h, w = video.shape
+    tm = _time_multiple(net)
+    # Back-pad (mirrored) to the network's multiples; the extra is discarded.
+    size = _network_size(video.shape, net)
+    source = np.pad(video, [(0, size[a] - video.shape[a]) for a in range(3)], mode="symmetric")
+    standardised = getattr(net, "forward_standardised", None)
+    mean, std = _video_statistic(video)
+    scale = 1.0 / (255.0 if video.dtype == np.uint8 else 1.0)
+    autocast = torch.autocast("cuda", dtype=torch.bfloat16) if device.type == "cuda" else nullcontext()
+    rows = _spans(size[1], tile[1], margin[1], 8)
+    cols = _spans(size[2], tile[2], margin[2], 8)
+    net.eval()
+    with torch.inference_mode(), autocast:
+        for lo, hi, keep_lo, keep_hi in _spans(size[0], tile[0], margin[0], tm):
+            half = np.empty((keep_hi - keep_lo, size[1] // 2, size[2] // 2), np.float32)
+            for y0, y1, ky0, ky1 in rows:
+                for x0, x1, kx0, kx1 in cols:
+                    x = torch.from_numpy(np.ascontiguousarray(source[lo:hi, y0:y1, x0:x1])).to(device).float()
+                    if standardised is not None:
+                        x = standardised(((x * scale - mean) / (std + STD_FLOOR))[None, None].contiguous(memory_format=torch.channels_last_3d))
+                    else:
+                        x = net((x * scale)[None, None].contiguous(memory_format=torch.channels_last_3d))
+                    out = x[0, 0, keep_lo - lo : keep_hi - lo, (ky0 - y0) // 2 : (ky1 - y0) // 2, (kx0 - x0) // 2 : (kx1 - x0) // 2]
+                    half[:, ky0 // 2 : ky1 // 2, kx0 // 2 : kx1 // 2] = out.float().cpu().numpy()
+            stop = min(keep_hi, t)
+            if stop > keep_lo:
+                yield keep_lo, _resize(half[: stop - keep_lo], (size[1], size[2]))[:, :h, :w]
+
+
+def field_windows(
+    layout: PatchLayout,
+    spans: Iterator[Tuple[int, np.ndarray]],
+    chunk: int = 64,
+    progress: Optional[Callable[[int, int], None]] = None,
+) -> Iterator[Tuple[np.ndarray, np.ndarray]]:
+    """The windows of ``layout`` cut from a depth video that arrives as
+    ``spans`` (pairs (t0, depth (n, H, W)) in time order, as
+    :func:`field_frames` yields them), mirrored into the layout's padding
+    (numpy's "symmetric" mode, as the video is): origins (n, 3) and depths
+    (n, 16, 64, 64), ``chunk`` at a time in the layout's (time-major)
+    order, each as soon as the frames it covers have arrived, as
+    :func:`patch_depths` yields them. Frames no window needs any more are
+    dropped. ``progress(frames, total)`` after each span."""
+    lt, ls, _ = PATCH
+    t = layout.shape[0]
+    # Padded index → video index on each axis.
+    index = [np.pad(np.arange(layout.shape[a]), (layout.pad[a], layout.padded[a] - layout.shape[a] - layout.pad[a]), mode="symmetric") for a in range(3)]
+    starts = sorted(set(int(o) for o in layout.origins[:, 0]))
+    # The lowest video frame a window from each temporal origin on still needs.
+    needs = {s: int(index[0][s:].min()) for s in starts}
+    buffer: dict = {}
+    done = 0
+    for s in starts:
+        frames = index[0][s : s + lt]
+        while done <= frames.max():
+            try:
+                t0, depth = next(spans)
+            except StopIteration:
+                raise ValueError(f"spans: ended at frame {done} of the layout's {t}") from None
+            if t0 != done or depth.shape[1:] != layout.shape[1:]:
+                raise ValueError(f"spans: expected frames from {done} of {layout.shape[1:]}, got {depth.shape[1:]} from {t0}")
+            buffer.update((t0 + i, d) for i, d in enumerate(depth))
+            done = t0 + len(depth)
+            if progress is not None:
+                progress(min(done, t), t)
+        # Copied C-ordered, so that the windows stacked from it are too.
+        padded = np.ascontiguousarray(np.stack([buffer[int(f)] for f in frames])[:, index[1]][:, :, index[2]], dtype=np.float32)
+        origins = layout.origins[layout.origins[:, 0] == s]
+        for i in range(0, len(origins), chunk):
+            part = origins[i : i + chunk]
+            yield part, np.stack([padded[:, y : y + ls, x : x + ls] for _, y, x in part])
+        keep = needs.get(s + lt // 2, t)
+        for f in [f for f in buffer if f < keep]:
+            del buffer[f]
+
+
+def tile_plan(shape: Tuple[int, int, int], net: "torch.nn.Module", tile: Tuple[int, int, int] = TILE, margin: Tuple[int, int, int] = MARGIN) -> list:  # noqa: F821
+    """The tiles :func:`field_frames` runs ``net`` on for a video of
+    ``shape`` (T, H, W): ((t0, t1), (y0, y1), (x0, x1)) input ranges,
+    margins included, over the video back-padded to the network's
+    multiples."""
+    size = _network_size(shape, net)
+    spans = [_spans(size[0], tile[0], margin[0], _time_multiple(net))] + [_spans(size[a], tile[a], margin[a], 8) for a in (1, 2)]
+    return [((t0, t1), (y0, y1), (x0, x1)) for t0, t1, _, _ in spans[0] for y0, y1, _, _ in spans[1] for x0, x1, _, _ in spans[2]]
+
+
+def _network_size(shape: Tuple[int, int, int], net: "torch.nn.Module") -> Tuple[int, int, int]:  # noqa: F821
+    """``shape`` rounded up to what ``net`` takes: rows and columns to multiples of 8, frames of :func:`_time_multiple`."""
+    tm = _time_multiple(net)
+    return (-(-shape[0] // tm) * tm, -(-shape[1] // 8) * 8, -(-shape[2] // 8) * 8)
+
+
+def reconstruct(
+    video: np.ndarray,
+    model: Union[None, str, "os.PathLike[str]", "torch.nn.Module"] = None,  # noqa: F821
+    batch_size: int = 8,
+    device: str = "auto",
+    progress: Optional[Callable[[int, int], None]] = None,
+    temporal: bool = False,
+    roi: Optional[Tuple[int, int, int, int]] = None,
+    frames: Optional[slice] = None,
+    units: str = "standard",
+    alignment: str = "joint",
+    coarse_weight: float = COARSE_WEIGHT,
+    window: str = "hann",
+    temporal_weight: float = TEMPORAL_WEIGHT,
+    fine: str = "field",
+    max_side: Optional[int] = None,
+    tile: Optional[Tuple[int, int, int]] = None,
+) -> np.ndarray:
+    """Depth video float32 (T, H, W) of a video (T, H, W) or colour video
+    (T, H, W, 3) (uint8, or float in [0, 1]; colour becomes luma, ITU-R
+    BT.601, as ``nrdepth reconstruct`` does) with a trained model: a module, a
+    ``model.safetensors`` path or run folder, or ``None`` for the default
+    model shipped in the package.
+
+    - ``frames`` (a slice) and ``roi`` (x, y, width, height in pixels)
+      select the part of the video to reconstruct.
+    - ``max_side``: reconstruct at a working resolution whose longer side is
+      at most this many pixels (area-averaged down, depth bilinearly back
+      up to the selected frames' size); ``None`` works at the video's own.
+      The network reads relief at the scale of its 64-pixel patches, so a
+      real video's working resolution is a choice about which relief it
+      sees (docs/benchmarks.md measures it on the real videos).
+    - ``fine``: ``"field"`` (one network pass over the video in tiles of
+      core ``tile``) or ``"patches"`` (every window on its own, 8× the
+      work; module docstring).
+    - ``progress(done, total)`` is called as frames of the fine pass are
+      done.
+    - ``temporal`` applies :func:`~nrdepth.stitch.temporal_align` to the
+      stitched video: it gives every frame frame 0's plane and relief norm,
+      which helps a model that predicts neither (one trained with per-frame
+      losses) and hurts one that predicts the plane's motion, as the
+      shipped model does (off by default, as in the paper).
+    - ``alignment``: ``"joint"`` with ``coarse_weight`` and
+      ``temporal_weight`` (the default) or ``"coarse"`` (the paper's);
+      ``window``: ``"hann"`` (the default) or ``"triangle"`` (the paper's;
+      :mod:`nrdepth.stitch`).
+
+    Depth is defined up to one GBR per frame (one for the video with
+    ``temporal``) and returned with zero mean over the video, in ``units``:
+    ``"standard"`` (unit standard deviation over the video) or ``"pixels"``
+    (depth in pixels of the video, the relief's scale as the model reads
+    it: only for a model trained with a relief-amplitude term, whose
+    ``depth_units`` is ``"window"``; without ``model``, the shipped one that
+    learnt it, :data:`nrdepth.model.SCALED_MODEL`. The coarse pass sees the
+    whole frame as one window, so a window width is √(H·W) pixels, and the
+    stitched relief is given the coarse pass's scale by one least-squares
+    factor over the video). Its overall sign (convex or concave) follows
+    the training data's light-from-above prior (lights within ±70° of
+    image-up, row 0 being the top): under an orthographic camera a surface
+    and its mirror image under mirrored lights make the same video, so a
+    video lit from below reads inverted, and ``-depth`` is the other
+    reading."""
+    import torch
+
+    from .model.io import resolve_device
+
+    video = select(to_gray(video, "video"), frames, roi)
+    if isinstance(batch_size, bool) or not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
+        raise ValueError(f"batch_size: expected a positive integer, got {batch_size!r}")
+    batch_size = int(batch_size)
+    if progress is not None and not callable(progress):
+        raise TypeError(f"progress: expected a callable progress(done, total) or None, got {type(progress).__name__}")
+    if model is not None and not isinstance(model, (str, os.PathLike, torch.nn.Module)):
+        raise TypeError(f"model: expected None, a path to model.safetensors or its folder, or a torch.nn.Module, got {type(model).__name__}")
+    if units not in ("standard", "pixels"):
+        raise ValueError(f"units: expected 'standard' or 'pixels', got {units!r}")
+    if fine not in FINE_PASSES:
+        raise ValueError(f"fine: expected one of {FINE_PASSES}, got {fine!r}")
+    if max_side is not None and (isinstance(max_side, bool) or not isinstance(max_side, (int, np.integer)) or max_side < 8):
+        raise ValueError(f"max_side: expected None or an integer ≥ 8, got {max_side!r}")
+    if tile is not None:
+        tile = _check_sizes("tile", tile)
+    _check_stitching(alignment, coarse_weight, window, temporal_weight)
+    dev = resolve_device(device)
+    if model is None and units == "pixels":
+        from .model.io import SCALED_MODEL
+
+        model = SCALED_MODEL
+    net = model.to(dev).eval() if isinstance(model, torch.nn.Module) else inference_model(model, dev)
+    if units == "pixels" and getattr(net, "depth_units", None) != "window":
+        raise ValueError("units: 'pixels' needs a model that learnt the relief's scale (model.json's depth_units 'window', "
+                         "nrdepth train --amplitude); this one gives depth up to scale: use units='standard'")
+    full = video.shape[1:]
+    work = working_shape(full, max_side)
+    if work != full:
+        video = _resize(_as_unit_float(video), work)
+    layout = patch_layout(video.shape)
+    coarse = coarse_depth(video, net, batch_size, dev)
+    stitcher = _stitcher(coarse, layout.patch, alignment, coarse_weight, window, temporal_weight)
+    if units != "pixels":
+        del coarse  # the stitcher holds its own copy; only the pixel scale needs this one
+    if fine == "field":
+        windows = field_windows(layout, field_frames(video, net, dev, tile), progress=progress)
+    else:
+        windows = _counted(patch_depths(video, net, layout, batch_size, dev), layout, progress)
+    for origins, depth in windows:
+        stitcher.add(depth, origins)
+    depth = stitcher.finish()
+    if temporal:
+        depth = temporal_align(depth)
+    if units == "pixels":
+        # The coarse pass reads the relief's scale (one window the frame); the
+        # patches' fits shrink it (least squares regresses toward the fit's
+        # target, and the joint alignment's agreement term falls with the
+        # scale squared), so the stitched relief takes the coarse pass's.
+        depth = depth * _relief_scale(depth, coarse)
+        depth = (depth - depth.mean(dtype=np.float64)) * np.sqrt(work[0] * work[1])
+        if work != full:
+            depth = _resize(depth, full) * (full[1] / work[1])  # pixels of the video, not of the working frame
+        return depth.astype(np.float32)
+    if work != full:
+        depth = _resize(depth, full)
+    # A network without a depth scale (GBR-invariant losses only): return a
+    # canonical one rather than whatever magnitude its weights drifted to.
+    return _standardise(depth)
+
+
+def _standardise(depth: np.ndarray) -> np.ndarray:
+    """``depth`` (float32, owned) with zero mean and unit standard
+    deviation, in place: float64 sums a frame at a time, no full-size
+    float64 copy."""
+    mean = depth.mean(dtype=np.float64)
+    var = sum(float(np.square(frame - mean).sum()) for frame in depth) / depth.size  # ``frame - mean``: float64
+    std = math.sqrt(var) if var > 0 else 1.0
+    for frame in depth:
+        frame[...] = (frame - mean) / std
+    return depth
+
+
+def _counted(windows: Iterator[Tuple[np.ndarray, np.ndarray]], layout: PatchLayout, progress: Optional[Callable[[int, int], None]]) -> Iterator[Tuple[np.ndarray, np.ndarray]]:
+    """``windows`` of :func:`patch_depths`, calling ``progress(frames,
+    total)`` with the frames whose patches have all been read."""
+    t = layout.shape[0]
+    for origins, depth in windows:
+        yield origins, depth
+        if progress is not None:
+            # Time-major: every window starting before the last one's origin is in.
+            progress(int(min(t, max(0, origins[-1, 0] - layout.pad[0]))), t)
+    if progress is not None:
+        progress(t, t)
+
+
+def _relief_scale(depth: np.ndarray, reference: np.ndarray) -> float:
+    """Least-squares s with s·r(depth) ≈ r(reference) over a video (T, H,
+    W), r being each frame minus its least-squares plane; 1 if ``depth`` has
+    no relief (planar frames, up to rounding)."""
+    _, h, w = depth.shape
+    y, x = np.mgrid[0:h, 0:w]
+    basis, _ = np.linalg.qr(np.stack([x.ravel(), y.ravel(), np.ones(h * w)], axis=1))
+    num = den = total = 0.0
+    for frame, ref in zip(depth, reference):
+        f = frame.ravel().astype(np.float64)
+        total += float(f @ f)
+        f -= basis @ (basis.T @ f)
+        num += float(f @ ref.ravel())  # the plane of ``ref`` is orthogonal to the residual ``f``
+        den += float(f @ f)
+    return num / den if den > 1e-12 * total else 1.0
