@@ -65,8 +65,13 @@
 //! as soon as every patch covering them has arrived (the work of a frame or
 //! block runs in parallel), and a patch is dropped once all its frames are
 //! solved, so time-major input keeps two temporal windows of patches in
-//! memory (three while tied). The bytes depend only on the patches, not on
-//! their order, chunking or the thread count. Shapes as in `stitch`:
+//! memory (three while tied). The coarse depth may come a few frames at a
+//! time (`push_coarse`: a span is solved once its coarse depth is there too)
+//! and the stitched frames be taken as they are solved (`take`, which
+//! releases them and their coarse depth), so a video streams through in
+//! memory that does not grow with its length. The bytes depend only on the
+//! patches and the coarse depth, not on their order, chunking, the thread
+//! count or streaming. Shapes as in `stitch`:
 //! patches (N, Lt, Ls, Ls) at padded origins (t, y, x) on the layout's grid,
 //! coarse and output (T, H, W), row-major f32.
 
@@ -108,10 +113,14 @@ struct PatchFrame<'a> {
 /// Streaming joint stitcher: `add` patches in any grouping and order, then `finish`.
 pub struct JointStitcher {
     layout: Layout,
+    /// The coarse depth of frames `coarse_start ..` (as many as were given).
     coarse: Vec<f32>,
+    coarse_start: usize,
     coarse_weight: f64,
     temporal_weight: f64,
+    /// The stitched frames `video_start .. next`, not yet taken.
     video: Vec<f32>,
+    video_start: usize,
     windows: [Vec<f32>; 3],
     /// Patches per axis of the grid.
     counts: [usize; 3],
@@ -130,11 +139,13 @@ pub struct JointStitcher {
 }
 
 impl JointStitcher {
-    /// `coarse`: the coarse depth (T, H, W); `coarse_weight`: μ > 0;
-    /// `temporal_weight`: ν ≥ 0 (module header).
+    /// `coarse`: the coarse depth (T, H, W), or its first frames, the rest
+    /// to come by `push_coarse`; `coarse_weight`: μ > 0; `temporal_weight`:
+    /// ν ≥ 0 (module header).
     pub fn new(layout: Layout, coarse: Vec<f32>, coarse_weight: f64, temporal_weight: f64, window: Window) -> Result<Self> {
-        if coarse.len() != layout.shape.iter().product::<usize>() {
-            return Err(InvalidArgument::new("coarse", format!("expected shape {:?}", layout.shape)));
+        let frame = layout.shape[1] * layout.shape[2];
+        if coarse.len() % frame != 0 || coarse.len() > layout.shape.iter().product::<usize>() {
+            return Err(InvalidArgument::new("coarse", format!("expected at most {} frames of {:?}, got {} values", layout.shape[0], &layout.shape[1..], coarse.len())));
         }
         if !coarse.iter().all(|v| v.is_finite()) {
             return Err(InvalidArgument::new("coarse", "expected finite values"));
@@ -147,8 +158,10 @@ impl JointStitcher {
         }
         let counts: [usize; 3] = std::array::from_fn(|a| (layout.padded[a] - layout.patch[a]) / (layout.patch[a] / 2) + 1);
         let mut stitcher = Self {
-            video: vec![0.0; coarse.len()],
+            video: Vec::new(),
+            video_start: 0,
             coarse,
+            coarse_start: 0,
             coarse_weight,
             temporal_weight,
             windows: layout.patch.map(|l| window.weights(l)),
@@ -232,6 +245,41 @@ impl JointStitcher {
                 self.missing[t] -= 1;
             }
         }
+        self.advance();
+        Ok(())
+    }
+
+    /// Append the coarse depth of the next frames (whole frames, (n, H, W));
+    /// solve, in time order, every frame this completes.
+    pub fn push_coarse(&mut self, frames: &[f32]) -> Result<()> {
+        let frame = self.layout.shape[1] * self.layout.shape[2];
+        let have = self.coarse_start + self.coarse.len() / frame;
+        if frames.len() % frame != 0 || have + frames.len() / frame > self.layout.shape[0] {
+            return Err(InvalidArgument::new("coarse", format!("expected whole frames of {:?}, at most {} more, got {} values", &self.layout.shape[1..], self.layout.shape[0] - have, frames.len())));
+        }
+        if !frames.iter().all(|v| v.is_finite()) {
+            return Err(InvalidArgument::new("coarse", "expected finite values"));
+        }
+        self.coarse.extend_from_slice(frames);
+        self.advance();
+        Ok(())
+    }
+
+    /// The frames stitched since the last `take` (n, H, W), in time order;
+    /// they, and the coarse depth of every solved frame, are released.
+    pub fn take(&mut self) -> Vec<f32> {
+        let frame = self.layout.shape[1] * self.layout.shape[2];
+        self.coarse.drain(..(self.next - self.coarse_start) * frame);
+        self.coarse_start = self.next;
+        self.video_start = self.next;
+        std::mem::take(&mut self.video)
+    }
+
+    /// Solve every span whose patches and coarse depth have all arrived, in
+    /// time order, then release the patches whose frames are all solved.
+    fn advance(&mut self) {
+        let frame = self.layout.shape[1] * self.layout.shape[2];
+        let coarse_end = self.coarse_start + self.coarse.len() / frame;
         while self.next < self.layout.shape[0] {
             // Untied, a frame is solved on its own; tied, a block with the
             // blocks after it (module header).
@@ -241,7 +289,7 @@ impl JointStitcher {
                 let block = self.block_of(self.next);
                 (self.block_end(block), self.block_end(block + LOOKAHEAD))
             };
-            if (self.next..end).any(|t| self.missing[t] > 0) {
+            if end > coarse_end || (self.next..end).any(|t| self.missing[t] > 0) {
                 break;
             }
             self.solve_span(self.next..end, keep);
@@ -257,16 +305,22 @@ impl JointStitcher {
                 }
             }
         }
-        Ok(())
     }
 
-    /// The stitched video (T, H, W); every patch of the layout must have been added.
-    pub fn finish(self) -> Result<Vec<f32>> {
+    /// The stitched frames not yet taken (all of them, (T, H, W), without
+    /// `take`); every patch of the layout and every frame's coarse depth must
+    /// have been added.
+    pub fn finish(mut self) -> Result<Vec<f32>> {
         let absent = self.received.iter().filter(|&&r| !r).count();
         if absent > 0 {
             return Err(InvalidArgument::new("patches", format!("{absent} of the layout's {} patches were never added", self.received.len())));
         }
-        Ok(self.video)
+        let frame = self.layout.shape[1] * self.layout.shape[2];
+        let given = self.coarse_start + self.coarse.len() / frame;
+        if given < self.layout.shape[0] {
+            return Err(InvalidArgument::new("coarse", format!("{} of the video's {} frames were never given", self.layout.shape[0] - given, self.layout.shape[0])));
+        }
+        Ok(std::mem::take(&mut self.video))
     }
 
     /// The patch-frames covering frame t (all received).
@@ -333,7 +387,7 @@ impl JointStitcher {
         let [_, hh, ww] = self.layout.shape;
         let [_, ly, lx] = self.layout.patch;
         let mu = self.coarse_weight;
-        let coarse = &self.coarse[t * hh * ww..(t + 1) * hh * ww];
+        let coarse = &self.coarse[(t - self.coarse_start) * hh * ww..(t - self.coarse_start + 1) * hh * ww];
         let (wy, wx) = (&self.windows[1], &self.windows[2]);
         let diagonal: Vec<(Matrix4<f64>, Vector4<f64>)> = frames
             .par_iter()
@@ -560,7 +614,8 @@ impl JointStitcher {
             }
             (video, solved, ahead)
         };
-        self.video[span.start * hh * ww..keep * hh * ww].copy_from_slice(&video);
+        debug_assert_eq!(self.video_start + self.video.len() / (hh * ww), span.start);
+        self.video.extend_from_slice(&video);
         self.ahead = ahead;
         // In time order, so each patch keeps its GBR at the last kept frame it covers.
         for (index, g) in solved {
@@ -1047,6 +1102,51 @@ mod tests {
             stitcher.add(&patches[i * plen..(i + 1) * plen], &origins[i..i + 1]).unwrap();
         }
         assert_eq!(stitcher.finish().unwrap(), whole);
+    }
+
+    #[test]
+    fn streamed_coarse_depth_and_taken_frames_give_the_same_bytes() {
+        for (steady, nu) in [(false, 0.0), (true, 0.5)] {
+            let (layout, truth, patches, origins) = scene_of([21, 16, 24], [4, 8, 8], steady);
+            let whole = joint(&layout, &truth, 0.01, nu, Window::Hann, &patches, &origins);
+            let (plen, frame) = (4 * 8 * 8, 16 * 24);
+            // The coarse depth three frames at a time, a step ahead of the patches; frames taken as they come.
+            let mut stitcher = JointStitcher::new(layout, truth[..2 * frame].to_vec(), 0.01, nu, Window::Hann).unwrap();
+            let (mut given, mut out, mut most) = (2, Vec::new(), 0);
+            for (chunk, o) in patches.chunks(6 * plen).zip(origins.chunks(6)) {
+                let want = (o.last().unwrap()[0] + 3).min(21);
+                if want > given {
+                    stitcher.push_coarse(&truth[given * frame..want * frame]).unwrap();
+                    given = want;
+                }
+                stitcher.add(chunk, o).unwrap();
+                let taken = stitcher.take();
+                assert_eq!(taken.len() % frame, 0);
+                out.extend(taken);
+                most = most.max(stitcher.video.len() + stitcher.coarse.len());
+            }
+            assert_eq!(given, 21);
+            out.extend(stitcher.finish().unwrap());
+            assert_eq!(out, whole);
+            // All the patches first, then the coarse depth five frames at a time.
+            let mut stitcher = JointStitcher::new(layout, Vec::new(), 0.01, nu, Window::Hann).unwrap();
+            assert!(stitcher.push_coarse(&truth[..frame + 1]).is_err(), "whole frames only");
+            let mut out = Vec::new();
+            for (chunk, o) in patches.chunks(6 * plen).zip(origins.chunks(6)) {
+                stitcher.add(chunk, o).unwrap();
+            }
+            for part in truth.chunks(5 * frame) {
+                stitcher.push_coarse(part).unwrap();
+                out.extend(stitcher.take());
+            }
+            assert!(stitcher.push_coarse(&truth[..frame]).is_err(), "no frames past the video");
+            out.extend(stitcher.finish().unwrap());
+            assert_eq!(out, whole);
+            let mut stitcher = JointStitcher::new(layout, truth[..frame].to_vec(), 0.01, nu, Window::Hann).unwrap();
+            stitcher.add(&patches, &origins).unwrap();
+            assert!(stitcher.finish().is_err(), "finish needs every frame's coarse depth");
+            assert!(most < truth.len() / 2, "streamed, the stitcher held {most} values of a video of {}", truth.len());
+        }
     }
 
     #[test]

@@ -587,7 +587,10 @@ enum Alignment {
 /// Without `coarse_weight`, each patch is aligned to the coarse depth on its
 /// own (the paper); with it, all together (`crate::joint`: origins on the
 /// layout's grid, each once, and every patch added before `finish`), each
-/// patch's GBRs tied over time by `temporal_weight`.
+/// patch's GBRs tied over time by `temporal_weight`. The joint alignment
+/// also streams: given `frames` (the video's T), `coarse` may hold only the
+/// first frames, the rest coming by `push_coarse`, and `take` returns the
+/// frames stitched so far and releases them.
 #[pyclass(name = "Stitcher", module = "nrdepth._core")]
 struct PyStitcher {
     inner: Option<Alignment>,
@@ -598,10 +601,24 @@ struct PyStitcher {
 #[pymethods]
 impl PyStitcher {
     #[new]
-    #[pyo3(signature = (coarse, patch, window, coarse_weight=None, temporal_weight=0.0))]
-    fn new(py: Python<'_>, coarse: PyReadonlyArray3<'_, f32>, patch: (i64, i64, i64), window: &str, coarse_weight: Option<f64>, temporal_weight: f64) -> PyResult<Self> {
+    #[pyo3(signature = (coarse, patch, window, coarse_weight=None, temporal_weight=0.0, frames=None))]
+    fn new(
+        py: Python<'_>,
+        coarse: PyReadonlyArray3<'_, f32>,
+        patch: (i64, i64, i64),
+        window: &str,
+        coarse_weight: Option<f64>,
+        temporal_weight: f64,
+        frames: Option<i64>,
+    ) -> PyResult<Self> {
         let window = crate::stitch::Window::from_name(window).map_err(value_error)?;
-        let cs = coarse.shape();
+        let given = coarse.shape()[0];
+        let t = match frames {
+            None => given,
+            Some(t) if t >= 1 && t as usize >= given && coarse_weight.is_some() => t as usize,
+            Some(t) => return Err(PyValueError::new_err(format!("frames: expected the video's frame count, at least coarse's {given}, with coarse_weight (the joint alignment streams), got {t}"))),
+        };
+        let cs = [t, coarse.shape()[1], coarse.shape()[2]];
         let ps = [patch.0, patch.1, patch.2];
         if ps.iter().any(|&l| !(2..=1 << 12).contains(&l)) {
             return Err(PyValueError::new_err(format!("patch: expected three sizes in [2, 4096], got {ps:?}")));
@@ -648,14 +665,40 @@ impl PyStitcher {
         .map_err(value_error)
     }
 
+    /// The joint alignment's coarse depth of the next frames (n, H, W).
+    fn push_coarse(&mut self, py: Python<'_>, coarse: PyReadonlyArray3<'_, f32>) -> PyResult<()> {
+        let [_, h, w] = self.shape;
+        if coarse.shape()[1..] != [h, w] {
+            return Err(PyValueError::new_err(format!("coarse: expected frames of ({h}, {w}), got {:?}", coarse.shape())));
+        }
+        let c = coarse.as_slice().map_err(|_| PyValueError::new_err("coarse: expected a C-contiguous array"))?;
+        match self.inner.as_mut().ok_or_else(|| PyRuntimeError::new_err("Stitcher: already finished"))? {
+            Alignment::Coarse(_) => Err(PyValueError::new_err("coarse: the paper's alignment takes the whole coarse depth at once (it does not stream)")),
+            Alignment::Joint(s) => parallel(py, || s.push_coarse(c))?.map_err(value_error),
+        }
+    }
+
+    /// The joint alignment's frames stitched since the last `take` (n, H, W).
+    fn take<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let [_, h, w] = self.shape;
+        let video = match self.inner.as_mut().ok_or_else(|| PyRuntimeError::new_err("Stitcher: already finished"))? {
+            Alignment::Coarse(_) => return Err(PyValueError::new_err("take: the paper's alignment gives its video at finish (it does not stream)")),
+            Alignment::Joint(s) => s.take(),
+        };
+        let n = video.len() / (h * w);
+        Ok(PyArray1::from_vec(py, video).reshape([n, h, w])?.into_any())
+    }
+
+    /// The frames not yet taken (all of them without `take`).
     fn finish<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let stitcher = self.inner.take().ok_or_else(|| PyRuntimeError::new_err("Stitcher: already finished"))?;
         let video = match stitcher {
             Alignment::Coarse(s) => s.finish(),
             Alignment::Joint(s) => s.finish().map_err(value_error)?,
         };
-        let [t, h, w] = self.shape;
-        Ok(PyArray1::from_vec(py, video).reshape([t, h, w])?.into_any())
+        let [_, h, w] = self.shape;
+        let n = video.len() / (h * w);
+        Ok(PyArray1::from_vec(py, video).reshape([n, h, w])?.into_any())
     }
 }
 

@@ -39,7 +39,7 @@ from __future__ import annotations
 import math
 import os
 from contextlib import nullcontext
-from typing import Any, Callable, Iterator, Optional, Tuple, Union
+from typing import Any, Callable, Iterable, Iterator, Optional, Tuple, Union
 
 import numpy as np
 
@@ -115,15 +115,21 @@ def coarse_depth(video: np.ndarray, net: "torch.nn.Module", batch_size: int, dev
     relief's sign), and this one reading sets every patch's large-scale
     shape, so halving its variance pays (docs/stitching.md); the pass runs
     one network window per 16 frames, so reading it twice is nearly free."""
+    _, h, w = video.shape
+    return _resize(coarse_half(_resize(_as_unit_float(video), PATCH[1:]), net, batch_size, device, readings), (h, w))
+
+
+def coarse_half(small: np.ndarray, net: "torch.nn.Module", batch_size: int, device: "torch.device", readings: int = 2) -> np.ndarray:  # noqa: F821
+    """The network's depth (T, 32, 32) of a video already at the patch side
+    (T, 64, 64) float in [0, 1], in 16-frame windows, the last one mirrored
+    (:func:`coarse_depth` before its resize back)."""
     from .model.io import predict_depth
 
     lt, ls, _ = PATCH
-    t, h, w = video.shape
+    t = len(small)
     windows = -(-t // lt)
-    small = np.pad(_resize(_as_unit_float(video), (ls, ls)), ((0, windows * lt - t), (0, 0), (0, 0)), mode="symmetric")
-    small = small.reshape(windows, lt, ls, ls)
-    coarse = predict_depth(net, small, batch_size, device, readings=readings)
-    return _resize(coarse.reshape(windows * lt, ls // 2, ls // 2)[:t], (h, w))
+    small = np.pad(small, ((0, windows * lt - t), (0, 0), (0, 0)), mode="symmetric").reshape(windows, lt, ls, ls)
+    return predict_depth(net, small, batch_size, device, readings=readings).reshape(windows * lt, ls // 2, ls // 2)[:t]
 
 
 def patch_depths(
@@ -168,19 +174,32 @@ def _time_multiple(net: "torch.nn.Module") -> int:  # noqa: F821
     return 4 if isinstance(net, UNet3D) else 1
 
 
-def _video_statistic(video: np.ndarray) -> Tuple[float, float]:
-    """Mean and standard deviation (unbiased, as the network's own) of a
-    video's unit-float values, in float64 (exact for uint8, by histogram)."""
-    if video.dtype == np.uint8:
-        counts = np.bincount(video.ravel(), minlength=256).astype(np.float64)
+class Statistic:
+    """Mean and standard deviation (unbiased, as the networks' own) of a
+    video's unit-float values, accumulated a chunk of frames at a time, in
+    float64 (exact for uint8, by histogram)."""
+
+    def __init__(self) -> None:
+        self.counts = np.zeros(256, np.float64)
+        self.n = 0
+        self.total = self.squares = 0.0
+
+    def add(self, frames: np.ndarray) -> None:
+        if frames.dtype == np.uint8:
+            self.counts += np.bincount(frames.ravel(), minlength=256)
+        else:
+            self.n += frames.size
+            self.total += float(frames.sum(dtype=np.float64))
+            self.squares += float(np.square(frames, dtype=np.float64).sum())
+
+    def result(self) -> Tuple[float, float]:
         values = np.arange(256) / 255.0
-        n = counts.sum()
-        mean = float(counts @ values / n)
-        var = float(counts @ (values - mean) ** 2 / max(n - 1, 1))
-    else:
-        mean = float(video.mean(dtype=np.float64))
-        var = float(video.var(dtype=np.float64, ddof=1)) if video.size > 1 else 0.0
-    return mean, math.sqrt(var)
+        n = self.counts.sum() + self.n
+        total = float(self.counts @ values) + self.total
+        squares = float(self.counts @ values**2) + self.squares
+        mean = total / max(n, 1)
+        var = max(squares - n * mean * mean, 0.0) / max(n - 1, 1)
+        return mean, math.sqrt(var)
 
 
 def _check_sizes(name: str, value: Any) -> Tuple[int, int, int]:
@@ -192,20 +211,26 @@ def _check_sizes(name: str, value: Any) -> Tuple[int, int, int]:
 
 
 def field_frames(
-    video: np.ndarray,
+    video: Union[np.ndarray, Tuple[Tuple[int, int, int], Iterable[np.ndarray]]],
     net: "torch.nn.Module",  # noqa: F821
     device: "torch.device",  # noqa: F821
     tile: Optional[Tuple[int, int, int]] = None,
     margin: Tuple[int, int, int] = MARGIN,
+    statistic: Optional[Tuple[float, float]] = None,
 ) -> Iterator[Tuple[int, np.ndarray]]:
-    """The network's depth of a video (T, H, W), computed in overlapping
-    tiles, one span of frames at a time: pairs (t0, depth) of the first
-    frame's index and float32 depth (n, H, W) at the video's resolution
-    (the network's half-resolution output assembled, then upsampled
-    bilinearly once), in time order, covering every frame once. ``tile``:
-    a tile's core (frames, rows, columns; :data:`TILE`, or
-    :data:`GPU_TILE` on CUDA); ``margin``: its overlap on each side,
-    discarded (:data:`MARGIN`)."""
+    """The network's depth of a video, computed in overlapping tiles, one
+    span of frames at a time: pairs (t0, depth) of the span's first frame
+    and its float32 depth (n, H, W) at the video's resolution (the
+    network's half-resolution output assembled, then upsampled bilinearly
+    once), in time order, covering every frame once.
+
+    ``video``: an array (T, H, W), or its shape and an iterable of its
+    frames in chunks (n, H, W) in order, read only as far as each span
+    needs (uint8, or float in [0, 1]). ``statistic``: the (mean, standard
+    deviation) the input is standardised with (default: the array's own;
+    required with chunks). ``tile``: a tile's core (frames, rows, columns;
+    :data:`TILE`, or :data:`GPU_TILE` on CUDA); ``margin``: its overlap on
+    each side, discarded (:data:`MARGIN`)."""
     import torch
 
     from .model.unet2p1d import STD_FLOOR
@@ -216,33 +241,55 @@ def field_frames(
         raise ValueError(f"tile: expected positive sizes, rows and columns multiples of 8, got {tile}")
     if min(margin) < 0 or margin[1] % 8 or margin[2] % 8:
         raise ValueError(f"margin: expected sizes ≥ 0, rows and columns multiples of 8, got {margin}")
-    t, h, w = video.shape
+    if isinstance(video, np.ndarray):
+        shape, chunks = video.shape, [video]
+        if statistic is None:
+            statistic = Statistic()
+            statistic.add(video)
+            statistic = statistic.result()
+    else:
+        shape, chunks = video
+        if statistic is None:
+            raise ValueError("statistic: required when the video comes in chunks")
+    mean, std = statistic
+    t, h, w = shape
     tm = _time_multiple(net)
-    # Back-pad (mirrored) to the network's multiples; the extra is discarded.
-    size = _network_size(video.shape, net)
-    source = np.pad(video, [(0, size[a] - video.shape[a]) for a in range(3)], mode="symmetric")
+    # The network's multiples, reached by mirroring the last frames, rows and columns; the extra is discarded.
+    size = _network_size(shape, net)
+    frame_of = np.pad(np.arange(t), (0, size[0] - t), mode="symmetric")
     standardised = getattr(net, "forward_standardised", None)
-    mean, std = _video_statistic(video)
-    scale = 1.0 / (255.0 if video.dtype == np.uint8 else 1.0)
     autocast = torch.autocast("cuda", dtype=torch.bfloat16) if device.type == "cuda" else nullcontext()
     rows = _spans(size[1], tile[1], margin[1], 8)
     cols = _spans(size[2], tile[2], margin[2], 8)
+    spans = _spans(size[0], tile[0], margin[0], tm)
+    source, loaded, buffer = iter(chunks), 0, {}
     net.eval()
     with torch.inference_mode(), autocast:
-        for lo, hi, keep_lo, keep_hi in _spans(size[0], tile[0], margin[0], tm):
+        for n, (lo, hi, keep_lo, keep_hi) in enumerate(spans):
+            needed = frame_of[lo:hi]
+            while loaded <= needed.max():
+                chunk = next(source, None)
+                if chunk is None or chunk.shape[1:] != (h, w):
+                    raise ValueError(f"video: expected {t} frames of {(h, w)}, got {'no more' if chunk is None else chunk.shape[1:]} at frame {loaded}")
+                for frame in chunk:
+                    buffer[loaded] = np.pad(frame, ((0, size[1] - h), (0, size[2] - w)), mode="symmetric")
+                    loaded += 1
+            block = np.stack([buffer[int(f)] for f in needed])
+            scale = 1.0 / 255.0 if block.dtype == np.uint8 else 1.0
             half = np.empty((keep_hi - keep_lo, size[1] // 2, size[2] // 2), np.float32)
             for y0, y1, ky0, ky1 in rows:
                 for x0, x1, kx0, kx1 in cols:
-                    x = torch.from_numpy(np.ascontiguousarray(source[lo:hi, y0:y1, x0:x1])).to(device).float()
-                    if standardised is not None:
-                        x = standardised(((x * scale - mean) / (std + STD_FLOOR))[None, None].contiguous(memory_format=torch.channels_last_3d))
-                    else:
-                        x = net((x * scale)[None, None].contiguous(memory_format=torch.channels_last_3d))
+                    x = torch.from_numpy(np.ascontiguousarray(block[:, y0:y1, x0:x1])).to(device).float() * scale
+                    x = x[None, None].contiguous(memory_format=torch.channels_last_3d)
+                    x = standardised((x - mean) / (std + STD_FLOOR)) if standardised is not None else net(x)
                     out = x[0, 0, keep_lo - lo : keep_hi - lo, (ky0 - y0) // 2 : (ky1 - y0) // 2, (kx0 - x0) // 2 : (kx1 - x0) // 2]
                     half[:, ky0 // 2 : ky1 // 2, kx0 // 2 : kx1 // 2] = out.float().cpu().numpy()
             stop = min(keep_hi, t)
             if stop > keep_lo:
                 yield keep_lo, _resize(half[: stop - keep_lo], (size[1], size[2]))[:, :h, :w]
+            keep = int(frame_of[spans[n + 1][0] :].min()) if n + 1 < len(spans) else t
+            for f in [f for f in buffer if f < keep]:
+                del buffer[f]
 
 
 def field_windows(
@@ -308,6 +355,155 @@ def _network_size(shape: Tuple[int, int, int], net: "torch.nn.Module") -> Tuple[
     return (-(-shape[0] // tm) * tm, -(-shape[1] // 8) * 8, -(-shape[2] // 8) * 8)
 
 
+CHUNK = 16
+"""Frames a chunk as the pipeline reads, converts and writes them."""
+
+
+class _Pipeline:
+    """The coarse pass, fine pass and stitch of a video of frames (H, W)
+    that ``chunks()`` gives in order, in chunks, each time it is called. The
+    video is read twice: for the input statistic, the frame count and the
+    coarse pass's small frames (64×64), then by the fine pass, a span of
+    frames at a time; at the working resolution of ``max_side``."""
+
+    def __init__(self, frame: Tuple[int, int], chunks: Callable[[], Iterable[np.ndarray]], net: Any, device: Any, batch_size: int, fine: str,
+                 alignment: str, coarse_weight: float, window: str, temporal_weight: float, max_side: Optional[int], tile: Optional[Tuple[int, int, int]]) -> None:
+        self.full, self.work = frame, working_shape(frame, max_side)
+        self.chunks, self.net, self.device, self.batch_size, self.fine, self.tile = chunks, net, device, batch_size, fine, tile
+        self.stitching = (alignment, coarse_weight, window, temporal_weight)
+        statistic, small = Statistic(), []
+        for chunk in self.working():
+            statistic.add(chunk)
+            small.append(_resize(_as_unit_float(chunk), PATCH[1:]))
+        if not small:
+            raise ValueError("video: holds no frames")
+        self.statistic = statistic.result()
+        self.half = coarse_half(np.concatenate(small), net, batch_size, device)
+        self.shape = (len(self.half), *self.work)
+
+    def working(self) -> Iterator[np.ndarray]:
+        """The video's chunks at the working resolution (float32 in [0, 1] when resized)."""
+        for chunk in self.chunks():
+            if chunk.shape[1:] != self.full:
+                raise ValueError(f"video: expected frames of {self.full}, got {chunk.shape[1:]}")
+            yield chunk if self.work == self.full else _resize(_as_unit_float(chunk), self.work)
+
+    def coarse(self, start: int, stop: int) -> np.ndarray:
+        """The coarse depth of frames ``start .. stop`` at the working resolution."""
+        if stop <= start:
+            return np.zeros((0, *self.work), np.float32)
+        return _resize(self.half[start:stop], self.work)
+
+    def stitched(self, progress: Optional[Callable[[int, int], None]] = None) -> Iterator[np.ndarray]:
+        """The stitched depth at the working resolution, in chunks of frames
+        in order as they are solved (the joint alignment; the paper's gives
+        its video at the end)."""
+        t = self.shape[0]
+        layout = patch_layout(self.shape)
+        alignment = self.stitching[0]
+        given = 0 if alignment == "joint" else t
+        stitcher = _stitcher(self.coarse(0, given), layout.patch, *self.stitching, frames=t)
+        if self.fine == "field":
+            frames = field_frames((self.shape, self.working()), self.net, self.device, self.tile, statistic=self.statistic)
+            windows = field_windows(layout, frames, progress=progress)
+        else:
+            video = np.concatenate(list(self.working()))
+            windows = _counted(patch_depths(video, self.net, layout, self.batch_size, self.device), layout, progress)
+        for origins, depth in windows:
+            if alignment == "joint":
+                # The coarse depth a little ahead of the windows: a span is solved with the one after it.
+                want = min(t, int(origins[:, 0].max()) - layout.pad[0] + 2 * PATCH[0])
+                if want > given:
+                    stitcher.push_coarse(self.coarse(given, want))
+                    given = want
+            stitcher.add(depth, origins)
+            if alignment == "joint":
+                done = stitcher.take()
+                if len(done):
+                    yield done
+        if given < t:
+            stitcher.push_coarse(self.coarse(given, t))
+        rest = stitcher.finish()
+        if len(rest):
+            yield rest
+
+    def finalise(self, raw: np.ndarray, temporal: bool, units: str) -> Callable[[int, int], np.ndarray]:
+        """Frames ``start .. stop`` of the final depth at the video's
+        resolution, as a function, from the stitched depth ``raw`` (T, h, w)
+        at the working resolution (an array or a memory map; written over
+        with ``temporal``): :func:`reconstruct`'s units and zero mean."""
+        t = len(raw)
+        if temporal:
+            raw[:] = temporal_align(np.asarray(raw))
+        spans = [(a, min(a + CHUNK, t)) for a in range(0, t, CHUNK)]
+        if units == "pixels":
+            # The coarse pass reads the relief's scale (one window the frame); the
+            # patches' fits shrink it (least squares regresses toward the fit's
+            # target, and the joint alignment's agreement term falls with the
+            # scale squared), so the stitched relief takes the coarse pass's.
+            scale = _relief_scale((raw[a:b] for a, b in spans), (self.coarse(a, b) for a, b in spans))
+            mean = sum(float(raw[a:b].sum(dtype=np.float64)) for a, b in spans) / raw.size
+            h, w = self.work
+            # Depth in pixels of the video, not of the working frame.
+            factor = scale * math.sqrt(h * w) * self.full[1] / w
+
+            def pixels(start: int, stop: int) -> np.ndarray:
+                return ((self._full(raw[start:stop]) - mean) * factor).astype(np.float32)
+
+            return pixels
+        # A network without a depth scale (GBR-invariant losses only): a
+        # canonical one rather than whatever magnitude its weights drifted to.
+        total = squares = 0.0
+        for a, b in spans:
+            frames = self._full(raw[a:b]).astype(np.float64)
+            total, squares = total + float(frames.sum()), squares + float(np.square(frames).sum())
+        n = t * self.full[0] * self.full[1]
+        mean = total / n
+        std = math.sqrt(max(squares / n - mean * mean, 0.0)) or 1.0
+
+        def standard(start: int, stop: int) -> np.ndarray:
+            return ((self._full(raw[start:stop]).astype(np.float64) - mean) / std).astype(np.float32)
+
+        return standard
+
+    def _full(self, frames: np.ndarray) -> np.ndarray:
+        return np.asarray(frames, np.float32) if self.work == self.full else _resize(frames, self.full)
+
+
+def _load_net(model: Any, units: str, dev: Any) -> Any:
+    """The network of ``model`` (a module, a path, or None: the shipped one, the scaled one for pixel units) on ``dev``."""
+    import torch
+
+    if model is not None and not isinstance(model, (str, os.PathLike, torch.nn.Module)):
+        raise TypeError(f"model: expected None, a path to model.safetensors or its folder, or a torch.nn.Module, got {type(model).__name__}")
+    if model is None and units == "pixels":
+        from .model.io import SCALED_MODEL
+
+        model = SCALED_MODEL
+    net = model.to(dev).eval() if isinstance(model, torch.nn.Module) else inference_model(model, dev)
+    if units == "pixels" and getattr(net, "depth_units", None) != "window":
+        raise ValueError("units: 'pixels' needs a model that learnt the relief's scale (model.json's depth_units 'window', "
+                         "nrdepth train --amplitude); this one gives depth up to scale: use units='standard'")
+    return net
+
+
+def _check_options(batch_size: Any, progress: Any, units: str, fine: str, max_side: Any, tile: Any,
+                   alignment: str, coarse_weight: float, window: str, temporal_weight: float) -> None:
+    if isinstance(batch_size, bool) or not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
+        raise ValueError(f"batch_size: expected a positive integer, got {batch_size!r}")
+    if progress is not None and not callable(progress):
+        raise TypeError(f"progress: expected a callable progress(done, total) or None, got {type(progress).__name__}")
+    if units not in ("standard", "pixels"):
+        raise ValueError(f"units: expected 'standard' or 'pixels', got {units!r}")
+    if fine not in FINE_PASSES:
+        raise ValueError(f"fine: expected one of {FINE_PASSES}, got {fine!r}")
+    if max_side is not None and (isinstance(max_side, bool) or not isinstance(max_side, (int, np.integer)) or max_side < 8):
+        raise ValueError(f"max_side: expected None or an integer ≥ 8, got {max_side!r}")
+    if tile is not None:
+        _check_sizes("tile", tile)
+    _check_stitching(alignment, coarse_weight, window, temporal_weight)
+
+
 def reconstruct(
     video: np.ndarray,
     model: Union[None, str, "os.PathLike[str]", "torch.nn.Module"] = None,  # noqa: F821
@@ -369,82 +565,18 @@ def reconstruct(
     image-up, row 0 being the top): under an orthographic camera a surface
     and its mirror image under mirrored lights make the same video, so a
     video lit from below reads inverted, and ``-depth`` is the other
-    reading."""
-    import torch
-
+    reading. To stream a long video from a file to a folder, see
+    :func:`reconstruct_file`."""
     from .model.io import resolve_device
 
     video = select(to_gray(video, "video"), frames, roi)
-    if isinstance(batch_size, bool) or not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
-        raise ValueError(f"batch_size: expected a positive integer, got {batch_size!r}")
-    batch_size = int(batch_size)
-    if progress is not None and not callable(progress):
-        raise TypeError(f"progress: expected a callable progress(done, total) or None, got {type(progress).__name__}")
-    if model is not None and not isinstance(model, (str, os.PathLike, torch.nn.Module)):
-        raise TypeError(f"model: expected None, a path to model.safetensors or its folder, or a torch.nn.Module, got {type(model).__name__}")
-    if units not in ("standard", "pixels"):
-        raise ValueError(f"units: expected 'standard' or 'pixels', got {units!r}")
-    if fine not in FINE_PASSES:
-        raise ValueError(f"fine: expected one of {FINE_PASSES}, got {fine!r}")
-    if max_side is not None and (isinstance(max_side, bool) or not isinstance(max_side, (int, np.integer)) or max_side < 8):
-        raise ValueError(f"max_side: expected None or an integer ≥ 8, got {max_side!r}")
-    if tile is not None:
-        tile = _check_sizes("tile", tile)
-    _check_stitching(alignment, coarse_weight, window, temporal_weight)
+    _check_options(batch_size, progress, units, fine, max_side, tile, alignment, coarse_weight, window, temporal_weight)
     dev = resolve_device(device)
-    if model is None and units == "pixels":
-        from .model.io import SCALED_MODEL
-
-        model = SCALED_MODEL
-    net = model.to(dev).eval() if isinstance(model, torch.nn.Module) else inference_model(model, dev)
-    if units == "pixels" and getattr(net, "depth_units", None) != "window":
-        raise ValueError("units: 'pixels' needs a model that learnt the relief's scale (model.json's depth_units 'window', "
-                         "nrdepth train --amplitude); this one gives depth up to scale: use units='standard'")
-    full = video.shape[1:]
-    work = working_shape(full, max_side)
-    if work != full:
-        video = _resize(_as_unit_float(video), work)
-    layout = patch_layout(video.shape)
-    coarse = coarse_depth(video, net, batch_size, dev)
-    stitcher = _stitcher(coarse, layout.patch, alignment, coarse_weight, window, temporal_weight)
-    if units != "pixels":
-        del coarse  # the stitcher holds its own copy; only the pixel scale needs this one
-    if fine == "field":
-        windows = field_windows(layout, field_frames(video, net, dev, tile), progress=progress)
-    else:
-        windows = _counted(patch_depths(video, net, layout, batch_size, dev), layout, progress)
-    for origins, depth in windows:
-        stitcher.add(depth, origins)
-    depth = stitcher.finish()
-    if temporal:
-        depth = temporal_align(depth)
-    if units == "pixels":
-        # The coarse pass reads the relief's scale (one window the frame); the
-        # patches' fits shrink it (least squares regresses toward the fit's
-        # target, and the joint alignment's agreement term falls with the
-        # scale squared), so the stitched relief takes the coarse pass's.
-        depth = depth * _relief_scale(depth, coarse)
-        depth = (depth - depth.mean(dtype=np.float64)) * np.sqrt(work[0] * work[1])
-        if work != full:
-            depth = _resize(depth, full) * (full[1] / work[1])  # pixels of the video, not of the working frame
-        return depth.astype(np.float32)
-    if work != full:
-        depth = _resize(depth, full)
-    # A network without a depth scale (GBR-invariant losses only): return a
-    # canonical one rather than whatever magnitude its weights drifted to.
-    return _standardise(depth)
-
-
-def _standardise(depth: np.ndarray) -> np.ndarray:
-    """``depth`` (float32, owned) with zero mean and unit standard
-    deviation, in place: float64 sums a frame at a time, no full-size
-    float64 copy."""
-    mean = depth.mean(dtype=np.float64)
-    var = sum(float(np.square(frame - mean).sum()) for frame in depth) / depth.size  # ``frame - mean``: float64
-    std = math.sqrt(var) if var > 0 else 1.0
-    for frame in depth:
-        frame[...] = (frame - mean) / std
-    return depth
+    net = _load_net(model, units, dev)
+    chunks = lambda: (video[a : a + CHUNK] for a in range(0, len(video), CHUNK))  # noqa: E731
+    pipeline = _Pipeline(video.shape[1:], chunks, net, dev, int(batch_size), fine, alignment, coarse_weight, window, temporal_weight, max_side, tile)
+    raw = np.concatenate(list(pipeline.stitched(progress)))
+    return pipeline.finalise(raw, temporal, units)(0, len(raw))
 
 
 def _counted(windows: Iterator[Tuple[np.ndarray, np.ndarray]], layout: PatchLayout, progress: Optional[Callable[[int, int], None]]) -> Iterator[Tuple[np.ndarray, np.ndarray]]:
@@ -460,18 +592,24 @@ def _counted(windows: Iterator[Tuple[np.ndarray, np.ndarray]], layout: PatchLayo
         progress(t, t)
 
 
-def _relief_scale(depth: np.ndarray, reference: np.ndarray) -> float:
+def _relief_scale(depth: Iterable[np.ndarray], reference: Iterable[np.ndarray]) -> float:
     """Least-squares s with s·r(depth) ≈ r(reference) over a video (T, H,
-    W), r being each frame minus its least-squares plane; 1 if ``depth`` has
-    no relief (planar frames, up to rounding)."""
-    _, h, w = depth.shape
-    y, x = np.mgrid[0:h, 0:w]
-    basis, _ = np.linalg.qr(np.stack([x.ravel(), y.ravel(), np.ones(h * w)], axis=1))
+    W), given whole or as chunks of frames of both, r being each frame minus
+    its least-squares plane; 1 if ``depth`` has no relief (planar frames, up
+    to rounding)."""
+    if isinstance(depth, np.ndarray):
+        depth, reference = [depth], [reference]
     num = den = total = 0.0
-    for frame, ref in zip(depth, reference):
-        f = frame.ravel().astype(np.float64)
-        total += float(f @ f)
-        f -= basis @ (basis.T @ f)
-        num += float(f @ ref.ravel())  # the plane of ``ref`` is orthogonal to the residual ``f``
-        den += float(f @ f)
+    basis = None
+    for chunk, ref_chunk in zip(depth, reference):
+        if basis is None:
+            h, w = chunk.shape[1:]
+            y, x = np.mgrid[0:h, 0:w]
+            basis, _ = np.linalg.qr(np.stack([x.ravel(), y.ravel(), np.ones(h * w)], axis=1))
+        for frame, ref in zip(chunk, ref_chunk):
+            f = frame.ravel().astype(np.float64)
+            total += float(f @ f)
+            f -= basis @ (basis.T @ f)
+            num += float(f @ ref.ravel())  # the plane of ``ref`` is orthogonal to the residual ``f``
+            den += float(f @ f)
     return num / den if den > 1e-12 * total else 1.0

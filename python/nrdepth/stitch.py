@@ -44,7 +44,7 @@ patches' 8× overlap. Beyond the paper,
 from __future__ import annotations
 
 import math
-from typing import Any, NamedTuple, Tuple
+from typing import Any, NamedTuple, Optional, Tuple
 
 import numpy as np
 
@@ -165,13 +165,17 @@ def _check_stitching(alignment: str, coarse_weight: float, window: str, temporal
     return float(coarse_weight), float(temporal_weight)
 
 
-def _stitcher(coarse: np.ndarray, patch: Tuple[int, int, int], alignment: str, coarse_weight: float, window: str, temporal_weight: float) -> Any:
-    """The streaming Rust stitcher of ``alignment`` and ``window`` over ``coarse``."""
+def _stitcher(coarse: np.ndarray, patch: Tuple[int, int, int], alignment: str, coarse_weight: float, window: str, temporal_weight: float,
+              frames: Optional[int] = None) -> Any:
+    """The streaming Rust stitcher of ``alignment`` and ``window`` over
+    ``coarse``; with ``frames`` (the joint alignment only), ``coarse`` may
+    hold only the first of the video's ``frames`` frames, the rest to come
+    by ``push_coarse``, and ``take`` gives the frames stitched so far."""
     mu, nu = _check_stitching(alignment, coarse_weight, window, temporal_weight)
     coarse = np.ascontiguousarray(coarse, dtype=np.float32)
     if alignment == "coarse":
         return _core.Stitcher(coarse, patch, window)
-    return _core.Stitcher(coarse, patch, window, mu, nu)
+    return _core.Stitcher(coarse, patch, window, mu, nu, frames)
 
 
 def temporal_align(depth: np.ndarray) -> np.ndarray:
