@@ -11,7 +11,7 @@ import pytest
 import torch
 
 import nrdepth
-from nrdepth.reconstruct import MARGIN, _spans, field_frames, field_windows, inference_model, tile_plan, working_shape
+from nrdepth.reconstruct import MARGIN, _spans, field_frames, field_windows, inference_model, reconstruct_file, tile_plan, working_shape
 
 
 @pytest.mark.parametrize("length, core, margin, align", [(480, 320, 64, 8), (640, 320, 64, 8), (16, 32, 8, 1), (191, 32, 8, 1), (200, 64, 0, 4), (8, 8, 8, 8)])
@@ -109,3 +109,32 @@ def test_bad_fine_pass_arguments_are_named(options, message):
     video = np.zeros((4, 32, 32), np.uint8)
     with pytest.raises(ValueError, match=message):
         nrdepth.reconstruct(video, nrdepth.model.UNet3D(base=2), device="cpu", **options)
+
+
+def test_a_file_streamed_to_a_folder_matches_the_in_memory_reconstruction(tmp_path):
+    torch.manual_seed(0)
+    model = nrdepth.model.UNet3D(base=2)
+    video = (np.random.default_rng(1).random((37, 40, 56)) * 255).astype(np.uint8)
+    np.save(tmp_path / "clip.npy", video)
+    options = {"roi": (4, 2, 48, 36), "frames": slice(3, None), "max_side": 32}
+    expected = nrdepth.reconstruct(video, model, device="cpu", **options)
+    reconstruct_file(tmp_path / "clip.npy", tmp_path / "out", model, device="cpu", flip=True, png16=True, **options)
+    with np.load(tmp_path / "out" / "depth.npz") as saved:
+        np.testing.assert_allclose(saved["depth"], -expected, atol=1e-5)
+        lo, hi = saved["png16_range"]
+        assert lo <= saved["depth"].min() and saved["depth"].max() <= hi
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [".nrdepth-reconstruction", "depth.mp4", "depth.npz", "png16", "side_by_side.mp4"]
+    assert len(list((tmp_path / "out" / "png16").iterdir())) == 34
+
+
+def test_an_interrupted_streaming_run_leaves_no_folder(tmp_path):
+    torch.manual_seed(0)
+    np.save(tmp_path / "clip.npy", (np.random.default_rng(2).random((40, 32, 32)) * 255).astype(np.uint8))
+
+    def interrupt(done, total):
+        if done >= 16:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        reconstruct_file(tmp_path / "clip.npy", tmp_path / "out", nrdepth.model.UNet3D(base=2), device="cpu", progress=interrupt, tile=(8, 32, 32))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["clip.npy"]

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Optional, Sequence
 
 from . import __version__
+from .reconstruct import FINE_PASSES
 from .stitch import ALIGNMENTS, COARSE_WEIGHT, TEMPORAL_WEIGHT, WINDOWS
 
 
@@ -158,8 +159,7 @@ def _frames(text: str) -> slice:
 
 def _reconstruct(args: argparse.Namespace) -> int:
     from .model.io import SCALED_MODEL, load_model, resolve_device
-    from .reconstruct import reconstruct
-    from .videoio import PLY_RELIEF, check_output_folder, read_video, save_reconstruction, select
+    from .reconstruct import reconstruct_file
 
     # Everything that can be refused is checked before any work or writing.
     device = resolve_device(args.device)
@@ -171,51 +171,55 @@ def _reconstruct(args: argparse.Namespace) -> int:
         raise ValueError(f"--model: {e}") from None
     if args.units == "pixels" and getattr(model, "depth_units", None) != "window":
         raise ValueError("--units: 'pixels' needs a model that learnt the relief's scale (trained with --amplitude); this one gives depth up to scale")
-    ply_relief = PLY_RELIEF if args.ply_relief is None else args.ply_relief
-    if not (math.isfinite(ply_relief) and ply_relief > 0):
-        raise ValueError(f"--ply-relief: expected a positive finite number, got {ply_relief}")
-    if not (math.isfinite(args.coarse_weight) and args.coarse_weight > 0):
-        raise ValueError(f"--coarse-weight: expected a positive finite number, got {args.coarse_weight}")
-    if not (math.isfinite(args.temporal_weight) and args.temporal_weight >= 0):
-        raise ValueError(f"--temporal-weight: expected a finite number ≥ 0, got {args.temporal_weight}")
+    for flag, value, floor in (("--ply-relief", args.ply_relief, None), ("--coarse-weight", args.coarse_weight, None), ("--temporal-weight", args.temporal_weight, 0.0)):
+        if value is not None and not (math.isfinite(value) and (value > 0 if floor is None else value >= floor)):
+            raise ValueError(f"{flag}: expected a {'positive' if floor is None else 'non-negative'} finite number, got {value}")
+    if args.max_side is not None and args.max_side < 8:
+        raise ValueError(f"--max-side: expected an integer ≥ 8, got {args.max_side}")
     out = Path(args.out) if args.out is not None else Path(Path(args.input).stem + "_depth")
-    try:
-        check_output_folder(out, args.overwrite, inputs=(args.input,))
-    except ValueError as e:
-        raise ValueError(f"--{e}") from None
-    video = read_video(args.input, name="input")
-    try:
-        frames = select(video.frames, args.frames, args.roi)
-    except ValueError as e:
-        raise ValueError(f"--{e}") from None
-    start = time.perf_counter()
     bar = None
     if not args.quiet:
         from tqdm import tqdm
 
-        from .stitch import patch_layout
-
-        bar = tqdm(total=len(patch_layout(frames.shape).origins), desc="patches", unit="patch")
+        bar = tqdm(desc="frames", unit="frame")
 
     def progress(done: int, total: int) -> None:
         if bar is not None:
+            bar.total = total
             bar.update(done - bar.n)
 
-    depth = reconstruct(frames, model, batch_size=args.batch_size, device=str(device), progress=progress, temporal=args.temporal_align, units=args.units,
-                        alignment=args.alignment, coarse_weight=args.coarse_weight, window=args.window,
-                        temporal_weight=args.temporal_weight)
-    if args.flip:
-        depth = -depth
-    if bar is not None:
-        bar.close()
+    start = time.perf_counter()
+    try:
+        reconstruct_file(args.input, out, model, batch_size=args.batch_size, device=str(device), progress=progress, temporal=args.temporal_align,
+                         roi=args.roi, frames=args.frames, units=args.units, alignment=args.alignment, coarse_weight=args.coarse_weight,
+                         window=args.window, temporal_weight=args.temporal_weight, fine=args.fine, max_side=args.max_side,
+                         flip=args.flip, png16=args.png16, ply=args.ply, ply_relief=args.ply_relief, overwrite=args.overwrite)
+    except ValueError as e:
+        # The API names its arguments; the command line names its flags.
+        name = str(e).split(":", 1)[0]
+        if name in ("out", "roi", "frames", "max_side"):
+            raise ValueError(f"--{name.replace('_', '-')}{str(e)[len(name):]}") from None
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
     seconds = time.perf_counter() - start
-    if args.units == "pixels" and args.ply_relief is None:
-        ply_relief = 1.0 / frames.shape[2]  # pixels to frame widths, the PLY's x and y unit
-    save_reconstruction(out, frames, depth, fps=video.fps, png16=args.png16, ply=args.ply, ply_relief=ply_relief, overwrite=args.overwrite)
-    t, h, w = depth.shape
+    t, h, w = _npz_shape(out / "depth.npz", "depth")
     print(f"wrote {out}: depth of {t} frames of {w}×{h} in {seconds:.1f} s on {device} "
           f"(depth.npz, depth.mp4, side_by_side.mp4{', png16/' if args.png16 else ''}{', ply/' if args.ply else ''})")
     return 0
+
+
+def _npz_shape(path: Path, name: str) -> tuple:
+    """The shape of array ``name`` in an .npz, read from its header alone."""
+    import zipfile
+
+    import numpy as np
+
+    with zipfile.ZipFile(path) as archive, archive.open(f"{name}.npy") as f:
+        version = np.lib.format.read_magic(f)
+        read = np.lib.format.read_array_header_2_0 if version == (2, 0) else np.lib.format.read_array_header_1_0
+        return read(f)[0]
 
 
 def _demo(args: argparse.Namespace) -> int:
@@ -354,7 +358,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--roi", type=_roi, default=None, help="region X,Y,W,H in pixels")
     p.add_argument("--frames", type=_frames, default=None, help="frames START:STOP[:STEP] (Python slice)")
     p.add_argument("--device", default="auto", help="auto | cpu | cuda | cuda:N")
-    p.add_argument("--batch-size", type=int, default=8, help="patches per network call")
+    p.add_argument("--batch-size", type=int, default=8, help="clips per network call in the coarse pass (and with --fine patches)")
+    p.add_argument("--max-side", type=int, default=None,
+                   help="reconstruct at a working size whose longer side is at most this many pixels, the depth resized back (default: the video's own size)")
+    p.add_argument("--fine", choices=FINE_PASSES, default=FINE_PASSES[0],
+                   help="fine pass: field (the network once over the video, in tiles; default) or patches (every 64×64×16 window on its own, as the paper: 8× the work)")
     p.add_argument("--png16", action="store_true", help="also write 16-bit PNG depth frames")
     p.add_argument("--ply", action="store_true", help="also write a PLY point cloud per frame")
     p.add_argument("--ply-relief", type=float, default=None,

@@ -46,7 +46,7 @@ import numpy as np
 from .stitch import COARSE_WEIGHT, PATCH, TEMPORAL_WEIGHT, PatchLayout, _check_stitching, _stitcher, patch_layout, temporal_align
 from .videoio import select, to_gray
 
-__all__ = ["reconstruct", "coarse_depth", "patch_depths", "field_frames", "field_windows", "tile_plan", "inference_model", "working_shape",
+__all__ = ["reconstruct", "reconstruct_file", "coarse_depth", "patch_depths", "field_frames", "field_windows", "tile_plan", "inference_model", "working_shape",
            "FINE_PASSES", "TILE", "GPU_TILE", "MARGIN"]
 
 FINE_PASSES = ("field", "patches")
@@ -427,11 +427,12 @@ class _Pipeline:
         if len(rest):
             yield rest
 
-    def finalise(self, raw: np.ndarray, temporal: bool, units: str) -> Callable[[int, int], np.ndarray]:
-        """Frames ``start .. stop`` of the final depth at the video's
-        resolution, as a function, from the stitched depth ``raw`` (T, h, w)
+    def finalise(self, raw: np.ndarray, temporal: bool, units: str) -> Tuple[float, float]:
+        """The (offset, scale) that give the stitched depth ``raw`` (T, h, w)
         at the working resolution (an array or a memory map; written over
-        with ``temporal``): :func:`reconstruct`'s units and zero mean."""
+        with ``temporal``) :func:`reconstruct`'s units and zero mean:
+        ``(full(raw) − offset) · scale``, ``full`` the resize to the video's
+        resolution (:meth:`final`)."""
         t = len(raw)
         if temporal:
             raw[:] = temporal_align(np.asarray(raw))
@@ -444,13 +445,8 @@ class _Pipeline:
             scale = _relief_scale((raw[a:b] for a, b in spans), (self.coarse(a, b) for a, b in spans))
             mean = sum(float(raw[a:b].sum(dtype=np.float64)) for a, b in spans) / raw.size
             h, w = self.work
-            # Depth in pixels of the video, not of the working frame.
-            factor = scale * math.sqrt(h * w) * self.full[1] / w
-
-            def pixels(start: int, stop: int) -> np.ndarray:
-                return ((self._full(raw[start:stop]) - mean) * factor).astype(np.float32)
-
-            return pixels
+            # Pixels of the video, not of the working frame.
+            return mean, scale * math.sqrt(h * w) * self.full[1] / w
         # A network without a depth scale (GBR-invariant losses only): a
         # canonical one rather than whatever magnitude its weights drifted to.
         total = squares = 0.0
@@ -459,12 +455,11 @@ class _Pipeline:
             total, squares = total + float(frames.sum()), squares + float(np.square(frames).sum())
         n = t * self.full[0] * self.full[1]
         mean = total / n
-        std = math.sqrt(max(squares / n - mean * mean, 0.0)) or 1.0
+        return mean, 1.0 / (math.sqrt(max(squares / n - mean * mean, 0.0)) or 1.0)
 
-        def standard(start: int, stop: int) -> np.ndarray:
-            return ((self._full(raw[start:stop]).astype(np.float64) - mean) / std).astype(np.float32)
-
-        return standard
+    def final(self, raw: np.ndarray, start: int, stop: int, offset: float, scale: float) -> np.ndarray:
+        """Frames ``start .. stop`` of the final depth, float32 at the video's resolution (:meth:`finalise`)."""
+        return ((self._full(raw[start:stop]).astype(np.float64) - offset) * scale).astype(np.float32)
 
     def _full(self, frames: np.ndarray) -> np.ndarray:
         return np.asarray(frames, np.float32) if self.work == self.full else _resize(frames, self.full)
@@ -576,7 +571,80 @@ def reconstruct(
     chunks = lambda: (video[a : a + CHUNK] for a in range(0, len(video), CHUNK))  # noqa: E731
     pipeline = _Pipeline(video.shape[1:], chunks, net, dev, int(batch_size), fine, alignment, coarse_weight, window, temporal_weight, max_side, tile)
     raw = np.concatenate(list(pipeline.stitched(progress)))
-    return pipeline.finalise(raw, temporal, units)(0, len(raw))
+    return pipeline.final(raw, 0, len(raw), *pipeline.finalise(raw, temporal, units))
+
+
+def reconstruct_file(
+    input: Union[str, "os.PathLike[str]"],
+    out: Union[str, "os.PathLike[str]"],
+    model: Union[None, str, "os.PathLike[str]", "torch.nn.Module"] = None,  # noqa: F821
+    batch_size: int = 8,
+    device: str = "auto",
+    progress: Optional[Callable[[int, int], None]] = None,
+    temporal: bool = False,
+    roi: Optional[Tuple[int, int, int, int]] = None,
+    frames: Optional[slice] = None,
+    units: str = "standard",
+    alignment: str = "joint",
+    coarse_weight: float = COARSE_WEIGHT,
+    window: str = "hann",
+    temporal_weight: float = TEMPORAL_WEIGHT,
+    fine: str = "field",
+    max_side: Optional[int] = None,
+    tile: Optional[Tuple[int, int, int]] = None,
+    flip: bool = False,
+    png16: bool = False,
+    ply: bool = False,
+    ply_relief: Optional[float] = None,
+    overwrite: bool = False,
+) -> "Path":  # noqa: F821
+    """:func:`reconstruct` a video file, image folder or array file
+    (:class:`~nrdepth.videoio.VideoSource`) into the folder ``out``
+    (:class:`~nrdepth.videoio.ReconstructionWriter`: ``depth.npz``,
+    ``depth.mp4``, ``side_by_side.mp4``, with ``png16`` and ``ply`` their
+    frames; all or nothing), streaming: the video is read a few frames at a
+    time (three times: statistic and coarse pass, fine pass, writing),
+    the stitched depth waits on disk in the output's temporary folder at
+    the working resolution, and memory does not grow with the video's
+    length, except by the coarse pass's 8 kB a frame (and with
+    ``temporal``, which aligns the whole video in memory, or
+    ``fine="patches"``, which holds it). ``flip`` negates the depth (the
+    other convex/concave reading); ``ply_relief``: the PLYs' depth scale
+    (:func:`~nrdepth.videoio.write_ply`; default: the training surfaces'
+    for standard units, one frame width per pixel for pixel units). The
+    other arguments as :func:`reconstruct`. Returns ``out``."""
+    from .model.io import resolve_device
+    from .videoio import PLY_RELIEF, ReconstructionWriter, check_output_folder, open_video
+
+    _check_options(batch_size, progress, units, fine, max_side, tile, alignment, coarse_weight, window, temporal_weight)
+    dev = resolve_device(device)
+    net = _load_net(model, units, dev)
+    out = check_output_folder(out, overwrite, inputs=(input,))
+    source = open_video(input, "input", frames, roi)
+    pipeline = _Pipeline(source.frame_size, lambda: source.chunks(CHUNK), net, dev, int(batch_size), fine, alignment, coarse_weight, window, temporal_weight, max_side, tile)
+    t = pipeline.shape[0]
+    if ply_relief is None:
+        ply_relief = 1.0 / source.frame_size[1] if units == "pixels" else PLY_RELIEF  # pixels to frame widths, the PLY's x and y unit
+    with ReconstructionWriter(out, (t, *source.frame_size), source.fps, png16=png16, ply=ply, ply_relief=ply_relief, overwrite=overwrite) as writer:
+        scratch = writer.scratch("stitched.npy")
+        raw = np.lib.format.open_memmap(scratch, mode="w+", dtype=np.float32, shape=pipeline.shape)
+        done = 0
+        for chunk in pipeline.stitched(progress):
+            raw[done : done + len(chunk)] = chunk
+            done += len(chunk)
+        offset, scale = pipeline.finalise(raw, temporal, units)
+        scale = -scale if flip else scale
+        # The ranges from the working resolution: bilinear resizing makes no new extremes.
+        stride = max(1, int(math.sqrt(raw[0].size * t / 4e6)))
+        sample = (np.asarray(raw[:, ::stride, ::stride], np.float64) - offset) * scale
+        lo, hi = np.percentile(sample, [1.0, 99.0])
+        ends = sorted(((float(raw.min()) - offset) * scale, (float(raw.max()) - offset) * scale))
+        writer.set_ranges((float(lo), float(max(hi, lo + 1e-12))), (ends[0], ends[1]))
+        for start, frames_in in zip(range(0, t, CHUNK), source.chunks(CHUNK)):
+            writer.write(frames_in, pipeline.final(raw, start, start + len(frames_in), offset, scale))
+        del raw
+        scratch.unlink()
+    return out
 
 
 def _counted(windows: Iterator[Tuple[np.ndarray, np.ndarray]], layout: PatchLayout, progress: Optional[Callable[[int, int], None]]) -> Iterator[Tuple[np.ndarray, np.ndarray]]:

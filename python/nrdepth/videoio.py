@@ -18,7 +18,7 @@ import math
 import os
 from fractions import Fraction
 from pathlib import Path
-from typing import NamedTuple, Optional, Tuple, Union
+from typing import Iterator, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
 
@@ -34,6 +34,10 @@ __all__ = [
     "write_depth_png16",
     "write_ply",
     "save_reconstruction",
+    "ReconstructionWriter",
+    "Mp4Writer",
+    "VideoSource",
+    "open_video",
     "check_output_folder",
     "to_gray",
     "select",
@@ -111,57 +115,141 @@ def select(video: np.ndarray, frames: Optional[slice] = None, roi: Optional[Tupl
     return video
 
 
-def _decode(path: Path, name: str) -> Tuple[list, float]:
-    """Every frame of a media file as uint8 gray arrays, and its frame rate."""
+def _decoded(path: Path, name: str) -> Iterator[np.ndarray]:
+    """The frames of a media file as uint8 gray arrays, one at a time."""
     import av
 
     try:
         with av.open(str(path)) as container:
             if not container.streams.video:
                 raise ValueError(f"{name}: {path} holds no video stream")
-            stream = container.streams.video[0]
-            frames = [f.to_ndarray(format="gray") for f in container.decode(stream)]
-            fps = float(stream.average_rate) if stream.average_rate else 25.0
+            for frame in container.decode(container.streams.video[0]):
+                yield frame.to_ndarray(format="gray")
     except av.error.FFmpegError as e:
         raise ValueError(f"{name}: cannot decode {path}: {e}") from None
-    if not frames:
-        raise ValueError(f"{name}: {path} holds no frames")
-    return frames, fps
+
+
+def _frame_rate(path: Path) -> float:
+    import av
+
+    try:
+        with av.open(str(path)) as container:
+            rate = container.streams.video[0].average_rate if container.streams.video else None
+    except av.error.FFmpegError:
+        return 25.0
+    return float(rate) if rate else 25.0
+
+
+class VideoSource:
+    """A video read as a stream of uint8 gray frames (T, H, W), a chunk at a
+    time and as often as needed, so that memory does not grow with its
+    length: a video file (anything FFmpeg decodes, decoded frame by frame),
+    a folder of images (frames in name order) or a ``.npy`` / ``.npz`` array
+    (T, H, W) or (T, H, W, 3), uint8 or float in [0, 1] (a ``.npy`` is
+    memory-mapped). Colour becomes luma (ITU-R BT.601). ``frames`` (a
+    slice) and ``roi`` (x, y, width, height) select as :func:`select` does.
+    Errors name ``name`` and say what was expected."""
+
+    def __init__(self, path: PathLike, name: str = "input", frames: Optional[slice] = None, roi: Optional[Tuple[int, int, int, int]] = None) -> None:
+        self.path, self.name = Path(path), name
+        if not self.path.exists():
+            raise ValueError(f"{name}: {self.path} does not exist")
+        self.array: Optional[np.ndarray] = None
+        self.images: list = []
+        self._count: Optional[int] = None
+        if self.path.is_dir():
+            self.images = sorted(p for p in self.path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+            if not self.images:
+                raise ValueError(f"{name}: folder {self.path} holds no images ({', '.join(IMAGE_SUFFIXES)})")
+            self.fps = 25.0
+        elif self.path.suffix.lower() in (".npy", ".npz"):
+            self.array = _load_array(self.path, name)
+            self.fps = 25.0
+        else:
+            self.fps = _frame_rate(self.path)
+        first = next(self._raw(), None)
+        if first is None:
+            raise ValueError(f"{name}: {self.path} holds no frames")
+        if frames is not None:
+            if not isinstance(frames, slice):
+                raise TypeError(f"frames: expected a slice, got {type(frames).__name__}")
+            if frames.step is not None and frames.step <= 0:
+                raise ValueError(f"frames: expected a positive step, got {frames.step}")
+        self.selection, self.roi = frames, roi
+        # Checks the region against the frame size.
+        self.frame_size: Tuple[int, int] = select(first[None], None, roi).shape[1:]  # type: ignore[assignment]
+        if frames is not None and len(self) == 0:
+            raise ValueError(f"frames: selects no frame of the video's {self.count_all()}")
+
+    def _raw(self) -> Iterator[np.ndarray]:
+        if self.array is not None:
+            for frame in self.array:
+                yield _to_gray_u8(frame[None], self.name)[0]
+            return
+        size = None
+        for frame in (next(_decoded(p, self.name)) for p in self.images) if self.images else _decoded(self.path, self.name):
+            if size is not None and frame.shape != size:
+                raise ValueError(f"{self.name}: frames of {self.path} differ in size: {frame.shape} after {size}")
+            size = frame.shape
+            yield frame
+
+    def count_all(self) -> int:
+        """Frames of the whole video (a video file is decoded once to count them)."""
+        if self._count is None:
+            self._count = len(self.array) if self.array is not None else len(self.images) if self.images else sum(1 for _ in self._raw())
+        return self._count
+
+    def __len__(self) -> int:
+        """Frames selected."""
+        return self.count_all() if self.selection is None else len(range(*self.selection.indices(self.count_all())))
+
+    def chunks(self, size: int = 16) -> Iterator[np.ndarray]:
+        """The selected frames, uint8 (n, H, W), ``size`` at a time, in order."""
+        import itertools
+
+        frames: Iterator[np.ndarray] = self._raw()
+        if self.selection is not None:
+            frames = itertools.islice(frames, *self.selection.indices(self.count_all()))
+        chunk: list = []
+        for frame in frames:
+            chunk.append(frame)
+            if len(chunk) == size:
+                yield select(np.stack(chunk), None, self.roi)
+                chunk = []
+        if chunk:
+            yield select(np.stack(chunk), None, self.roi)
+
+
+def _load_array(path: Path, name: str) -> np.ndarray:
+    try:
+        data = np.load(path, allow_pickle=False, mmap_mode="r" if path.suffix.lower() == ".npy" else None)
+    except (OSError, ValueError, EOFError) as e:
+        raise ValueError(f"{name}: cannot read {path}: {e}") from None
+    if isinstance(data, np.lib.npyio.NpzFile):
+        with data:
+            keys = list(data.keys())
+            key = "video" if "video" in keys else (keys[0] if len(keys) == 1 else None)
+            if key is None:
+                raise ValueError(f"{name}: {path} should hold one array or one named 'video', found {keys}")
+            data = data[key]
+    if data.dtype != np.uint8 and data.dtype.kind != "f":
+        raise TypeError(f"{name}: expected uint8 or float frames, got dtype {data.dtype}")
+    if data.ndim not in (3, 4) or (data.ndim == 4 and data.shape[-1] not in (3, 4)) or min(data.shape) < 1:
+        raise ValueError(f"{name}: expected a video (T, H, W) or (T, H, W, 3), got shape {data.shape}")
+    return data
+
+
+def open_video(path: PathLike, name: str = "input", frames: Optional[slice] = None, roi: Optional[Tuple[int, int, int, int]] = None) -> VideoSource:
+    """A :class:`VideoSource` of ``path``."""
+    return VideoSource(path, name, frames, roi)
 
 
 def read_video(path: PathLike, name: str = "input") -> Video:
     """Read a video file, an image folder or a .npy/.npz array as uint8 gray
-    frames (T, H, W). Errors name ``name`` and say what was expected."""
-    path = Path(path)
-    if not path.exists():
-        raise ValueError(f"{name}: {path} does not exist")
-    if path.is_dir():
-        images = sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
-        if not images:
-            raise ValueError(f"{name}: folder {path} holds no images ({', '.join(IMAGE_SUFFIXES)})")
-        frames = [_decode(p, name)[0][0] for p in images]
-        shapes = {f.shape for f in frames}
-        if len(shapes) != 1:
-            raise ValueError(f"{name}: images in {path} differ in size: {sorted(shapes)}")
-        return Video(np.stack(frames), 25.0)
-    if path.suffix.lower() in (".npy", ".npz"):
-        try:
-            data = np.load(path, allow_pickle=False)
-        except (OSError, ValueError, EOFError) as e:
-            raise ValueError(f"{name}: cannot read {path}: {e}") from None
-        if isinstance(data, np.lib.npyio.NpzFile):
-            with data:
-                keys = list(data.keys())
-                key = "video" if "video" in keys else (keys[0] if len(keys) == 1 else None)
-                if key is None:
-                    raise ValueError(f"{name}: {path} should hold one array or one named 'video', found {keys}")
-                data = data[key]
-        return Video(_to_gray_u8(data, name), 25.0)
-    frames, fps = _decode(path, name)
-    shapes = {f.shape for f in frames}
-    if len(shapes) != 1:
-        raise ValueError(f"{name}: frames of {path} differ in size: {sorted(shapes)}")
-    return Video(np.stack(frames), fps)
+    frames (T, H, W), all in memory (:class:`VideoSource` streams them).
+    Errors name ``name`` and say what was expected."""
+    source = VideoSource(path, name)
+    return Video(np.concatenate(list(source.chunks(64))), source.fps)
 
 
 def depth_range(depth: np.ndarray) -> Tuple[float, float]:
@@ -177,35 +265,64 @@ def colorize_depth(depth: np.ndarray, value_range: Optional[Tuple[float, float]]
     return np.rint(colormap((hi - depth) / (hi - lo)) * 255.0).astype(np.uint8)
 
 
-def write_mp4(path: PathLike, frames: np.ndarray, fps: float = 25.0, crf: int = 18) -> None:
-    """Write uint8 RGB frames (T, H, W, 3) as H.264 (yuv420p, padded to even
-    sides by repeating the last row/column) in an MP4 that starts playing
-    before it is fully downloaded."""
-    import av
+class Mp4Writer:
+    """H.264 frames written one chunk at a time (yuv420p, padded to even
+    sides by repeating the last row/column, ``faststart``: plays in a
+    browser before it is fully downloaded). A context manager."""
 
+    def __init__(self, path: PathLike, height: int, width: int, fps: float = 25.0, crf: int = 18) -> None:
+        import av
+
+        self.size = (height, width)
+        self.container = av.open(str(path), "w", format="mp4", options={"movflags": "faststart"})
+        rate = Fraction(fps).limit_denominator(1001) if fps > 0 else Fraction(25)  # 29.97 stays 30000/1001
+        self.stream = self.container.add_stream("libx264", rate=rate, options={"crf": str(crf)})
+        self.stream.width, self.stream.height, self.stream.pix_fmt = width + width % 2, height + height % 2, "yuv420p"
+
+    def write(self, frames: np.ndarray) -> None:
+        """uint8 RGB frames (n, H, W, 3)."""
+        import av
+
+        frames = np.asarray(frames)
+        if frames.dtype != np.uint8 or frames.ndim != 4 or frames.shape[1:] != (*self.size, 3):
+            raise ValueError(f"frames: expected uint8 (n, {self.size[0]}, {self.size[1]}, 3), got {frames.dtype} {frames.shape}")
+        h, w = self.size
+        frames = np.pad(frames, ((0, 0), (0, h % 2), (0, w % 2), (0, 0)), mode="edge")
+        for frame in frames:
+            self.container.mux(self.stream.encode(av.VideoFrame.from_ndarray(np.ascontiguousarray(frame), format="rgb24")))
+
+    def close(self) -> None:
+        if self.container is not None:
+            self.container.mux(self.stream.encode(None))
+            self.container.close()
+            self.container = None
+
+    def __enter__(self) -> "Mp4Writer":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def write_mp4(path: PathLike, frames: np.ndarray, fps: float = 25.0, crf: int = 18) -> None:
+    """Write uint8 RGB frames (T, H, W, 3) as an H.264 MP4 (:class:`Mp4Writer`)."""
     frames = np.asarray(frames)
     if frames.dtype != np.uint8 or frames.ndim != 4 or frames.shape[-1] != 3 or frames.shape[0] < 1:
         raise ValueError(f"frames: expected uint8 (T, H, W, 3), got {frames.dtype} {frames.shape}")
-    _, h, w, _ = frames.shape
-    frames = np.pad(frames, ((0, 0), (0, h % 2), (0, w % 2), (0, 0)), mode="edge")
-    with av.open(str(path), "w", format="mp4", options={"movflags": "faststart"}) as container:
-        rate = Fraction(fps).limit_denominator(1001) if fps > 0 else Fraction(25)  # 29.97 stays 30000/1001
-        stream = container.add_stream("libx264", rate=rate, options={"crf": str(crf)})
-        stream.width, stream.height, stream.pix_fmt = frames.shape[2], frames.shape[1], "yuv420p"
-        for frame in frames:
-            container.mux(stream.encode(av.VideoFrame.from_ndarray(np.ascontiguousarray(frame), format="rgb24")))
-        container.mux(stream.encode(None))
+    with Mp4Writer(path, frames.shape[1], frames.shape[2], fps, crf) as writer:
+        writer.write(frames)
 
 
-def write_depth_png16(folder: PathLike, depth: np.ndarray, value_range: Optional[Tuple[float, float]] = None) -> Tuple[float, float]:
-    """One 16-bit PNG per frame (``depth_0000.png`` …): 0 … 65535 spans
-    ``value_range`` (default: the whole video's min and max), the same for
-    every frame. Returns the range, so depth = lo + v / 65535 · (hi − lo)."""
+def write_depth_png16(folder: PathLike, depth: np.ndarray, value_range: Optional[Tuple[float, float]] = None, start: int = 0) -> Tuple[float, float]:
+    """One 16-bit PNG per frame (``depth_0000.png`` …, numbered from
+    ``start``): 0 … 65535 spans ``value_range`` (default: the whole video's
+    min and max), the same for every frame. Returns the range, so depth =
+    lo + v / 65535 · (hi − lo)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     lo, hi = (float(depth.min()), float(depth.max())) if value_range is None else value_range
     scale = 65535.0 / max(hi - lo, 1e-12)
-    for t, frame in enumerate(depth):
+    for t, frame in enumerate(depth, start):
         values = np.rint(np.clip((frame - lo) * scale, 0.0, 65535.0)).astype(np.uint16)
         _core.write_png16(os.fspath(folder / f"depth_{t:04d}.png"), values)
     return lo, hi
@@ -299,6 +416,130 @@ def check_output_folder(out: PathLike, overwrite: bool = False, inputs: Tuple[Pa
     return out
 
 
+class ReconstructionWriter:
+    """A reconstruction folder written a chunk of frames at a time, all or
+    nothing: ``depth.npz`` (float32 ``depth`` (T, H, W), the colour map's
+    ``range``, and with ``png16`` the ``png16_range`` its PNGs span),
+    ``depth.mp4`` (colourised over ``value_range``, the same for every
+    frame), ``side_by_side.mp4`` (input | depth), and optionally
+    ``png16/depth_NNNN.png`` and ``ply/frame_NNNN.ply``. Everything goes
+    into a temporary folder beside ``out``, renamed at :meth:`close` once
+    all T frames are in (:meth:`set_ranges` first, unless ``value_range`` is
+    given); an error or an interrupt (leaving the ``with``
+    block by an exception) removes it, so nothing partial is left. With
+    ``overwrite`` an old result is moved aside, the new one renamed in,
+    then the old one deleted: a kill at any point leaves one of the two at
+    ``out`` (or aside, put back by the next run). The folder is checked by
+    :func:`check_output_folder` first. Memory does not grow with T."""
+
+    def __init__(self, out: PathLike, shape: Tuple[int, int, int], fps: float, value_range: Optional[Tuple[float, float]] = None,
+                 png16: bool = False, ply: bool = False, ply_relief: float = PLY_RELIEF, overwrite: bool = False) -> None:
+        import shutil
+        import zipfile
+
+        if isinstance(ply_relief, bool) or not isinstance(ply_relief, (int, float, np.floating)) or not (math.isfinite(ply_relief) and ply_relief > 0):
+            raise ValueError(f"ply_relief: expected a positive finite number, got {ply_relief!r}")
+        self.out = check_output_folder(out, overwrite)
+        self.shape, self.value_range, self.png16, self.ply, self.ply_relief = tuple(shape), value_range, png16, ply, float(ply_relief)
+        self.png16_range: Optional[Tuple[float, float]] = None
+        self.done = 0
+        self.out.parent.mkdir(parents=True, exist_ok=True)
+        self.tmp = self.out.parent / f".{self.out.name}.partial-{os.getpid()}"
+        shutil.rmtree(self.tmp, ignore_errors=True)  # left by a killed run of this pid
+        self.tmp.mkdir()
+        try:
+            (self.tmp / MARKER).write_text("written by nrdepth reconstruct; --overwrite replaces this folder\n")
+            # The depth streams into the archive's member; numpy reads it back as any .npz.
+            self.archive = zipfile.ZipFile(self.tmp / "depth.npz", "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1)
+            self.member = self.archive.open("depth.npy", "w", force_zip64=True)
+            np.lib.format.write_array_header_2_0(self.member, {"descr": "<f4", "fortran_order": False, "shape": self.shape})
+            _, h, w = self.shape
+            self.videos = [Mp4Writer(self.tmp / "depth.mp4", h, w, fps), Mp4Writer(self.tmp / "side_by_side.mp4", h, 2 * w, fps)]
+            for folder in (("png16",) if png16 else ()) + (("ply",) if ply else ()):
+                (self.tmp / folder).mkdir()
+        except BaseException:
+            self.abort()
+            raise
+
+    def scratch(self, name: str) -> Path:
+        """A path inside the temporary folder for the caller's own scratch
+        file, removed with the folder (delete it before :meth:`close`)."""
+        return self.tmp / name
+
+    def set_ranges(self, value_range: Tuple[float, float], png16_range: Optional[Tuple[float, float]] = None) -> None:
+        """The colour map's range and, with ``png16``, the range the PNGs span (default: ``value_range``), before the first :meth:`write`."""
+        self.value_range = value_range
+        self.png16_range = value_range if png16_range is None else png16_range
+
+    def write(self, frames: np.ndarray, depth: np.ndarray) -> None:
+        """The next uint8 input frames (n, H, W) and their float depth (n, H, W)."""
+        if self.value_range is None:
+            raise ValueError("value_range: give the colour range (set_ranges) before the first frames")
+        frames, depth = np.asarray(frames), np.asarray(depth, dtype=np.float32)
+        if frames.dtype != np.uint8 or frames.ndim != 3 or depth.shape != frames.shape or frames.shape[1:] != self.shape[1:]:
+            raise ValueError(f"depth: expected float (n, H, W) matching uint8 frames of {self.shape[1:]}, got {depth.shape} and {frames.shape}")
+        if self.done + len(frames) > self.shape[0]:
+            raise ValueError(f"depth: more than the {self.shape[0]} frames announced")
+        self.member.write(np.ascontiguousarray(depth, dtype="<f4").tobytes())
+        colour = colorize_depth(depth, self.value_range)
+        self.videos[0].write(colour)
+        self.videos[1].write(np.concatenate([np.repeat(frames[..., None], 3, axis=-1), colour], axis=2))
+        if self.png16:
+            write_depth_png16(self.tmp / "png16", depth, self.png16_range or self.value_range, start=self.done)
+        if self.ply:
+            for t, (d, g) in enumerate(zip(depth, frames), self.done):
+                write_ply(self.tmp / "ply" / f"frame_{t:04d}.ply", d, g, self.ply_relief)
+        self.done += len(frames)
+
+    def close(self) -> Path:
+        """Finish the files and rename the folder into place (every frame must be in)."""
+        if self.done != self.shape[0]:
+            raise ValueError(f"depth: {self.done} of the {self.shape[0]} frames announced were written")
+        try:
+            self.member.close()
+            extra = {"range": np.array(self.value_range, np.float32)}
+            if self.png16:
+                extra["png16_range"] = np.array(self.png16_range or self.value_range, np.float32)
+            for name, value in extra.items():
+                with self.archive.open(f"{name}.npy", "w") as f:
+                    np.lib.format.write_array(f, value)
+            self.archive.close()
+            for video in self.videos:
+                video.close()
+            aside = self.out.parent / f".{self.out.name}.old-{os.getpid()}"
+            if self.out.exists():
+                os.replace(self.out, aside)
+            os.replace(self.tmp, self.out)
+        except BaseException:
+            self.abort()
+            raise
+        import shutil
+
+        shutil.rmtree(aside, ignore_errors=True)
+        return self.out
+
+    def abort(self) -> None:
+        """Remove the temporary folder; ``out`` is left as it was."""
+        import shutil
+
+        for closing in [getattr(self, "member", None), getattr(self, "archive", None), *getattr(self, "videos", [])]:
+            try:
+                if closing is not None:
+                    closing.close()
+            except Exception:  # noqa: BLE001 - the folder goes anyway
+                pass
+        shutil.rmtree(self.tmp, ignore_errors=True)
+
+    def __enter__(self) -> "ReconstructionWriter":
+        return self
+
+    def __exit__(self, kind: object, *rest: object) -> None:
+        if kind is None:
+            self.close()
+        else:
+            self.abort()
+
+
 def save_reconstruction(
     out: PathLike,
     frames: np.ndarray,
@@ -309,47 +550,13 @@ def save_reconstruction(
     ply_relief: float = PLY_RELIEF,
     overwrite: bool = False,
 ) -> Path:
-    """Write a reconstruction into the folder ``out``, all or nothing:
-    ``depth.npz`` (float32 ``depth`` (T, H, W), the ``range`` of the colour
-    map, and with ``png16`` the ``png16_range`` its PNGs span),
-    ``depth.mp4`` (colourised), ``side_by_side.mp4`` (input | depth), and
-    optionally ``png16/depth_NNNN.png`` and ``ply/frame_NNNN.ply``. Everything
-    is written into a temporary folder beside ``out`` and renamed at the end,
-    so an error or an interrupt leaves no partial output. With ``overwrite``
-    an old result is moved aside, the new one renamed in, then the old one
-    deleted: a kill at any point leaves one of the two at ``out`` (or aside,
-    put back by the next run). The folder is checked by
-    :func:`check_output_folder` first. ``ply_relief``: see :func:`write_ply`."""
-    import shutil
-
+    """Write a whole reconstruction into the folder ``out``, all or nothing
+    (:class:`ReconstructionWriter`: its files, guarantees and
+    ``png16``/``ply`` options); ``ply_relief``: see :func:`write_ply`."""
     frames, depth = np.asarray(frames), np.asarray(depth, dtype=np.float32)
     if frames.dtype != np.uint8 or frames.ndim != 3 or depth.shape != frames.shape:
         raise ValueError(f"depth: expected float (T, H, W) matching uint8 frames {frames.shape}, got {depth.shape}")
-    if isinstance(ply_relief, bool) or not isinstance(ply_relief, (int, float, np.floating)) or not (math.isfinite(ply_relief) and ply_relief > 0):
-        raise ValueError(f"ply_relief: expected a positive finite number, got {ply_relief!r}")
-    out = check_output_folder(out, overwrite)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.parent / f".{out.name}.partial-{os.getpid()}"
-    shutil.rmtree(tmp, ignore_errors=True)  # left by a killed run of this pid
-    tmp.mkdir()
-    try:
-        (tmp / MARKER).write_text("written by nrdepth reconstruct; --overwrite replaces this folder\n")
-        value_range = depth_range(depth)
-        colour = colorize_depth(depth, value_range)
-        extra = {"png16_range": np.array(write_depth_png16(tmp / "png16", depth), np.float32)} if png16 else {}
-        np.savez_compressed(tmp / "depth.npz", depth=depth, range=np.array(value_range, np.float32), **extra)
-        write_mp4(tmp / "depth.mp4", colour, fps)
-        write_mp4(tmp / "side_by_side.mp4", np.concatenate([np.repeat(frames[..., None], 3, axis=-1), colour], axis=2), fps)
-        if ply:
-            (tmp / "ply").mkdir()
-            for t in range(len(depth)):
-                write_ply(tmp / "ply" / f"frame_{t:04d}.ply", depth[t], frames[t], ply_relief)
-        aside = out.parent / f".{out.name}.old-{os.getpid()}"
-        if out.exists():
-            os.replace(out, aside)
-        os.replace(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    shutil.rmtree(aside, ignore_errors=True)
-    return out
+    with ReconstructionWriter(out, depth.shape, fps, png16=png16, ply=ply, ply_relief=ply_relief, overwrite=overwrite) as writer:
+        writer.set_ranges(depth_range(depth), (float(depth.min()), float(depth.max())))
+        writer.write(frames, depth)
+    return writer.out
