@@ -18,8 +18,17 @@ one, in one run, on this machine's threads.
 4. The real videos both ways: ``phisft_R1`` (MAE-SN, ``bench_real.phisft``'s
    crop) and ``kinect_paper`` on its sparse ground truth (mm, the whole
    sheet).
+5. ``--resolution``: the working resolution (``max_side``) on both real
+   videos, with the time each costs: ``phisft_R1``'s crop taken from the
+   full frames binned 2×2 (216×216, ``real_scales.phisft_at_bin``) and
+   ``kinect_paper``'s sheet (528×416), each reconstructed at several
+   working sizes and scored at its own grid, beside the plane.
+6. ``--long``: a 1920×1080×300 video (an H.264 file of a textured surface
+   rippling under a moving light, written first) through
+   ``nrdepth.reconstruct_file`` at the default working resolution, in a
+   process of its own: time and peak RSS.
 
-    python benchmarks/bench_video.py [--videos 32] [--seed 4000001] [--threads 2] [--skip-accuracy]
+    python benchmarks/bench_video.py [--videos 32] [--seed 4000001] [--threads 2] [--skip-accuracy] [--resolution] [--long]
 """
 
 from __future__ import annotations
@@ -216,23 +225,93 @@ def real() -> None:
         print(f"  {fine:8s}{kinect_score(nrdepth.reconstruct(frames, net, device='cpu', fine=fine), gt):.2f}")
 
 
+def resolution() -> None:
+    from nrdepth.metrics import flat_baseline as flat, mae_sn, sparse_baselines
+    from nrdepth.videoio import read_video
+
+    from real_scales import phisft_at_bin
+
+    net = inference_model(None, torch.device("cpu"))
+    video, truth = phisft_at_bin(2)
+    mask = np.isfinite(truth)
+    print(f"\nworking resolution, phisft_R1 (the crop from the full frames binned 2×2: {video.shape[2]}×{video.shape[1]}×{len(video)}), "
+          f"MAE-SN per frame / from the first frame (plane {flat(truth, 'frame', mask=mask):.4f} / {flat(truth, 'first', mask=mask):.4f}):")
+    for side in (216, 162, 108, 72):
+        start = time.perf_counter()
+        depth = nrdepth.reconstruct(video, net, device="cpu", max_side=side)
+        seconds = time.perf_counter() - start
+        print(f"  max_side {side:4d}: {mae_sn(depth, truth, 'frame', mask=mask):.4f} / {mae_sn(depth, truth, 'first', mask=mask):.4f}   {seconds:.1f} s")
+    x, y, w, h = KINECT_ROI
+    frames = read_video(DATA / "kinect_paper").frames[:, y : y + h, x : x + w]
+    gt = kinect_truth()
+    base = sparse_baselines(gt["uv"], gt["z"])
+    print(f"kinect_paper (the sheet, {w}×{h}×{len(frames)}), mm on the sparse ground truth (plane {base['plane']:.2f}, fixed bowl {base['bowl']:.2f}):")
+    for side in (528, 384, 264, 192, 128):
+        start = time.perf_counter()
+        depth = nrdepth.reconstruct(frames, net, device="cpu", max_side=side)
+        seconds = time.perf_counter() - start
+        print(f"  max_side {side:4d}: {kinect_score(depth, gt):.2f}   {seconds:.1f} s")
+
+
+def write_long_video(path: Path, frames: int = 300, size: tuple = (1080, 1920)) -> None:
+    """A textured surface rippling under a moving light: uint8 gray H.264."""
+    from nrdepth.videoio import Mp4Writer
+
+    h, w = size
+    y, x = np.mgrid[0:h, 0:w].astype(np.float32) / w
+    texture = 0.5 + 0.25 * np.sin(90 * x + 40 * np.sin(7 * y)) * np.cos(70 * y)
+    with Mp4Writer(path, h, w, 30.0) as writer:
+        for t in range(frames):
+            phase = 2 * np.pi * t / frames
+            zx = np.cos(9 * x + phase) * np.sin(5 * y)  # the relief's slopes
+            zy = -np.sin(9 * x + phase) * np.cos(5 * y)
+            light = np.clip(0.6 + 0.4 * (np.cos(phase) * zx + np.sin(phase) * zy - 0.3 * zy), 0, 1)
+            frame = np.rint(255 * np.clip(texture * light, 0, 1)).astype(np.uint8)
+            writer.write(np.repeat(frame[None, ..., None], 3, axis=-1))
+
+
+def long(threads: int) -> None:
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as scratch:
+        path = Path(scratch) / "long.mp4"
+        start = time.perf_counter()
+        write_long_video(path)
+        print(f"\nlong video: wrote a 1920×1080×300 H.264 file in {time.perf_counter() - start:.0f} s ({path.stat().st_size / 1e6:.0f} MB)")
+        code = ("import resource, sys, time, torch; torch.set_num_threads(int(sys.argv[3])); import nrdepth; "
+                "start = time.perf_counter(); nrdepth.reconstruct_file(sys.argv[1], sys.argv[2], device='cpu'); "
+                "print(time.perf_counter() - start, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)")
+        out = subprocess.run([sys.executable, "-c", code, str(path), str(Path(scratch) / "out"), str(threads)], check=True, capture_output=True, text=True)
+        seconds, peak = (float(v) for v in out.stdout.split()[-2:])
+        size = sum(p.stat().st_size for p in (Path(scratch) / "out").iterdir()) / 1e6
+        print(f"  reconstruct_file (defaults): {seconds:.0f} s ({seconds / 300:.2f} s a frame), peak RSS {peak:.0f} MB, output {size:.0f} MB")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--videos", type=int, default=32, help="generated videos inside and as many outside the training ranges")
     parser.add_argument("--seed", type=int, default=4000001, help="generator seed of the scored videos (fresh: not the validation or held-out seeds)")
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--skip-accuracy", action="store_true", help="cost and seams only")
+    parser.add_argument("--resolution", action="store_true", help="also the working resolution on both real videos")
+    parser.add_argument("--long", action="store_true", help="also a 1920×1080×300 video through reconstruct_file")
+    parser.add_argument("--only", choices=("resolution", "long"), default=None, help="run only that part")
     parser.add_argument("--job", nargs=2, metavar=("VIDEO", "FINE"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     if args.job:
         print(json.dumps(job(*args.job)))
         return
-    cost(args.threads)
-    seams()
-    if not args.skip_accuracy:
-        real()
-        accuracy(args.videos, args.seed)
+    if args.only is None:
+        cost(args.threads)
+        seams()
+        if not args.skip_accuracy:
+            real()
+            accuracy(args.videos, args.seed)
+    if args.resolution or args.only == "resolution":
+        resolution()
+    if args.long or args.only == "long":
+        long(args.threads)
 
 
 if __name__ == "__main__":

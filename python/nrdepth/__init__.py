@@ -18,7 +18,7 @@ _os.environ.setdefault("THP_MEM_ALLOC_ENABLE", "1")
 from .generate import Clips, GeneratorConfig, generate_clips, observable_depth
 from .metrics import flat_baseline, gbr_align, grid_contrast, mae_sn, sign_rates
 from .stitch import PatchLayout, patch_layout, stitch, temporal_align
-from .reconstruct import reconstruct
+from .reconstruct import reconstruct, reconstruct_file
 from .render import CAMERA_Z, TEXTURE_FAMILIES, Light, Material, Render, procedural_texture, raycast_depth, render
 from .surface import (
     SurfaceConfig,
@@ -47,6 +47,7 @@ __all__ = [
     "PatchLayout",
     "patch_layout",
     "reconstruct",
+    "reconstruct_file",
     "stitch",
     "temporal_align",
     "procedural_texture",

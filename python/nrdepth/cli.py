@@ -178,15 +178,16 @@ def _reconstruct(args: argparse.Namespace) -> int:
         raise ValueError(f"--max-side: expected an integer ≥ 8, got {args.max_side}")
     out = Path(args.out) if args.out is not None else Path(Path(args.input).stem + "_depth")
     bar = None
-    if not args.quiet:
-        from tqdm import tqdm
-
-        bar = tqdm(desc="frames", unit="frame")
 
     def progress(done: int, total: int) -> None:
-        if bar is not None:
-            bar.total = total
-            bar.update(done - bar.n)
+        nonlocal bar
+        if args.quiet:
+            return
+        if bar is None:  # once the input and output are accepted: a refusal is one line
+            from tqdm import tqdm
+
+            bar = tqdm(total=total, desc="frames", unit="frame")
+        bar.update(done - bar.n)
 
     start = time.perf_counter()
     try:
