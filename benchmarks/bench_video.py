@@ -23,12 +23,14 @@ one, in one run, on this machine's threads.
    full frames binned 2×2 (216×216, ``real_scales.phisft_at_bin``) and
    ``kinect_paper``'s sheet (528×416), each reconstructed at several
    working sizes and scored at its own grid, beside the plane.
-6. ``--long``: a 1920×1080×300 video (an H.264 file of a textured surface
-   rippling under a moving light, written first) through
-   ``nrdepth.reconstruct_file`` at the default working resolution, in a
-   process of its own: time and peak RSS.
+6. ``--long``: video files through ``nrdepth.reconstruct_file`` (what
+   ``nrdepth reconstruct`` runs), each in a process of its own: the whole
+   ``kinect_paper`` (640×480×191) and a 1920×1080×300 H.264 file of a
+   textured surface rippling under a moving light (written first), at the
+   default working size (``--native``: also at their own), on ``--device``:
+   time, frames a second, peak RSS.
 
-    python benchmarks/bench_video.py [--videos 32] [--seed 4000001] [--threads 2] [--skip-accuracy] [--resolution] [--long]
+    python benchmarks/bench_video.py [--videos 32] [--seed 4000001] [--threads 2] [--skip-accuracy] [--resolution] [--long [--native] [--device cuda]]
 """
 
 from __future__ import annotations
@@ -270,21 +272,39 @@ def write_long_video(path: Path, frames: int = 300, size: tuple = (1080, 1920)) 
             writer.write(np.repeat(frame[None, ..., None], 3, axis=-1))
 
 
-def long(threads: int) -> None:
+def file_job(source: Path, out: Path, threads: int, device: str, max_side: int) -> tuple:
+    """``nrdepth.reconstruct_file`` in a process of its own: (seconds, peak RSS in MB, frames)."""
+    code = ("import resource, sys, time, torch; torch.set_num_threads(int(sys.argv[3])); import nrdepth; "
+            "start = time.perf_counter(); nrdepth.reconstruct_file(sys.argv[1], sys.argv[2], device=sys.argv[4], max_side=int(sys.argv[5]) or None); "
+            "print(time.perf_counter() - start, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)")
+    run = subprocess.run([sys.executable, "-c", code, str(source), str(out), str(threads), device, str(max_side)], check=True, capture_output=True, text=True)
+    seconds, peak = (float(v) for v in run.stdout.split()[-2:])
+    with np.load(out / "depth.npz") as saved:
+        frames = saved["depth"].shape[0]
+    return seconds, peak, frames
+
+
+def long(threads: int, device: str, native: bool) -> None:
     import tempfile
+
+    from nrdepth.reconstruct import MAX_SIDE
 
     with tempfile.TemporaryDirectory() as scratch:
         path = Path(scratch) / "long.mp4"
         start = time.perf_counter()
         write_long_video(path)
-        print(f"\nlong video: wrote a 1920×1080×300 H.264 file in {time.perf_counter() - start:.0f} s ({path.stat().st_size / 1e6:.0f} MB)")
-        code = ("import resource, sys, time, torch; torch.set_num_threads(int(sys.argv[3])); import nrdepth; "
-                "start = time.perf_counter(); nrdepth.reconstruct_file(sys.argv[1], sys.argv[2], device='cpu'); "
-                "print(time.perf_counter() - start, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)")
-        out = subprocess.run([sys.executable, "-c", code, str(path), str(Path(scratch) / "out"), str(threads)], check=True, capture_output=True, text=True)
-        seconds, peak = (float(v) for v in out.stdout.split()[-2:])
-        size = sum(p.stat().st_size for p in (Path(scratch) / "out").iterdir()) / 1e6
-        print(f"  reconstruct_file (defaults): {seconds:.0f} s ({seconds / 300:.2f} s a frame), peak RSS {peak:.0f} MB, output {size:.0f} MB")
+        print(f"\nvideo files through nrdepth.reconstruct_file on {device} (the default working size, max_side {MAX_SIDE}, and with 0 the video's own); "
+              f"the 1920×1080×300 H.264 file written in {time.perf_counter() - start:.0f} s:")
+        sides = (MAX_SIDE, 0) if native else (MAX_SIDE,)
+        for label, source in (("kinect_paper 640×480×191", DATA / "kinect_paper"), ("1920×1080×300", path)):
+            for side in sides:
+                out = Path(scratch) / f"out_{side}"
+                seconds, peak, frames = file_job(source, out, threads, device, side)
+                size = sum(p.stat().st_size for p in out.iterdir()) / 1e6
+                print(f"  {label}, max_side {side or 'own'}: {seconds:.1f} s ({frames / seconds:.2f} frames/s), peak RSS {peak:.0f} MB, output {size:.0f} MB")
+                import shutil
+
+                shutil.rmtree(out)
 
 
 def main() -> None:
@@ -296,6 +316,8 @@ def main() -> None:
     parser.add_argument("--resolution", action="store_true", help="also the working resolution on both real videos")
     parser.add_argument("--long", action="store_true", help="also a 1920×1080×300 video through reconstruct_file")
     parser.add_argument("--only", choices=("resolution", "long"), default=None, help="run only that part")
+    parser.add_argument("--native", action="store_true", help="--long also at the videos' own size")
+    parser.add_argument("--device", default="cpu", help="--long's device (cpu, cuda)")
     parser.add_argument("--job", nargs=2, metavar=("VIDEO", "FINE"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
@@ -311,7 +333,7 @@ def main() -> None:
     if args.resolution or args.only == "resolution":
         resolution()
     if args.long or args.only == "long":
-        long(args.threads)
+        long(args.threads, args.device, args.native)
 
 
 if __name__ == "__main__":

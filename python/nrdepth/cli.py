@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Optional, Sequence
 
 from . import __version__
-from .reconstruct import FINE_PASSES
+from .reconstruct import FINE_PASSES, MAX_SIDE
 from .stitch import ALIGNMENTS, COARSE_WEIGHT, TEMPORAL_WEIGHT, WINDOWS
 
 
@@ -174,8 +174,8 @@ def _reconstruct(args: argparse.Namespace) -> int:
     for flag, value, floor in (("--ply-relief", args.ply_relief, None), ("--coarse-weight", args.coarse_weight, None), ("--temporal-weight", args.temporal_weight, 0.0)):
         if value is not None and not (math.isfinite(value) and (value > 0 if floor is None else value >= floor)):
             raise ValueError(f"{flag}: expected a {'positive' if floor is None else 'non-negative'} finite number, got {value}")
-    if args.max_side is not None and args.max_side < 8:
-        raise ValueError(f"--max-side: expected an integer ≥ 8, got {args.max_side}")
+    if args.max_side != 0 and args.max_side < 8:
+        raise ValueError(f"--max-side: expected an integer ≥ 8, or 0 for the video's own size, got {args.max_side}")
     out = Path(args.out) if args.out is not None else Path(Path(args.input).stem + "_depth")
     bar = None
 
@@ -193,7 +193,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
     try:
         reconstruct_file(args.input, out, model, batch_size=args.batch_size, device=str(device), progress=progress, temporal=args.temporal_align,
                          roi=args.roi, frames=args.frames, units=args.units, alignment=args.alignment, coarse_weight=args.coarse_weight,
-                         window=args.window, temporal_weight=args.temporal_weight, fine=args.fine, max_side=args.max_side,
+                         window=args.window, temporal_weight=args.temporal_weight, fine=args.fine, max_side=args.max_side or None,
                          flip=args.flip, png16=args.png16, ply=args.ply, ply_relief=args.ply_relief, overwrite=args.overwrite)
     except ValueError as e:
         # The API names its arguments; the command line names its flags.
@@ -360,8 +360,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", type=_frames, default=None, help="frames START:STOP[:STEP] (Python slice)")
     p.add_argument("--device", default="auto", help="auto | cpu | cuda | cuda:N")
     p.add_argument("--batch-size", type=int, default=8, help="clips per network call in the coarse pass (and with --fine patches)")
-    p.add_argument("--max-side", type=int, default=None,
-                   help="reconstruct at a working size whose longer side is at most this many pixels, the depth resized back (default: the video's own size)")
+    p.add_argument("--max-side", type=int, default=MAX_SIDE,
+                   help="reconstruct at a working size whose longer side is at most this many pixels, the depth resized back; 0: the video's own size "
+                   "(the network reads relief at the scale of 64-pixel patches; docs/reconstruction.md)")
     p.add_argument("--fine", choices=FINE_PASSES, default=FINE_PASSES[0],
                    help="fine pass: field (the network once over the video, in tiles; default) or patches (every 64×64×16 window on its own, as the paper: 8× the work)")
     p.add_argument("--png16", action="store_true", help="also write 16-bit PNG depth frames")

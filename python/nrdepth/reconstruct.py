@@ -46,9 +46,17 @@ import numpy as np
 from .stitch import COARSE_WEIGHT, PATCH, TEMPORAL_WEIGHT, PatchLayout, _check_stitching, _stitcher, patch_layout, temporal_align
 from .videoio import select, to_gray
 
-__all__ = ["reconstruct", "reconstruct_file", "coarse_depth", "patch_depths", "field_frames", "field_windows", "tile_plan", "inference_model", "working_shape",
+__all__ = ["reconstruct", "reconstruct_file", "MAX_SIDE", "coarse_depth", "patch_depths", "field_frames", "field_windows", "tile_plan", "inference_model", "working_shape",
            "FINE_PASSES", "TILE", "GPU_TILE", "MARGIN"]
 
+MAX_SIDE = 480
+"""Default working resolution: a frame's longer side, in pixels. Measured
+(``benchmarks/bench_video.py --resolution``, docs/reconstruction.md): the
+real cloth ``phisft_R1``, filmed at 1920×1080, reads best at this scale (a
+1920-wide frame at 480: MAE-SN 0.2226 per frame, against 0.2479 and 0.2567
+at 1.5× and 2× the scale, and 0.2689 at 0.67×), and the real sheet of
+``kinect_paper`` reads the same at 384 and 528 (9.76 mm); a 1080p frame
+costs 16× less than at its own size."""
 FINE_PASSES = ("field", "patches")
 """The fine passes of :func:`reconstruct`, the default first (module docstring)."""
 TILE = (32, 320, 320)
@@ -514,7 +522,7 @@ def reconstruct(
     window: str = "hann",
     temporal_weight: float = TEMPORAL_WEIGHT,
     fine: str = "field",
-    max_side: Optional[int] = None,
+    max_side: Optional[int] = MAX_SIDE,
     tile: Optional[Tuple[int, int, int]] = None,
 ) -> np.ndarray:
     """Depth video float32 (T, H, W) of a video (T, H, W) or colour video
@@ -527,10 +535,11 @@ def reconstruct(
       select the part of the video to reconstruct.
     - ``max_side``: reconstruct at a working resolution whose longer side is
       at most this many pixels (area-averaged down, depth bilinearly back
-      up to the selected frames' size); ``None`` works at the video's own.
-      The network reads relief at the scale of its 64-pixel patches, so a
-      real video's working resolution is a choice about which relief it
-      sees (docs/benchmarks.md measures it on the real videos).
+      up to the selected frames' size; :data:`MAX_SIDE` by default);
+      ``None`` works at the video's own. The network reads relief at the
+      scale of its 64-pixel patches, so a working resolution is a choice of
+      which relief it sees: an object that fills a frame of a few hundred
+      pixels suits it (docs/reconstruction.md measures both real videos).
     - ``fine``: ``"field"`` (one network pass over the video in tiles of
       core ``tile``) or ``"patches"`` (every window on its own, 8× the
       work; module docstring).
@@ -590,7 +599,7 @@ def reconstruct_file(
     window: str = "hann",
     temporal_weight: float = TEMPORAL_WEIGHT,
     fine: str = "field",
-    max_side: Optional[int] = None,
+    max_side: Optional[int] = MAX_SIDE,
     tile: Optional[Tuple[int, int, int]] = None,
     flip: bool = False,
     png16: bool = False,
@@ -626,25 +635,75 @@ def reconstruct_file(
     if ply_relief is None:
         ply_relief = 1.0 / source.frame_size[1] if units == "pixels" else PLY_RELIEF  # pixels to frame widths, the PLY's x and y unit
     with ReconstructionWriter(out, (t, *source.frame_size), source.fps, png16=png16, ply=ply, ply_relief=ply_relief, overwrite=overwrite) as writer:
-        scratch = writer.scratch("stitched.npy")
-        raw = np.lib.format.open_memmap(scratch, mode="w+", dtype=np.float32, shape=pipeline.shape)
-        done = 0
+        raw = _DiskFrames(writer.scratch("stitched.f32"), pipeline.shape[1:])
         for chunk in pipeline.stitched(progress):
-            raw[done : done + len(chunk)] = chunk
-            done += len(chunk)
+            raw.append(chunk)
         offset, scale = pipeline.finalise(raw, temporal, units)
         scale = -scale if flip else scale
-        # The ranges from the working resolution: bilinear resizing makes no new extremes.
-        stride = max(1, int(math.sqrt(raw[0].size * t / 4e6)))
-        sample = (np.asarray(raw[:, ::stride, ::stride], np.float64) - offset) * scale
-        lo, hi = np.percentile(sample, [1.0, 99.0])
-        ends = sorted(((float(raw.min()) - offset) * scale, (float(raw.max()) - offset) * scale))
+        # The ranges from the working resolution (bilinear resizing makes no new extremes), a chunk at a time.
+        stride = max(1, int(math.sqrt(raw.size / 4e6)))
+        sample = np.concatenate([raw[a : a + CHUNK][:, ::stride, ::stride].ravel() for a in range(0, t, CHUNK)])
+        lo, hi = np.percentile((sample.astype(np.float64) - offset) * scale, [1.0, 99.0])
+        ends = sorted(((min(float(raw[a : a + CHUNK].min()) for a in range(0, t, CHUNK)) - offset) * scale,
+                       (max(float(raw[a : a + CHUNK].max()) for a in range(0, t, CHUNK)) - offset) * scale))
         writer.set_ranges((float(lo), float(max(hi, lo + 1e-12))), (ends[0], ends[1]))
-        for start, frames_in in zip(range(0, t, CHUNK), source.chunks(CHUNK)):
+        # A few frames a write at large sizes: the colour and side-by-side frames take 9 bytes a pixel.
+        step = max(1, min(CHUNK, 4_000_000 // (source.frame_size[0] * source.frame_size[1])))
+        for start, frames_in in zip(range(0, t, step), source.chunks(step)):
             writer.write(frames_in, pipeline.final(raw, start, start + len(frames_in), offset, scale))
-        del raw
-        scratch.unlink()
+        raw.remove()
     return out
+
+
+class _DiskFrames:
+    """A float32 video (T, H, W) on disk, appended in order and read back a
+    slice of frames at a time by plain reads (not mapped: pages of a memory
+    map count in the process's resident memory while they stay cached)."""
+
+    def __init__(self, path: "os.PathLike[str]", frame: Tuple[int, int]) -> None:
+        self.path, self.frame, self.count = path, tuple(frame), 0
+        self.file = open(path, "w+b")
+
+    @property
+    def shape(self) -> Tuple[int, int, int]:
+        return (self.count, *self.frame)
+
+    @property
+    def size(self) -> int:
+        return self.count * self.frame[0] * self.frame[1]
+
+    def __len__(self) -> int:
+        return self.count
+
+    def append(self, frames: np.ndarray) -> None:
+        self.file.seek(0, os.SEEK_END)
+        self.file.write(np.ascontiguousarray(frames, dtype=np.float32).tobytes())
+        self.count += len(frames)
+
+    def __getitem__(self, frames: slice) -> np.ndarray:
+        start, stop, step = frames.indices(self.count)
+        if step != 1:
+            raise ValueError("frames: expected a contiguous slice")
+        n = max(stop - start, 0)
+        per = self.frame[0] * self.frame[1]
+        self.file.seek(start * per * 4)
+        return np.frombuffer(self.file.read(n * per * 4), np.float32).reshape(n, *self.frame).copy()
+
+    def __setitem__(self, frames: slice, values: np.ndarray) -> None:
+        if frames != slice(None):
+            raise ValueError("frames: only the whole video can be rewritten")
+        self.file.seek(0)
+        self.file.truncate()
+        self.count = 0
+        self.append(values)
+
+    def __array__(self, dtype: Any = None, copy: Any = None) -> np.ndarray:
+        whole = self[:]
+        return whole if dtype is None else whole.astype(dtype)
+
+    def remove(self) -> None:
+        self.file.close()
+        os.unlink(self.path)
 
 
 def _counted(windows: Iterator[Tuple[np.ndarray, np.ndarray]], layout: PatchLayout, progress: Optional[Callable[[int, int], None]]) -> Iterator[Tuple[np.ndarray, np.ndarray]]:

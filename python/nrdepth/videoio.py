@@ -259,24 +259,34 @@ def depth_range(depth: np.ndarray) -> Tuple[float, float]:
     return float(lo), float(max(hi, lo + 1e-12))
 
 
+_COLOURS = np.rint(colormap(np.linspace(0.0, 1.0, 1024)) * 255.0).astype(np.uint8)
+"""The colour ramp in 1024 uint8 steps: a lookup keeps a frame's colours in uint8 (a 1080p chunk in floats would take GBs)."""
+
+
 def colorize_depth(depth: np.ndarray, value_range: Optional[Tuple[float, float]] = None) -> np.ndarray:
     """uint8 RGB (T, H, W, 3): near (small depth) yellow, far blue, over one range."""
     lo, hi = depth_range(depth) if value_range is None else value_range
-    return np.rint(colormap((hi - depth) / (hi - lo)) * 255.0).astype(np.uint8)
+    step = np.float32(1023.0 / (hi - lo))
+    index = np.clip((np.float32(hi) - np.asarray(depth, np.float32)) * step + np.float32(0.5), 0, 1023).astype(np.uint16)
+    return _COLOURS[index]
 
 
 class Mp4Writer:
     """H.264 frames written one chunk at a time (yuv420p, padded to even
     sides by repeating the last row/column, ``faststart``: plays in a
-    browser before it is fully downloaded). A context manager."""
+    browser before it is fully downloaded). x264's ``preset`` trades
+    encoding time for file size at the quality ``crf`` sets: "veryfast"
+    encoded 30 noisy 1080p frames 3.7× faster than x264's default "medium"
+    (1.43 s against 5.35 s, a file 14 % smaller).
+    A context manager."""
 
-    def __init__(self, path: PathLike, height: int, width: int, fps: float = 25.0, crf: int = 18) -> None:
+    def __init__(self, path: PathLike, height: int, width: int, fps: float = 25.0, crf: int = 18, preset: str = "veryfast") -> None:
         import av
 
         self.size = (height, width)
         self.container = av.open(str(path), "w", format="mp4", options={"movflags": "faststart"})
         rate = Fraction(fps).limit_denominator(1001) if fps > 0 else Fraction(25)  # 29.97 stays 30000/1001
-        self.stream = self.container.add_stream("libx264", rate=rate, options={"crf": str(crf)})
+        self.stream = self.container.add_stream("libx264", rate=rate, options={"crf": str(crf), "preset": preset})
         self.stream.width, self.stream.height, self.stream.pix_fmt = width + width % 2, height + height % 2, "yuv420p"
 
     def write(self, frames: np.ndarray) -> None:
@@ -449,8 +459,9 @@ class ReconstructionWriter:
         self.tmp.mkdir()
         try:
             (self.tmp / MARKER).write_text("written by nrdepth reconstruct; --overwrite replaces this folder\n")
-            # The depth streams into the archive's member; numpy reads it back as any .npz.
-            self.archive = zipfile.ZipFile(self.tmp / "depth.npz", "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1)
+            # The depth streams into the archive's member; numpy reads it back as any .npz. Stored, not
+            # deflated: float depth shrinks by ~15 % for 5 s of kinect_paper's 40 (np.savez's choice).
+            self.archive = zipfile.ZipFile(self.tmp / "depth.npz", "w", compression=zipfile.ZIP_STORED)
             self.member = self.archive.open("depth.npy", "w", force_zip64=True)
             np.lib.format.write_array_header_2_0(self.member, {"descr": "<f4", "fortran_order": False, "shape": self.shape})
             _, h, w = self.shape
