@@ -19,6 +19,7 @@ from .generate import Clips, GeneratorConfig, generate_clips, observable_depth
 from .metrics import flat_baseline, gbr_align, grid_contrast, mae_sn, sign_rates
 from .stitch import PatchLayout, patch_layout, stitch, temporal_align
 from .reconstruct import reconstruct, reconstruct_file
+from .viewer import view
 from .render import CAMERA_Z, TEXTURE_FAMILIES, Light, Material, Render, procedural_texture, raycast_depth, render
 from .surface import (
     SurfaceConfig,
@@ -48,6 +49,7 @@ __all__ = [
     "patch_layout",
     "reconstruct",
     "reconstruct_file",
+    "view",
     "stitch",
     "temporal_align",
     "procedural_texture",

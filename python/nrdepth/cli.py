@@ -194,7 +194,8 @@ def _reconstruct(args: argparse.Namespace) -> int:
         reconstruct_file(args.input, out, model, batch_size=args.batch_size, device=str(device), progress=progress, temporal=args.temporal_align,
                          roi=args.roi, frames=args.frames, units=args.units, alignment=args.alignment, coarse_weight=args.coarse_weight,
                          window=args.window, temporal_weight=args.temporal_weight, fine=args.fine, max_side=args.max_side or None,
-                         flip=args.flip, png16=args.png16, ply=args.ply, ply_relief=args.ply_relief, overwrite=args.overwrite)
+                         flip=args.flip, png16=args.png16, ply=args.ply, ply_relief=args.ply_relief, overwrite=args.overwrite,
+                         viewer=not args.no_viewer)
     except ValueError as e:
         # The API names its arguments; the command line names its flags.
         name = str(e).split(":", 1)[0]
@@ -207,7 +208,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
     seconds = time.perf_counter() - start
     t, h, w = _npz_shape(out / "depth.npz", "depth")
     print(f"wrote {out}: depth of {t} frames of {w}×{h} in {seconds:.1f} s on {device} "
-          f"(depth.npz, depth.mp4, side_by_side.mp4{', png16/' if args.png16 else ''}{', ply/' if args.ply else ''})")
+          f"(depth.npz, depth.mp4, side_by_side.mp4{'' if args.no_viewer else ', viewer.html'}{', png16/' if args.png16 else ''}{', ply/' if args.ply else ''})")
     return 0
 
 
@@ -224,18 +225,17 @@ def _npz_shape(path: Path, name: str) -> tuple:
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from .demo import demo_picture, run_demo
+    from tqdm import tqdm
+
+    from .demo import demo_page, demo_picture, run_demo
     from .evaluate import TEST_SEED
     from .preview import save_png
 
-    from tqdm import tqdm
-
-    from .stitch import patch_layout
-
     seed = TEST_SEED if args.seed is None else args.seed
-    with tqdm(total=len(patch_layout((16, args.size, args.size)).origins), desc="patches", unit="patch", disable=args.quiet) as bar:
+    with tqdm(total=16, desc="frames", unit="frame", disable=args.quiet) as bar:
         result = run_demo(args.model, size=args.size, seed=seed, device=args.device, progress=lambda done, total: bar.update(done - bar.n))
     save_png(args.out, demo_picture(result))
+    page = demo_page(result, Path(args.out).with_suffix(".html"))
     m, f = result["mae_sn"], result["flat"]
     t, h, w = result["video"].shape
     print(f"demo: a generated {w}×{h}×{t} deforming-surface video (seed {seed}), reconstructed in "
@@ -244,6 +244,15 @@ def _demo(args: argparse.Namespace) -> int:
     print(f"{'align each frame':26s}{m['frame']:>10.4f}{f['frame']:>16.4f}")
     print(f"{'alignment from 1st frame':26s}{m['first']:>10.4f}{f['first']:>16.4f}")
     print(f"wrote {args.out}: frames | ground-truth depth | reconstruction (GBR-aligned per frame)")
+    print(f"wrote {page}: the truth and the reconstruction in 3-D, one time slider (open it in a browser)")
+    return 0
+
+
+def _view(args: argparse.Namespace) -> int:
+    from .viewer import view
+
+    page = view(args.folder, path=args.out)
+    print(f"wrote {page}: the depth video in 3-D (open it in a browser; it needs no network)")
     return 0
 
 
@@ -383,13 +392,19 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"the joint alignment's tie of each patch's GBR to the frame before, as much as the patch holds still (default {TEMPORAL_WEIGHT}; 0: frames on their own)")
     p.add_argument("--window", choices=WINDOWS, default=WINDOWS[0],
                    help="the overlap-add window: hann (default; no seams) or triangle (the paper's; the paper's stitch is --alignment coarse --window triangle)")
+    p.add_argument("--no-viewer", action="store_true", help="skip viewer.html, the 3-D page of the depth video (nrdepth view OUT writes it later)")
     p.add_argument("--flip", action="store_true", help="negate the depth: the other convex/concave reading (the model assumes light from above; use for a video lit from below)")
     p.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=_reconstruct)
 
+    p = sub.add_parser("view", help="write viewer.html, the 3-D page of a reconstruction folder (nrdepth reconstruct writes it by default)")
+    p.add_argument("folder", help="a folder written by nrdepth reconstruct (depth.npz, side_by_side.mp4)")
+    p.add_argument("-o", "--out", default=None, help="the page (default: FOLDER/viewer.html)")
+    p.set_defaults(run=_view)
+
     p = sub.add_parser("demo", help="reconstruct a synthesised 256×256×16 video and score it against its true depth")
-    p.add_argument("out", nargs="?", default="demo.png", help="output PNG (default: demo.png)")
+    p.add_argument("out", nargs="?", default="demo.png", help="output PNG (default: demo.png); the 3-D page goes beside it (demo.html)")
     p.add_argument("--model", default=None, help="model.safetensors or run folder (default: the shipped model)")
     p.add_argument("--size", type=int, default=256, help="video side in pixels")
     p.add_argument("--seed", type=int, default=None, help="generator seed (default: nrdepth.evaluate.TEST_SEED, held out)")

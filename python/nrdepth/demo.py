@@ -20,7 +20,7 @@ from .generate import GeneratorConfig, generate_clips
 from .metrics import flat_baseline, gbr_align, mae_sn
 from .videoio import colorize_depth, depth_range
 
-__all__ = ["run_demo", "demo_picture"]
+__all__ = ["run_demo", "demo_picture", "demo_page"]
 
 
 def run_demo(
@@ -36,7 +36,7 @@ def run_demo(
     ``model`` (default: the shipped one) and score it. Returns the video,
     ground-truth and reconstructed depth, MAE-SN of the reconstruction and of
     the flat baseline for both alignments, and the seconds each step took.
-    ``progress(done, total)`` is called as patches are predicted."""
+    ``progress(done, total)`` is called as frames of the fine pass are done."""
     from .reconstruct import reconstruct
 
     config = config or GeneratorConfig(size=size)
@@ -73,3 +73,18 @@ def demo_picture(result: Dict[str, Any], frames_shown: int = 4) -> np.ndarray:
         rows.append(np.concatenate([np.pad(c, ((2, 2), (2, 2), (0, 0)), constant_values=255) for c in cells], axis=1))
     picture = titled(np.concatenate(rows, axis=0), ["frames", "ground truth", "nrdepth (gbr-aligned)"], video.shape[2] + 4)
     return with_colour_bar(picture, "far", "near")
+
+
+def demo_page(result: Dict[str, Any], path: "Union[str, os.PathLike[str]]") -> "os.PathLike[str]":
+    """The 3-D page (:mod:`nrdepth.viewer`) of a demo: the ground truth and
+    the reconstruction mapped onto it by its per-frame GBR, side by side,
+    each draped with the video, under one time slider."""
+    from .viewer import ViewerFrames, write_page
+
+    video, truth = result["video"], result["truth"]
+    videos = []
+    for name, depth in (("ground truth", truth), ("nrdepth (gbr-aligned)", gbr_align(result["depth"], truth, "frame"))):
+        frames = ViewerFrames(depth.shape)
+        frames.add(np.asarray(depth, np.float32), video)
+        videos.append((name, frames))
+    return write_page(path, videos, fps=10.0, title="nrdepth demo: a generated video, its true depth and the reconstruction")

@@ -606,12 +606,14 @@ def reconstruct_file(
     ply: bool = False,
     ply_relief: Optional[float] = None,
     overwrite: bool = False,
+    viewer: bool = True,
 ) -> "Path":  # noqa: F821
     """:func:`reconstruct` a video file, image folder or array file
     (:class:`~nrdepth.videoio.VideoSource`) into the folder ``out``
     (:class:`~nrdepth.videoio.ReconstructionWriter`: ``depth.npz``,
-    ``depth.mp4``, ``side_by_side.mp4``, with ``png16`` and ``ply`` their
-    frames; all or nothing), streaming: the video is read a few frames at a
+    ``depth.mp4``, ``side_by_side.mp4``, with ``viewer`` the 3-D page
+    ``viewer.html``, with ``png16`` and ``ply`` their frames; all or
+    nothing), streaming: the video is read a few frames at a
     time (three times: statistic and coarse pass, fine pass, writing),
     the stitched depth waits on disk in the output's temporary folder at
     the working resolution, and memory does not grow with the video's
@@ -634,7 +636,7 @@ def reconstruct_file(
     t = pipeline.shape[0]
     if ply_relief is None:
         ply_relief = 1.0 / source.frame_size[1] if units == "pixels" else PLY_RELIEF  # pixels to frame widths, the PLY's x and y unit
-    with ReconstructionWriter(out, (t, *source.frame_size), source.fps, png16=png16, ply=ply, ply_relief=ply_relief, overwrite=overwrite) as writer:
+    with ReconstructionWriter(out, (t, *source.frame_size), source.fps, png16=png16, ply=ply, ply_relief=ply_relief, overwrite=overwrite, viewer=viewer) as writer:
         raw = _DiskFrames(writer.scratch("stitched.f32"), pipeline.shape[1:])
         for chunk in pipeline.stitched(progress):
             raw.append(chunk)

@@ -38,6 +38,7 @@ __all__ = [
     "Mp4Writer",
     "VideoSource",
     "open_video",
+    "iter_npz_frames",
     "check_output_folder",
     "to_gray",
     "select",
@@ -252,6 +253,40 @@ def read_video(path: PathLike, name: str = "input") -> Video:
     return Video(np.concatenate(list(source.chunks(64))), source.fps)
 
 
+def iter_npz_frames(path: PathLike, name: str, chunk: int = 16) -> Tuple[Tuple[int, ...], Iterator[np.ndarray]]:
+    """The shape of array ``name`` (T, ...) in an .npz and an iterator over
+    it ``chunk`` frames at a time, read from the archive as it goes (not
+    loaded whole: a 1080p depth video is GBs)."""
+    import zipfile
+
+    archive = zipfile.ZipFile(path)
+    member = archive.open(f"{name}.npy")
+    version = np.lib.format.read_magic(member)
+    read = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}.get(version)
+    if read is None:
+        raise ValueError(f"{name}: unsupported .npy version {version} in {path}")
+    shape, fortran, dtype = read(member)
+    if fortran:
+        raise ValueError(f"{name}: expected a C-ordered array in {path}")
+    per = int(np.prod(shape[1:], dtype=np.int64)) * dtype.itemsize
+
+    def frames() -> Iterator[np.ndarray]:
+        with archive, member:
+            for start in range(0, shape[0], chunk):
+                n = min(chunk, shape[0] - start)
+                yield np.frombuffer(member.read(n * per), dtype).reshape(n, *shape[1:])
+
+    return tuple(shape), frames()
+
+
+def read_left_half(path: PathLike, size: Tuple[int, int]) -> Tuple[float, Iterator[np.ndarray]]:
+    """The frame rate of a side-by-side MP4 (input | depth) and its input
+    frames, uint8 gray (H, W) = ``size``, one at a time (decoded, so
+    approximately the input)."""
+    h, w = size
+    return _frame_rate(Path(path)), (frame[:h, :w] for frame in _decoded(Path(path), "side_by_side"))
+
+
 def depth_range(depth: np.ndarray) -> Tuple[float, float]:
     """One colour range for a whole depth video: its 1st and 99th percentiles
     (robust to a few outliers, and the same for every frame, so no flicker)."""
@@ -365,7 +400,7 @@ def write_ply(path: PathLike, depth: np.ndarray, gray: np.ndarray, relief: float
 
 MARKER = ".nrdepth-reconstruction"
 """Written into every output folder: ``overwrite`` replaces only folders that hold it."""
-WRITTEN = {MARKER, "depth.npz", "depth.mp4", "side_by_side.mp4", "png16", "ply"}
+WRITTEN = {MARKER, "depth.npz", "depth.mp4", "side_by_side.mp4", "viewer.html", "png16", "ply"}
 """Every name :func:`save_reconstruction` writes into its folder."""
 
 
@@ -431,7 +466,8 @@ class ReconstructionWriter:
     nothing: ``depth.npz`` (float32 ``depth`` (T, H, W), the colour map's
     ``range``, and with ``png16`` the ``png16_range`` its PNGs span),
     ``depth.mp4`` (colourised over ``value_range``, the same for every
-    frame), ``side_by_side.mp4`` (input | depth), and optionally
+    frame), ``side_by_side.mp4`` (input | depth), with ``viewer`` the 3-D
+    page ``viewer.html`` (:mod:`nrdepth.viewer`), and optionally
     ``png16/depth_NNNN.png`` and ``ply/frame_NNNN.ply``. Everything goes
     into a temporary folder beside ``out``, renamed at :meth:`close` once
     all T frames are in (:meth:`set_ranges` first, unless ``value_range`` is
@@ -443,7 +479,7 @@ class ReconstructionWriter:
     :func:`check_output_folder` first. Memory does not grow with T."""
 
     def __init__(self, out: PathLike, shape: Tuple[int, int, int], fps: float, value_range: Optional[Tuple[float, float]] = None,
-                 png16: bool = False, ply: bool = False, ply_relief: float = PLY_RELIEF, overwrite: bool = False) -> None:
+                 png16: bool = False, ply: bool = False, ply_relief: float = PLY_RELIEF, overwrite: bool = False, viewer: bool = True) -> None:
         import shutil
         import zipfile
 
@@ -451,6 +487,13 @@ class ReconstructionWriter:
             raise ValueError(f"ply_relief: expected a positive finite number, got {ply_relief!r}")
         self.out = check_output_folder(out, overwrite)
         self.shape, self.value_range, self.png16, self.ply, self.ply_relief = tuple(shape), value_range, png16, ply, float(ply_relief)
+        self.fps = fps
+        if viewer:
+            from .viewer import ViewerFrames
+
+            self.viewer: Optional["ViewerFrames"] = ViewerFrames(self.shape)
+        else:
+            self.viewer = None
         self.png16_range: Optional[Tuple[float, float]] = None
         self.done = 0
         self.out.parent.mkdir(parents=True, exist_ok=True)
@@ -497,6 +540,8 @@ class ReconstructionWriter:
         self.videos[1].write(np.concatenate([np.repeat(frames[..., None], 3, axis=-1), colour], axis=2))
         if self.png16:
             write_depth_png16(self.tmp / "png16", depth, self.png16_range or self.value_range, start=self.done)
+        if self.viewer is not None:
+            self.viewer.add(depth, frames)
         if self.ply:
             for t, (d, g) in enumerate(zip(depth, frames), self.done):
                 write_ply(self.tmp / "ply" / f"frame_{t:04d}.ply", d, g, self.ply_relief)
@@ -517,6 +562,10 @@ class ReconstructionWriter:
             self.archive.close()
             for video in self.videos:
                 video.close()
+            if self.viewer is not None:
+                from .viewer import FULL_RESOLUTION, write_page
+
+                write_page(self.tmp / "viewer.html", [("depth", self.viewer)], self.fps, f"nrdepth: {self.out.name}", FULL_RESOLUTION)
             aside = self.out.parent / f".{self.out.name}.old-{os.getpid()}"
             if self.out.exists():
                 os.replace(self.out, aside)
@@ -560,14 +609,15 @@ def save_reconstruction(
     ply: bool = False,
     ply_relief: float = PLY_RELIEF,
     overwrite: bool = False,
+    viewer: bool = True,
 ) -> Path:
     """Write a whole reconstruction into the folder ``out``, all or nothing
     (:class:`ReconstructionWriter`: its files, guarantees and
-    ``png16``/``ply`` options); ``ply_relief``: see :func:`write_ply`."""
+    ``png16``/``ply``/``viewer`` options); ``ply_relief``: see :func:`write_ply`."""
     frames, depth = np.asarray(frames), np.asarray(depth, dtype=np.float32)
     if frames.dtype != np.uint8 or frames.ndim != 3 or depth.shape != frames.shape:
         raise ValueError(f"depth: expected float (T, H, W) matching uint8 frames {frames.shape}, got {depth.shape}")
-    with ReconstructionWriter(out, depth.shape, fps, png16=png16, ply=ply, ply_relief=ply_relief, overwrite=overwrite) as writer:
+    with ReconstructionWriter(out, depth.shape, fps, png16=png16, ply=ply, ply_relief=ply_relief, overwrite=overwrite, viewer=viewer) as writer:
         writer.set_ranges(depth_range(depth), (float(depth.min()), float(depth.max())))
         writer.write(frames, depth)
     return writer.out
