@@ -301,7 +301,9 @@ def long(threads: int, device: str, native: bool) -> None:
                 out = Path(scratch) / f"out_{side}"
                 seconds, peak, frames = file_job(source, out, threads, device, side)
                 size = sum(p.stat().st_size for p in out.iterdir()) / 1e6
-                print(f"  {label}, max_side {side or 'own'}: {seconds:.1f} s ({frames / seconds:.2f} frames/s), peak RSS {peak:.0f} MB, output {size:.0f} MB")
+                page = (out / "viewer.html").stat().st_size / 1e6
+                print(f"  {label}, max_side {side or 'own'}: {seconds:.1f} s ({frames / seconds:.2f} frames/s), peak RSS {peak:.0f} MB, "
+                      f"output {size:.0f} MB (viewer.html {page:.1f} MB)")
                 import shutil
 
                 shutil.rmtree(out)
