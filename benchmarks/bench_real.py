@@ -26,8 +26,10 @@ import time
 from pathlib import Path
 
 import numpy as np
+import torch
 
 import nrdepth
+from nrdepth.reconstruct import inference_model
 from nrdepth.labels import titled, with_colour_bar
 from nrdepth.metrics import flat_baseline, gbr_align, mae_sn, sign_rates, sparse_baselines, sparse_mae
 from nrdepth.preview import save_png
@@ -111,7 +113,7 @@ def kinect(model, out: Path, roi: tuple = KINECT_ROI) -> None:
     base = sparse_baselines(truth["uv"], truth["z"])
     print(f"kinect_paper: {video.shape[0]} frames of {w}×{h} (x {x}–{x + w}, y {y}–{y + h}) reconstructed in {seconds:.1f} s; "
           f"MAE on the sparse ground truth ({len(truth['frames'])} frames × {truth['z'].shape[1]} points), mm:")
-    print(f"  nrdepth {kinect_score(depth, truth, roi):.2f}   -depth {kinect_score(-depth, truth, roi):.2f}   plane {base['plane']:.2f}   "
+    print(f"  nrdepth {kinect_score(depth, truth, roi):.2f}   plane {base['plane']:.2f}   "
           f"fixed bowl {base['bowl']:.2f}   best quadratic (oracle) {base['quadratic']:.2f}")
     shown = depth[:48]
     save_png(out / "kinect_paper.png", picture([gray3(video[:48]), colorize_depth(shown, depth_range(shown))], ["frames", "nrdepth"]))
@@ -126,13 +128,11 @@ def main() -> None:
     parser.add_argument("--skip-kinect", action="store_true")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    model = nrdepth.model.load_model(args.model)
+    model = inference_model(args.model, torch.device("cpu"))
     phisft(model, args.crop, args.out)
     if not args.skip_kinect:
         kinect(model, args.out)
 
 
 if __name__ == "__main__":
-    import nrdepth.model
-
     main()

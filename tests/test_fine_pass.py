@@ -11,6 +11,7 @@ import pytest
 import torch
 
 import nrdepth
+import nrdepth.model
 from nrdepth.reconstruct import MARGIN, _spans, field_frames, field_windows, inference_model, reconstruct_file, tile_plan, working_shape
 
 
@@ -123,7 +124,7 @@ def test_a_file_streamed_to_a_folder_matches_the_in_memory_reconstruction(tmp_pa
         np.testing.assert_allclose(saved["depth"], -expected, atol=1e-5)
         lo, hi = saved["png16_range"]
         assert lo <= saved["depth"].min() and saved["depth"].max() <= hi
-    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [".nrdepth-reconstruction", "depth.mp4", "depth.npz", "png16", "side_by_side.mp4"]
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [".nrdepth-reconstruction", "depth.mp4", "depth.npz", "png16", "side_by_side.mp4", "viewer.html"]
     assert len(list((tmp_path / "out" / "png16").iterdir())) == 34
 
 

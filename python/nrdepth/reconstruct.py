@@ -1,11 +1,12 @@
 """The main job: a video in, its depth video out.
 
-:func:`reconstruct` selects the frames and region, optionally shrinks the
-video to a working resolution (``max_side``), runs the coarse pass (the
-whole video at the patch size, :func:`coarse_depth`), then the fine pass,
-aligns and overlap-adds its 16×64×64 windows with the stitcher
-(:mod:`nrdepth.stitch`), and gives the depth its units and, after
-``max_side``, the video's resolution back.
+:func:`reconstruct` (an array) and :func:`reconstruct_file` (a file to a
+folder, streamed) select the frames and region, shrink the video to a
+working resolution (``max_side``, :data:`MAX_SIDE`), run the coarse pass
+(the whole frame at the patch size, :func:`coarse_depth`), then the fine
+pass, align and overlap-add its 16×64×64 windows with the stitcher
+(:mod:`nrdepth.stitch`), and give the depth its units and the video's
+resolution back. docs/reconstruction.md has the figures.
 
 Two fine passes (``fine``) feed the stitcher the same windows, at the same
 origins (:func:`~nrdepth.stitch.patch_layout`):
@@ -22,16 +23,16 @@ origins (:func:`~nrdepth.stitch.patch_layout`):
   windows are cut from it. The input is standardised with **one statistic
   for the whole video** (its mean and standard deviation), not per tile, so
   a tile's output does not depend on where the tile boundaries fall: at the
-  default margins the tiled field stays within 1 % of the video's standard
-  deviation of one untiled pass (``tests/test_reconstruct.py``), and no
-  seam shows (``benchmarks/bench_video.py``).
+  default margins the tiled field of ``kinect_paper`` differs from one
+  untiled pass by 0.0006 of its standard deviation on average, 0.11 at
+  most (``benchmarks/bench_video.py``; ``tests/test_fine_pass.py``).
 - ``"patches"``: every window through the network on its own, standardised
   per window (the paper's way; 8× the network work).
 
 Frames flow through in time order: the fine pass computes a span of frames,
-the windows it completes go to the stitcher, and frames no window needs any
-more are dropped, so the fine pass's memory does not grow with the video's
-length.
+the windows it completes go to the stitcher, which gives back the frames it
+has solved, and frames no window needs any more are dropped, so memory does
+not grow with the video's length (:func:`reconstruct_file`).
 """
 
 from __future__ import annotations
@@ -64,14 +65,14 @@ TILE = (32, 320, 320)
 and columns multiples of 8, the networks' coarsest stride). With
 :data:`MARGIN` a tile holds at most 48 × 448 × 448 input voxels (≈ 200
 bytes of activations each). Larger tiles pay less margin but run slower
-per voxel on a 2-core CPU (cache); on ``kinect_paper`` this core beat
-(32, 256, 256) by 14 % (``benchmarks/bench_video.py``, docs/benchmarks.md)."""
+per voxel on a 2-core CPU (cache): the network alone over ``kinect_paper``
+took 41.7 s with this core, 48.4 s with (32, 256, 256) (a one-off timing)."""
 GPU_TILE = (64, 512, 512)
 """Default core of a tile on CUDA, where larger tiles keep the device busy."""
 MARGIN = (8, 64, 64)
 """Overlap of a tile on each side, discarded: frames, rows, columns. One
 output voxel's input gradient has 0.9 % of its mass more than 8 frames and
-2.3 % more than 64 pixels away; at these margins the tiled field of the
+2.3 % more than 64 pixels away (a one-off measurement); at these margins the tiled field of the
 real ``kinect_paper`` differs from one untiled pass by 0.06 % of its
 standard deviation on average (48-pixel margins: 0.5 %, with seams up to
 half a standard deviation; ``benchmarks/bench_video.py`` prints it)."""
@@ -121,7 +122,7 @@ def coarse_depth(video: np.ndarray, net: "torch.nn.Module", batch_size: int, dev
     by default twice, as it is and mirrored left-right, the two depths
     averaged: the mirror keeps image-up (so the light prior, and the
     relief's sign), and this one reading sets every patch's large-scale
-    shape, so halving its variance pays (docs/stitching.md); the pass runs
+    shape, so halving its variance pays (README, "Depth of a whole video"); the pass runs
     one network window per 16 frames, so reading it twice is nearly free."""
     _, h, w = video.shape
     return _resize(coarse_half(_resize(_as_unit_float(video), PATCH[1:]), net, batch_size, device, readings), (h, w))
@@ -617,7 +618,7 @@ def reconstruct_file(
     time (three times: statistic and coarse pass, fine pass, writing),
     the stitched depth waits on disk in the output's temporary folder at
     the working resolution, and memory does not grow with the video's
-    length, except by the coarse pass's 8 kB a frame (and with
+    length, except by the coarse pass's 20 kB a frame (and with
     ``temporal``, which aligns the whole video in memory, or
     ``fine="patches"``, which holds it). ``flip`` negates the depth (the
     other convex/concave reading); ``ply_relief``: the PLYs' depth scale
