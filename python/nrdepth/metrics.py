@@ -22,7 +22,7 @@ from typing import Dict, Literal, Optional, Tuple
 
 import numpy as np
 
-__all__ = ["mae_sn", "flat_baseline", "gbr_fit", "gbr_align", "relief_signs", "sign_rates", "grid_contrast", "sparse_mae", "sparse_baselines"]
+__all__ = ["mae_sn", "flat_baseline", "gbr_fit", "gbr_align", "relief_signs", "sign_rates", "grid_contrast", "sparse_mae", "sparse_sign_rate", "sparse_baselines", "dense_baselines"]
 
 Align = Literal["frame", "first", "first_offset"]
 
@@ -218,34 +218,56 @@ def grid_contrast(depth: np.ndarray, period: int = 32) -> float:
     return float(np.exp(np.mean(logs)))
 
 
-def sparse_mae(depth: np.ndarray, uv: np.ndarray, z: np.ndarray) -> float:
-    """Mean absolute error, in the units of ``z``, of a depth video against
-    sparse 3-D ground truth (``kinect_paper``'s ``gt_mdh.npz``; its README's
-    fair score): ``depth`` (F, H, W) holds the frames that carry ground
-    truth, ``uv`` (F, 2, N) the points' pixel positions (column, row;
-    pixel centres at integers) and ``z`` (F, N) their true depths. The
-    depth is sampled bilinearly at ``uv`` and fitted per frame by least
-    squares, ``a·u + b·v + λ·depth + t ≈ z`` (the GBR in image coordinates,
-    λ's sign free, as MAE-SN). Points outside the frame are an error."""
+def _sparse_check(depth: np.ndarray, uv: np.ndarray, z: np.ndarray, mask: Optional[np.ndarray]) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     depth, uv, z = np.asarray(depth, np.float64), np.asarray(uv, np.float64), np.asarray(z, np.float64)
     if depth.ndim != 3:
         raise ValueError(f"depth: expected (F, H, W), got shape {depth.shape}")
     if uv.shape != (len(depth), 2, z.shape[-1]) or z.shape != (len(depth), uv.shape[-1]):
         raise ValueError(f"uv, z: expected (F, 2, N) and (F, N) with F = {len(depth)}, got {uv.shape} and {z.shape}")
+    mask = np.ones(z.shape, bool) if mask is None else np.asarray(mask, bool)
+    if mask.shape != z.shape or (mask.sum(axis=1) < 4).any():
+        raise ValueError(f"mask: expected (F, N) booleans keeping at least 4 points a frame, got {mask.shape}")
     _, h, w = depth.shape
-    u, v = uv[:, 0], uv[:, 1]
+    u, v = uv[:, 0][mask], uv[:, 1][mask]
     if u.min() < 0 or v.min() < 0 or u.max() > w - 1 or v.max() > h - 1:
         raise ValueError(f"uv: points outside the {w}×{h} frame")
-    errors = []
+    return depth, uv, z, mask
+
+
+def _sparse_fits(depth: np.ndarray, uv: np.ndarray, z: np.ndarray, mask: Optional[np.ndarray]) -> list:
+    """Per frame: the absolute errors and λ of the fit ``a·u + b·v + λ·depth + t ≈ z``."""
+    depth, uv, z, mask = _sparse_check(depth, uv, z, mask)
+    fits = []
     for f in range(len(depth)):
-        sample = _bilinear(depth[f], u[f], v[f])
-        design = np.stack([u[f], v[f], sample, np.ones_like(sample)], axis=1)
-        coef, *_ = np.linalg.lstsq(design, z[f], rcond=None)
-        errors.append(np.abs(design @ coef - z[f]))
-    return float(np.mean(errors))
+        u, v, target = uv[f, 0][mask[f]], uv[f, 1][mask[f]], z[f][mask[f]]
+        sample = _bilinear(depth[f], u, v)
+        design = np.stack([u, v, sample, np.ones_like(sample)], axis=1)
+        coef, *_ = np.linalg.lstsq(design, target, rcond=None)
+        fits.append((np.abs(design @ coef - target), coef[2]))
+    return fits
 
 
-def sparse_baselines(uv: np.ndarray, z: np.ndarray) -> Dict[str, float]:
+def sparse_mae(depth: np.ndarray, uv: np.ndarray, z: np.ndarray, mask: Optional[np.ndarray] = None) -> float:
+    """Mean absolute error, in the units of ``z``, of a depth video against
+    sparse 3-D ground truth (``kinect_paper``'s ``gt_mdh.npz``; its README's
+    fair score): ``depth`` (F, H, W) holds the frames that carry ground
+    truth, ``uv`` (F, 2, N) the points' pixel positions (column, row;
+    pixel centres at integers), ``z`` (F, N) their true depths and ``mask``
+    (F, N) the points to score (default: all). The depth is sampled
+    bilinearly at ``uv`` and fitted per frame by least squares,
+    ``a·u + b·v + λ·depth + t ≈ z`` (the GBR in image coordinates, λ's sign
+    free, as MAE-SN); the mean is over frames of each frame's mean. Points
+    outside the frame are an error."""
+    return float(np.mean([errors.mean() for errors, _ in _sparse_fits(depth, uv, z, mask)]))
+
+
+def sparse_sign_rate(depth: np.ndarray, uv: np.ndarray, z: np.ndarray, mask: Optional[np.ndarray] = None) -> float:
+    """The share of frames whose relief :func:`sparse_mae`'s fit reads with
+    the right sign (λ > 0: ``depth`` and ``z`` both grow away from the camera)."""
+    return float(np.mean([lam > 0 for _, lam in _sparse_fits(depth, uv, z, mask)]))
+
+
+def sparse_baselines(uv: np.ndarray, z: np.ndarray, mask: Optional[np.ndarray] = None) -> Dict[str, float]:
     """The references beside :func:`sparse_mae`, fitted the same way, in the
     units of ``z``: ``"plane"`` (a flat prediction: a·u + b·v + t),
     ``"bowl"`` (a fixed paraboloid (u − u₀)² + (v − v₀)² under the GBR, the
@@ -253,16 +275,37 @@ def sparse_baselines(uv: np.ndarray, z: np.ndarray) -> Dict[str, float]:
     ``"quadratic"`` (the best quadratic in u, v fitted to the truth, 6
     parameters a frame: the best a smooth prior could reach)."""
     uv, z = np.asarray(uv, np.float64), np.asarray(z, np.float64)
+    mask = np.ones(z.shape, bool) if mask is None else np.asarray(mask, bool)
     out: Dict[str, list] = {"plane": [], "bowl": [], "quadratic": []}
     for f in range(len(z)):
-        u, v = uv[f, 0], uv[f, 1]
+        u, v, target = uv[f, 0][mask[f]], uv[f, 1][mask[f]], z[f][mask[f]]
         one = np.ones_like(u)
         designs = {"plane": [u, v, one], "bowl": [u, v, u * u + v * v, one], "quadratic": [u, v, u * u, u * v, v * v, one]}
         for name, columns in designs.items():
             a = np.stack(columns, axis=1)
-            coef, *_ = np.linalg.lstsq(a, z[f], rcond=None)
-            out[name].append(np.abs(a @ coef - z[f]))
+            coef, *_ = np.linalg.lstsq(a, target, rcond=None)
+            out[name].append(np.abs(a @ coef - target).mean())
     return {name: float(np.mean(e)) for name, e in out.items()}
+
+
+def dense_baselines(gt: np.ndarray, mask: Optional[np.ndarray] = None) -> Dict[str, float]:
+    """MAE-SN per frame of the shape-blind references beside a dense depth
+    video (T, H, W): ``"plane"`` (:func:`flat_baseline`), ``"bowl"`` (a
+    fixed paraboloid (x − x₀)² + (y − y₀)², the same in every frame, under
+    each frame's GBR) and ``"quadratic"`` (the best quadratic in x, y fitted
+    to each frame of the truth: the best a smooth prior could reach)."""
+    gt = _check("gt", gt, mask)
+    mask = _check_mask(mask, gt.shape)
+    t, h, w = gt.shape
+    y, x = np.mgrid[0:h, 0:w].astype(np.float64)
+    bowl = np.broadcast_to(((x - w / 2) ** 2 + (y - h / 2) ** 2), gt.shape)
+    quadratic = []
+    for k in range(t):
+        m = np.ones((h, w), bool) if mask is None else mask[k]
+        a = np.stack([np.ones(m.sum()), x[m], y[m], x[m] ** 2, x[m] * y[m], y[m] ** 2], axis=1)
+        coef, *_ = np.linalg.lstsq(a, gt[k][m], rcond=None)
+        quadratic.append(np.abs(a @ coef - gt[k][m]).mean() / gt[k][m].std())
+    return {"plane": flat_baseline(gt, "frame", mask=mask), "bowl": mae_sn(bowl, gt, "frame", mask=mask), "quadratic": float(np.mean(quadratic))}
 
 
 def _bilinear(image: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
