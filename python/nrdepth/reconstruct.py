@@ -458,13 +458,14 @@ class _Pipeline:
             return mean, scale * math.sqrt(h * w) * self.full[1] / w
         # A network without a depth scale (GBR-invariant losses only): a
         # canonical one rather than whatever magnitude its weights drifted to.
+        pivot = float(raw[0:1].mean(dtype=np.float64))  # sums about a value near the mean: no cancellation
         total = squares = 0.0
         for a, b in spans:
-            frames = self._full(raw[a:b]).astype(np.float64)
+            frames = self._full(raw[a:b]).astype(np.float64) - pivot
             total, squares = total + float(frames.sum()), squares + float(np.square(frames).sum())
         n = t * self.full[0] * self.full[1]
         mean = total / n
-        return mean, 1.0 / (math.sqrt(max(squares / n - mean * mean, 0.0)) or 1.0)
+        return pivot + mean, 1.0 / (math.sqrt(max(squares / n - mean * mean, 0.0)) or 1.0)
 
     def final(self, raw: np.ndarray, start: int, stop: int, offset: float, scale: float) -> np.ndarray:
         """Frames ``start .. stop`` of the final depth, float32 at the video's resolution (:meth:`finalise`)."""
