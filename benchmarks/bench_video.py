@@ -29,8 +29,12 @@ one, in one run, on this machine's threads.
    textured surface rippling under a moving light (written first), at the
    default working size (``--native``: also at their own), on ``--device``:
    time, frames a second, peak RSS.
+7. ``--only rate [--device cuda]``: frames a second of ``nrdepth.reconstruct``
+   on arrays in memory at 640×480 and 1920×1080 (needs neither PyAV nor the
+   data: what a lent GPU machine can run; ``tools/gpu_run.sh video``).
 
     python benchmarks/bench_video.py [--videos 32] [--seed 4000001] [--threads 2] [--skip-accuracy] [--resolution] [--long [--native] [--device cuda]]
+    python benchmarks/bench_video.py --only rate --device cuda
 """
 
 from __future__ import annotations
@@ -255,21 +259,46 @@ def resolution() -> None:
         print(f"  max_side {side:4d}: {kinect_score(depth, gt):.2f}   {seconds:.1f} s")
 
 
-def write_long_video(path: Path, frames: int = 300, size: tuple = (1080, 1920)) -> None:
-    """A textured surface rippling under a moving light: uint8 gray H.264."""
-    from nrdepth.videoio import Mp4Writer
-
+def rippling_frames(frames: int = 300, size: tuple = (1080, 1920)):
+    """A textured surface rippling under a moving light: uint8 gray frames (H, W), one at a time."""
     h, w = size
     y, x = np.mgrid[0:h, 0:w].astype(np.float32) / w
     texture = 0.5 + 0.25 * np.sin(90 * x + 40 * np.sin(7 * y)) * np.cos(70 * y)
-    with Mp4Writer(path, h, w, 30.0) as writer:
-        for t in range(frames):
-            phase = 2 * np.pi * t / frames
-            zx = np.cos(9 * x + phase) * np.sin(5 * y)  # the relief's slopes
-            zy = -np.sin(9 * x + phase) * np.cos(5 * y)
-            light = np.clip(0.6 + 0.4 * (np.cos(phase) * zx + np.sin(phase) * zy - 0.3 * zy), 0, 1)
-            frame = np.rint(255 * np.clip(texture * light, 0, 1)).astype(np.uint8)
+    for t in range(frames):
+        phase = 2 * np.pi * t / frames
+        zx = np.cos(9 * x + phase) * np.sin(5 * y)  # the relief's slopes
+        zy = -np.sin(9 * x + phase) * np.cos(5 * y)
+        light = np.clip(0.6 + 0.4 * (np.cos(phase) * zx + np.sin(phase) * zy - 0.3 * zy), 0, 1)
+        yield np.rint(255 * np.clip(texture * light, 0, 1)).astype(np.uint8)
+
+
+def write_long_video(path: Path, frames: int = 300, size: tuple = (1080, 1920)) -> None:
+    """:func:`rippling_frames` as an H.264 file."""
+    from nrdepth.videoio import Mp4Writer
+
+    with Mp4Writer(path, size[0], size[1], 30.0) as writer:
+        for frame in rippling_frames(frames, size):
             writer.write(np.repeat(frame[None, ..., None], 3, axis=-1))
+
+
+def rate(device: str) -> None:
+    """Frames a second of ``nrdepth.reconstruct`` on arrays in memory (no
+    PyAV or data needed: what a lent GPU machine can run), 640×480 and
+    1920×1080, at the default working size and at the videos' own."""
+    from nrdepth.reconstruct import MAX_SIDE
+
+    net = inference_model(None, torch.device(device))
+    nrdepth.reconstruct(np.stack(list(rippling_frames(16, (256, 256)))), net, device=device)  # kernels set up
+    print(f"\nnrdepth.reconstruct on {device}, arrays in memory (rippling_frames), frames a second:")
+    for frames, size in ((192, (480, 640)), (300, (1080, 1920))):
+        video = np.stack(list(rippling_frames(frames, size)))
+        for side in (MAX_SIDE, None):
+            if device == "cuda":
+                torch.cuda.synchronize()
+            start = time.perf_counter()
+            nrdepth.reconstruct(video, net, device=device, max_side=side)
+            seconds = time.perf_counter() - start
+            print(f"  {size[1]}×{size[0]}×{frames}, max_side {side or 'own'}: {seconds:.1f} s, {frames / seconds:.1f} frames/s")
 
 
 def file_job(source: Path, out: Path, threads: int, device: str, max_side: int) -> tuple:
@@ -317,9 +346,9 @@ def main() -> None:
     parser.add_argument("--skip-accuracy", action="store_true", help="cost and seams only")
     parser.add_argument("--resolution", action="store_true", help="also the working resolution on both real videos")
     parser.add_argument("--long", action="store_true", help="also a 1920×1080×300 video through reconstruct_file")
-    parser.add_argument("--only", choices=("resolution", "long"), default=None, help="run only that part")
+    parser.add_argument("--only", choices=("resolution", "long", "rate"), default=None, help="run only that part (rate: frames a second on arrays, for a GPU)")
     parser.add_argument("--native", action="store_true", help="--long also at the videos' own size")
-    parser.add_argument("--device", default="cpu", help="--long's device (cpu, cuda)")
+    parser.add_argument("--device", default="cpu", help="--long's and rate's device (cpu, cuda)")
     parser.add_argument("--job", nargs=2, metavar=("VIDEO", "FINE"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
@@ -336,6 +365,8 @@ def main() -> None:
         resolution()
     if args.long or args.only == "long":
         long(args.threads, args.device, args.native)
+    if args.only == "rate":
+        rate(args.device)
 
 
 if __name__ == "__main__":

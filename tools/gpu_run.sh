@@ -18,6 +18,8 @@
 # (config, last.pt, metrics, best weights; each under 16 MB) to $OUT/NAME.
 # Committed to campaign/NAME, its config.json's "init" is set to the campaign
 # path of the same weights, so that it resumes from campaign/.
+#   bash tools/gpu_run.sh video x
+# times the main job on the GPU instead (benchmarks/bench_video.py --only rate).
 set -euo pipefail
 command=$1 name=$2
 shift 2
@@ -41,8 +43,14 @@ collect)
         if [ -f "/tmp/gpu/$name/$f" ]; then cp "/tmp/gpu/$name/$f" "$OUT/$name/"; fi
     done
     ;;
+video)
+    # The main job's speed on the GPU (frames a second at 640×480 and 1080p, default and own size), into $OUT/video.txt.
+    pip install -q --no-deps --target /tmp/site .whl/*.whl
+    mkdir -p "$OUT"
+    (cd benchmarks && RAYON_NUM_THREADS=16 python3 bench_video.py --only rate --device "${DEVICE:-cuda}") 2>&1 | tee "$OUT/video.txt"
+    ;;
 *)
-    echo "usage: $0 start NAME [train options] | collect NAME SECONDS" >&2
+    echo "usage: $0 start NAME [train options] | collect NAME SECONDS | video" >&2
     exit 2
     ;;
 esac
