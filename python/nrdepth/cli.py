@@ -363,8 +363,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("reconstruct", help="depth video of a video file, an image folder or a .npy/.npz array",
                        description="Depth video of a video file, an image folder or a .npy/.npz array, streamed: memory does not grow with the "
                        "video's length. What a video costs on a 2-core CPU (measured with benchmarks/bench_video.py --long, every output "
-                       "written): 0.20 s a frame at 640×480 and 0.23 s at 1920×1080 at the default --max-side 480; at their own size "
-                       "(--max-side 0) 0.31 s and 2.1 s a frame. On a GPU: --device cuda (docs/reconstruction.md).")
+                       "written): 0.17 s a frame at 640×480 and 0.22 s at 1920×1080 at the default --max-side 480; at their own size "
+                       "(--max-side 0) 0.26 s and 2.1 s a frame. On a GPU: --device cuda (docs/reconstruction.md).")
     p.add_argument("input", help="video file (mp4, avi, gif, …), folder of images, or .npy/.npz (T, H, W[, 3])")
     p.add_argument("-o", "--out", default=None,
                    help="output folder: depth.npz, depth.mp4, side_by_side.mp4 [, png16/, ply/] (default: INPUT_depth here)")
