@@ -24,7 +24,8 @@ CSF2 on points tracked on the print (48-frame windows, shorter where the
 tracker loses the points; K = 2), a plane, a fixed bowl and
 the best quadratic fitted to the truth.
 
-    python benchmarks/bench_real.py [--model PATH] [--out docs]
+    python benchmarks/bench_real.py [--model PATH] [--out docs] [--skip-csf2]
+    python benchmarks/bench_real.py --write-kinect kinect_sheet.npz      # for nrdepth train --real
 """
 
 from __future__ import annotations
@@ -194,7 +195,16 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("docs"), help="folder for the pictures")
     parser.add_argument("--skip-kinect", action="store_true")
     parser.add_argument("--skip-csf2", action="store_true", help="no CSF2 on kinect_paper (tracking and NRSfM take a minute)")
+    parser.add_argument("--write-kinect", default=None, metavar="NPZ",
+                        help="save kinect_paper's sheet (KINECT_ROI) with its sparse truth for `nrdepth train --real NPZ` and stop")
     args = parser.parse_args()
+    if args.write_kinect:
+        x, y, w, h = KINECT_ROI
+        truth = kinect_truth()
+        video = read_video(DATA / "kinect_paper").frames[:, y : y + h, x : x + w]
+        np.savez_compressed(args.write_kinect, video=video, frames=truth["frames"], uv=truth["uv"] - np.array([x, y], np.float64)[None, :, None], z=truth["z"])
+        print(f"wrote {args.write_kinect}: kinect_paper's sheet {video.shape} uint8 and its sparse truth (frames, uv, z in mm) for nrdepth train --real")
+        return
     args.out.mkdir(parents=True, exist_ok=True)
     model = inference_model(args.model, torch.device("cpu"))
     phisft(model, args.crop, args.out)

@@ -126,6 +126,33 @@ def test_a_real_video_is_scored_every_epoch_by_the_weights_of_that_epoch(tmp_pat
             TrainConfig(loss="aligned", real=str(tmp_path / name), **TINY)
 
 
+def test_several_real_videos_dense_and_sparse_are_scored_in_their_own_columns(tmp_path):
+    from nrdepth.evaluate import load_real, score_real
+
+    clip = nrdepth.generate_clips(2, seed=9)
+    np.savez(tmp_path / "cloth.npz", video=clip.video[0], depth=clip.depth[0])
+    rng = np.random.default_rng(0)
+    frames = np.array([1, 5, 9])
+    uv = rng.uniform(0, 63, (3, 2, 40))
+    z = np.stack([clip.depth[1][f][np.rint(v).astype(int), np.rint(u).astype(int)] for f, (u, v) in zip(frames, uv)])
+    np.savez(tmp_path / "sheet.npz", video=clip.video[1], frames=frames, uv=uv, z=z)
+    config = TrainConfig(loss="aligned", real=[str(tmp_path / "cloth.npz"), str(tmp_path / "sheet.npz")], keep_every=1, **TINY)
+    train(tmp_path / "run", config, progress=False)
+    last = rows(tmp_path / "run")[-1]
+    model = load_model(tmp_path / "run" / "epochs" / f"epoch_{last['epoch']}.safetensors")  # the weights the last row scored
+    for stem, columns in (("cloth", {"mae_sn_frame": "frame", "mae_sn_first": "first", "flat_frame": "flat_frame", "sign_correct": "sign_correct"}),
+                          ("sheet", {"mae": "mae", "flat_mae": "flat_mae", "sign_correct": "sign_correct"})):
+        expected = score_real(model, load_real(tmp_path / f"{stem}.npz"))
+        for column, key in columns.items():
+            assert float(last[f"real_{stem}_{column}"]) == pytest.approx(expected[key], rel=1e-6), (stem, column)
+    assert "real_mae_sn_frame" not in last
+    np.savez(tmp_path / "outside.npz", video=clip.video[1], frames=frames, uv=uv + 100, z=z)
+    with pytest.raises(ValueError, match="^real: .*inside the 64×64 frame"):
+        TrainConfig(loss="aligned", real=str(tmp_path / "outside.npz"), **TINY)
+    with pytest.raises(ValueError, match="^real: expected one or more .npz files with different names"):
+        TrainConfig(loss="aligned", real=[str(tmp_path / "cloth.npz"), str(tmp_path / "cloth.npz")], **TINY)
+
+
 def test_two_process_torchrun_on_the_cpu_keeps_ranks_in_sync(tmp_path):
     args = [
         "--nproc_per_node", "2", "--standalone", "-m", "nrdepth", "train", str(tmp_path), "--loss", "aligned",

@@ -81,7 +81,7 @@ def _train(args: argparse.Namespace) -> int:
         loss=args.loss, arch=args.arch, base=args.base, schedule=args.schedule, target=args.target, amplitude=args.amplitude, init=args.init, batch_size=args.batch_size, steps_per_epoch=args.steps, epochs=args.epochs,
         lr=args.lr, seed=args.seed, data=args.data, generator=_generator_config(args),
         validation_clips=args.validation_clips, workers=args.workers, device=args.device, compile=args.compile,
-        real=args.real, keep_every=args.keep_every, ema=args.ema,
+        real=(args.real[0] if len(args.real) == 1 else args.real) if args.real else None, keep_every=args.keep_every, ema=args.ema,
     )
     summary = train(args.out, config, progress=not args.quiet, max_epochs=args.max_epochs)
     if summary:
@@ -327,9 +327,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--base", type=int, default=None, help="width of the first network stage (default: the architecture's, 16 / 24)")
     p.add_argument("--data", default=None, help="dataset folder; default: fresh clips every step")
     p.add_argument("--validation-clips", type=int, default=64, help="held-out clips scored after every epoch")
-    p.add_argument("--real", default=None, metavar="NPZ",
-                   help="a real video with ground-truth depth (.npz: video uint8 (T, H, W), depth (T, H, W), NaN where none), "
-                        "reconstructed and scored after every epoch (metrics.csv's real_* columns; it does not choose the best weights)")
+    p.add_argument("--real", default=None, metavar="NPZ", action="append",
+                   help="a real video with ground truth, reconstructed and scored after every epoch (metrics.csv's real_* columns; it does not "
+                        "choose the best weights); give it again for several (real_STEM_* columns). Dense: video uint8 (T, H, W), depth (T, H, W), "
+                        "NaN where none (benchmarks/real_scales.py --write); sparse: video, frames, uv, z (benchmarks/bench_real.py --write-kinect)")
     p.add_argument("--ema", type=float, default=0.0, metavar="DECAY",
                    help="score and save an exponential moving average of the weights with this decay per step, e.g. 0.999 (default: 0, the weights themselves)")
     p.add_argument("--keep-every", type=int, default=0, metavar="N",

@@ -15,7 +15,7 @@ import csv
 import json
 import os
 from pathlib import Path
-from typing import Any, Dict, Optional, Tuple, Union
+from typing import Any, Dict, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
 import torch
@@ -25,7 +25,7 @@ from .losses import relief_rms
 from .metrics import flat_baseline, mae_sn, sign_rates
 from .model.io import check_readings, load_model, predict_depth, resolve_device
 
-__all__ = ["evaluate", "load_real_video", "score_real_video", "relief_ratio", "TEST_SEED"]
+__all__ = ["evaluate", "load_real_video", "load_real", "RealVideo", "score_real", "score_real_video", "relief_ratio", "TEST_SEED"]
 
 TEST_SEED = 2_000_003
 """Generator seed of the held-out clips when no dataset is given."""
@@ -117,6 +117,67 @@ def load_real_video(path: Union[str, os.PathLike]) -> Tuple[np.ndarray, np.ndarr
     if (np.isfinite(depth).sum(axis=(1, 2)) < 3).any():
         raise ValueError(f"{path}: every frame needs ground truth at 3 pixels or more to fit its GBR")
     return video, depth.astype(np.float32)
+
+
+class RealVideo(NamedTuple):
+    """A real video with ground truth, dense or sparse (:func:`load_real`)."""
+
+    video: np.ndarray
+    """uint8 (T, H, W)."""
+    depth: Optional[np.ndarray] = None
+    """Dense truth float32 (T, H, W), NaN where there is none."""
+    points: Optional[Dict[str, np.ndarray]] = None
+    """Sparse truth: ``frames`` (F,) the frames that carry it, ``uv`` (F, 2, N)
+    pixel positions (column, row), ``z`` (F, N) depths (``kinect_paper``'s
+    ``gt_mdh.npz`` cut to a video: ``benchmarks/bench_real.py --write-kinect``)."""
+
+
+def load_real(path: Union[str, os.PathLike]) -> RealVideo:
+    """A real video with ground truth from an ``.npz``: dense (``video``
+    and ``depth``, :func:`load_real_video`) or sparse (``video``,
+    ``frames``, ``uv``, ``z``: :attr:`RealVideo.points`); refuses anything
+    else by name."""
+    try:
+        data = np.load(os.fspath(path))  # allow_pickle stays off: arrays only
+    except (OSError, EOFError, ValueError) as e:
+        raise ValueError(f"{path}: not a readable .npz of arrays ({e})") from None
+    sparse = isinstance(data, np.lib.npyio.NpzFile) and {"video", "frames", "uv", "z"} <= set(data.files) and "depth" not in data.files
+    if not sparse:
+        if isinstance(data, np.lib.npyio.NpzFile):
+            data.close()
+        video, depth = load_real_video(path)  # names what is wrong with anything else
+        return RealVideo(video, depth=depth)
+    with data:
+        try:
+            arrays = {k: data[k] for k in ("video", "frames", "uv", "z")}
+        except ValueError as e:  # object arrays need pickle, which is refused
+            raise ValueError(f"{path}: not a readable .npz of arrays ({e})") from None
+    video, frames, uv, z = arrays["video"], arrays["frames"], arrays["uv"], arrays["z"]
+    if video.dtype != np.uint8 or video.ndim != 3:
+        raise ValueError(f"{path}: 'video' must be uint8 (T, H, W), got {video.dtype} {video.shape}")
+    if frames.ndim != 1 or frames.dtype.kind not in "iu" or len(frames) < 1 or frames.min() < 0 or frames.max() >= len(video):
+        raise ValueError(f"{path}: 'frames' must be frame indices (F,) of the video's {len(video)}")
+    if uv.shape != (len(frames), 2, z.shape[-1]) or z.shape != (len(frames), uv.shape[-1]) or not (np.isfinite(uv).all() and np.isfinite(z).all()):
+        raise ValueError(f"{path}: 'uv' and 'z' must be finite (F, 2, N) and (F, N) with F = {len(frames)}, got {uv.shape} and {z.shape}")
+    _, h, w = video.shape
+    if uv.min() < 0 or uv[:, 0].max() > w - 1 or uv[:, 1].max() > h - 1 or z.shape[1] < 4:
+        raise ValueError(f"{path}: 'uv' must hold at least 4 points a frame inside the {w}×{h} frame")
+    return RealVideo(video, points={"frames": frames.astype(np.int64), "uv": uv.astype(np.float64), "z": z.astype(np.float64)})
+
+
+def score_real(model: torch.nn.Module, real: RealVideo, device: Union[str, torch.device] = "cpu") -> Dict[str, float]:
+    """:func:`score_real_video` for dense truth; for sparse truth the MAE in
+    its units after each frame's GBR (:func:`nrdepth.metrics.sparse_mae`),
+    the plane's, and the share of frames whose relief sign is right."""
+    if real.depth is not None:
+        return score_real_video(model, real.video, real.depth, device)
+    from .metrics import sparse_baselines, sparse_mae, sparse_sign_rate
+    from .reconstruct import reconstruct
+
+    p = real.points
+    pred = reconstruct(real.video, model, device=str(device))[p["frames"]]
+    return {"mae": sparse_mae(pred, p["uv"], p["z"]), "flat_mae": sparse_baselines(p["uv"], p["z"])["plane"],
+            "sign_correct": sparse_sign_rate(pred, p["uv"], p["z"])}
 
 
 def score_real_video(model: torch.nn.Module, video: np.ndarray, depth: np.ndarray, device: Union[str, torch.device] = "cpu") -> Dict[str, float]:

@@ -26,7 +26,7 @@ import os
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Dict, Iterator, Optional, Tuple, Union
+from typing import Any, Dict, Iterator, List, Optional, Tuple, Union
 
 import numpy as np
 import torch
@@ -92,14 +92,17 @@ class TrainConfig:
     """A model (``model.safetensors`` or its run folder) whose weights start
     a new run (a warm start; same architecture and width); ignored on
     resume."""
-    real: Optional[str] = None
-    """A real video with ground-truth depth (``.npz``,
-    :func:`nrdepth.evaluate.load_real_video`) reconstructed and scored after
-    every epoch (``real_mae_sn_frame``, ``real_mae_sn_first``,
-    ``real_flat_frame``, ``real_sign_correct`` in ``metrics.csv``): a watch
-    on how training on generated clips carries over to real footage, which
-    validation cannot show. It never chooses the best weights (validation
-    does), so the video stays a fair test."""
+    real: Union[None, str, List[str]] = None
+    """A real video with ground truth (``.npz``, dense or sparse:
+    :func:`nrdepth.evaluate.load_real`), or a list of them, reconstructed and
+    scored after every epoch: a watch on how training on generated clips
+    carries over to real footage, which validation cannot show. One video
+    writes ``real_mae_sn_frame``, ``real_mae_sn_first``, ``real_flat_frame``
+    and ``real_sign_correct`` (sparse truth: ``real_mae``,
+    ``real_flat_mae``, ``real_sign_correct``) in ``metrics.csv``; several
+    write the same under ``real_STEM_``, STEM each file's name. It never
+    chooses the best weights (validation does), so the videos stay a fair
+    test."""
     ema: float = 0.0
     """Decay of an exponential moving average of the weights, updated after
     every step (``w_ema ← ema·w_ema + (1 − ema)·w``); above 0, the average
@@ -119,13 +122,17 @@ class TrainConfig:
         if self.target not in TARGETS:
             raise ValueError(f"target: expected one of {sorted(TARGETS)}, got {self.target!r}")
         if self.real is not None:
-            from .evaluate import load_real_video
+            from .evaluate import load_real
 
-            self.real = os.fspath(self.real)
-            try:
-                load_real_video(self.real)  # refused now, not after the first epoch
-            except ValueError as e:
-                raise ValueError(f"real: {e}") from None
+            paths = [os.fspath(p) for p in (self.real if isinstance(self.real, (list, tuple)) else [self.real])]
+            if not paths or len({Path(p).stem for p in paths}) != len(paths):
+                raise ValueError(f"real: expected one or more .npz files with different names, got {paths}")
+            self.real = paths[0] if len(paths) == 1 else paths
+            for path in paths:
+                try:
+                    load_real(path)  # refused now, not after the first epoch
+                except ValueError as e:
+                    raise ValueError(f"real: {e}") from None
         if isinstance(self.ema, bool) or not (isinstance(self.ema, (int, float, np.floating)) and 0.0 <= self.ema < 1.0):
             raise ValueError(f"ema: expected a decay in [0, 1) (0: no average), got {self.ema!r}")
         self.ema = float(self.ema)
@@ -323,11 +330,12 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
     video_val, depth_val, widths_val = validation_set(config) if leader else (None, None, None)
     warm_start = _warm_start(config) if config.init is not None and not (out / "last.pt").exists() else None
     depth_val_half = torch.nn.functional.avg_pool2d(torch.from_numpy(depth_val).float(), 2).numpy() if leader else None
-    real = None
+    reals = {}
     if leader and config.real is not None:
-        from .evaluate import load_real_video
+        from .evaluate import load_real, score_real
 
-        real = load_real_video(config.real)
+        paths = [config.real] if isinstance(config.real, str) else config.real
+        reals = {("real_" if len(paths) == 1 else f"real_{Path(p).stem}_"): load_real(p) for p in paths}
     if leader:
         if out.is_file():
             raise ValueError(f"out: {out} is a file; expected a run folder")
@@ -429,17 +437,15 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
         scores = evaluate_depth(pred_val, depth_val_half)
         if window_units:
             scores["relief_ratio"] = relief_ratio(pred_val, depth_val_half / widths_val[:, None, None, None])
-        if real is not None:
-            from .evaluate import score_real_video
-
-            scores.update({f"real_{k}": v for k, v in score_real_video(averaged, *real, device).items()})
+        real_columns = {}
+        for prefix, real in reals.items():
+            real_columns.update({prefix + ("mae_sn_" + k if k in ("frame", "first") else k): v for k, v in score_real(averaged, real, device).items()})
         row = {"epoch": epoch + 1, "step": (epoch + 1) * config.steps_per_epoch,
                "clips_seen": (epoch + 1) * config.steps_per_epoch * config.batch_size * world,
                "train_seconds": round(state["seconds"], 1), "lr": schedule.get_last_lr()[0],
                "train_loss": float(np.mean(losses)), "first_step_loss": losses[0], "last_step_loss": losses[-1],
-               **{_column(k): v for k, v in scores.items()},
+               **{_column(k): v for k, v in scores.items()}, **real_columns,
                "ranks_in_sync": in_sync}
-        scores = {k: v for k, v in scores.items() if not k.startswith("real_")}  # kept in the row only
         improved = scores["frame"] < state["best"]
         if improved:
             state["best"] = scores["frame"]
@@ -482,9 +488,7 @@ def _update_average(average: torch.nn.Module, model: torch.nn.Module, decay: flo
 
 
 def _column(score: str) -> str:
-    """metrics.csv's column of an epoch's score: validation's ``val_…``, the real video's ``real_…``."""
-    if score.startswith("real_"):
-        return score.replace("real_", "real_mae_sn_", 1) if score in ("real_frame", "real_first") else score
+    """metrics.csv's column of a validation score: ``val_…``."""
     return f"val_mae_sn_{score}" if score in ("frame", "first", "flat_frame", "flat_first") else f"val_{score}"
 
 
