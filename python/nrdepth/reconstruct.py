@@ -333,12 +333,12 @@ def field_windows(
                 raise ValueError(f"spans: ended at frame {done} of the layout's {t}") from None
             if t0 != done or depth.shape[1:] != layout.shape[1:]:
                 raise ValueError(f"spans: expected frames from {done} of {layout.shape[1:]}, got {depth.shape[1:]} from {t0}")
-            buffer.update((t0 + i, d) for i, d in enumerate(depth))
+            # Each frame mirrored into the layout's spatial padding once, as it arrives.
+            buffer.update((t0 + i, np.ascontiguousarray(d[index[1]][:, index[2]], dtype=np.float32)) for i, d in enumerate(depth))
             done = t0 + len(depth)
             if progress is not None:
                 progress(min(done, t), t)
-        # Copied C-ordered, so that the windows stacked from it are too.
-        padded = np.ascontiguousarray(np.stack([buffer[int(f)] for f in frames])[:, index[1]][:, :, index[2]], dtype=np.float32)
+        padded = np.stack([buffer[int(f)] for f in frames])
         origins = layout.origins[layout.origins[:, 0] == s]
         for i in range(0, len(origins), chunk):
             part = origins[i : i + chunk]
