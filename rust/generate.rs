@@ -27,8 +27,9 @@ use crate::mesh::grid_triangles;
 use crate::params::{Range, SurfaceConfig, SurfaceParams};
 use crate::raster::{Shading, Frame, Light, LightKind, Material, Rasterizer, Scene, Texture};
 use crate::rng::{hash, normals8, SplitMix64};
-use crate::synthesis::{clip_len, Synthesizer};
-use crate::textures::{procedural_region, TextureBank, TextureFamily, FAMILIES};
+use crate::sheet::{Bender, SheetConfig, SheetParams};
+use crate::synthesis::{clip_len, frame_time, rigid_motion, Synthesizer};
+use crate::textures::{procedural_region, TextureBank, TextureFamily, DEFAULT_FAMILIES};
 
 pub const MAX_CLIP_SIZE: usize = 1024;
 
@@ -94,6 +95,8 @@ pub struct GeneratorConfig {
     pub gamma: Range,
     /// Attempts after the first before a clip is given up with an error.
     pub max_redraws: usize,
+    /// Isometric bends and folds (`sheet`); none by default.
+    pub sheet: SheetConfig,
 }
 
 impl Default for GeneratorConfig {
@@ -117,12 +120,13 @@ impl Default for GeneratorConfig {
             specular: Range::new(0.0, 0.5),
             shininess: Range::new(4.0, 100.0),
             shading: Shading::Phong,
-            texture_families: FAMILIES.to_vec(),
+            texture_families: DEFAULT_FAMILIES.to_vec(),
             texture_size: 256,
             noise_std: Range::new(0.0, 0.03),
             blur: Range::new(0.0, 0.0),
             gamma: Range::new(1.0, 1.0),
             max_redraws: 200,
+            sheet: SheetConfig::default(),
         }
     }
 }
@@ -170,7 +174,8 @@ impl GeneratorConfig {
             return Err(InvalidArgument::new("config.texture_families", "expected at least one family"));
         }
         size_in("config.max_redraws", self.max_redraws as i64, 0, 1_000_000)?;
-        Ok(())
+        self.sheet.validate()
+
     }
 
     pub fn frame_len(&self) -> usize {
@@ -203,6 +208,8 @@ pub struct ClipParams {
     /// The camera's blur (pixels) and response exponent.
     pub blur: f64,
     pub gamma: f64,
+    /// The sheet's bends and folds, if the clip is a sheet.
+    pub sheet: Option<SheetParams>,
     /// Attempts rejected before this one because the window showed background.
     pub redraws: usize,
 }
@@ -256,7 +263,8 @@ fn draw_clip(config: &GeneratorConfig, bank: Option<&TextureBank>, rng: &mut Spl
     // Drawn last, so that a config without camera effects draws everything else as before.
     let blur = rng.uniform(config.blur.lo, config.blur.hi);
     let gamma = rng.uniform(config.gamma.lo, config.gamma.hi);
-    Ok(ClipParams { surface, window, lights, material, texture, noise_std, noise_seed, blur, gamma, redraws: 0 })
+    let sheet = config.sheet.sample(rng);
+    Ok(ClipParams { surface, window, lights, material, texture, noise_std, noise_seed, blur, gamma, sheet, redraws: 0 })
 }
 
 /// The camera's optics and response on a rendered `size`² frame, in place:
@@ -356,6 +364,8 @@ pub struct ClipWorker {
     frame: Frame,
     kernel: Vec<f32>,
     scratch: Vec<f32>,
+    bender: Bender,
+    local: Vec<[f64; 3]>,
 }
 
 impl ClipWorker {
@@ -375,6 +385,8 @@ impl ClipWorker {
             frame: Frame::default(),
             kernel: Vec::new(),
             scratch: Vec::new(),
+            bender: Bender::default(),
+            local: Vec::new(),
         }
     }
 
@@ -409,10 +421,33 @@ impl ClipWorker {
         ))
     }
 
+    /// A sheet's vertex positions: the surface's relief (intensity scaled by
+    /// `sheet.relief`) without its rigid motion, bent, then moved by `E_t`.
+    fn synthesize_sheet(&mut self, surface: &SurfaceParams, sheet: &SheetParams, frames: usize) -> Result<()> {
+        let relief = SurfaceParams { intensity: surface.intensity * sheet.relief, rotation: [0.0; 3], rotation_rate: [0.0; 3], drift: [0.0; 3], ..surface.clone() };
+        self.synth.synthesize_into(&relief, frames, self.positions.as_flattened_mut())?;
+        let vertex_count = self.synth.grid() * self.synth.grid();
+        for (f, frame) in self.positions.chunks_exact_mut(vertex_count).enumerate() {
+            let t = frame_time(f, frames);
+            self.local.clear();
+            self.local.extend(frame.iter().map(|p| p.map(f64::from)));
+            self.bender.bend_frame(sheet, t, &mut self.local);
+            let (rotation, translation) = rigid_motion(surface, t);
+            for (out, p) in frame.iter_mut().zip(&self.local) {
+                let world = rotation * nalgebra::Vector3::new(p[0], p[1], p[2]) + translation;
+                *out = [world.x as f32, world.y as f32, world.z as f32];
+            }
+        }
+        Ok(())
+    }
+
     /// Render one drawn clip; false if the window shows background anywhere.
     fn try_clip(&mut self, config: &GeneratorConfig, bank: Option<&TextureBank>, p: &ClipParams, video: &mut [u8], depth: &mut [f32]) -> Result<bool> {
         let (frames, grid) = (config.frames, config.grid);
-        self.synth.synthesize_into(&p.surface, frames, self.positions.as_flattened_mut())?;
+        match &p.sheet {
+            None => self.synth.synthesize_into(&p.surface, frames, self.positions.as_flattened_mut())?,
+            Some(sheet) => self.synthesize_sheet(&p.surface, sheet, frames)?,
+        }
         let view = View::new(config.size, config.size, p.window, CAMERA_Z)?;
         match &p.texture {
             TextureChoice::Procedural { family, seed } => {

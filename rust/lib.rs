@@ -13,6 +13,7 @@ pub mod mesh;
 pub mod params;
 pub mod raster;
 pub mod rng;
+pub mod sheet;
 pub mod joint;
 pub mod stitch;
 pub mod synthesis;

@@ -23,6 +23,7 @@ use crate::generate::{self, ClipParams, GeneratorConfig, TextureChoice};
 use crate::geometry::View;
 use crate::params::{Range, SurfaceConfig, SurfaceParams};
 use crate::raster::{self, Light, LightKind, Material, Scene, Shading, Texture};
+use crate::sheet::{SheetConfig, SheetParams};
 use crate::synthesis::{self, check_sizes, clip_len};
 use crate::textures::{self, TextureBank, TextureFamily};
 use crate::{image_io, mesh};
@@ -438,6 +439,22 @@ fn generator_config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<GeneratorConfig
         blur: range("blur")?,
         gamma: range("gamma")?,
         max_redraws: size("max_redraws")?,
+        sheet: {
+            let bends: (i64, i64) = field(d, "config", "sheet_bends")?;
+            SheetConfig {
+                probability: field(d, "config", "sheet_probability")?,
+                bends: (bends.0.max(0) as usize, bends.1.max(0) as usize),
+                bend_angle: range("sheet_bend_angle")?,
+                bend_width: range("sheet_bend_width")?,
+                fold_probability: field(d, "config", "sheet_fold_probability")?,
+                fold_angle: range("sheet_fold_angle")?,
+                fold_width: range("sheet_fold_width")?,
+                centre: range("sheet_centre")?,
+                centre_drift: range("sheet_centre_drift")?,
+                axis_rate: range("sheet_axis_rate")?,
+                relief: range("sheet_relief")?,
+            }
+        },
     };
     config.validate().map_err(value_error)?;
     Ok(config)
@@ -474,6 +491,20 @@ fn default_generator_config(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("texture_families", c.texture_families.iter().map(|f| f.name()).collect::<Vec<_>>())?;
     d.set_item("texture_size", c.texture_size)?;
     d.set_item("max_redraws", c.max_redraws)?;
+    let sheet = &c.sheet;
+    d.set_item("sheet_probability", sheet.probability)?;
+    d.set_item("sheet_bends", sheet.bends)?;
+    d.set_item("sheet_fold_probability", sheet.fold_probability)?;
+    set_ranges(&d, &[
+        ("sheet_bend_angle", sheet.bend_angle),
+        ("sheet_bend_width", sheet.bend_width),
+        ("sheet_fold_angle", sheet.fold_angle),
+        ("sheet_fold_width", sheet.fold_width),
+        ("sheet_centre", sheet.centre),
+        ("sheet_centre_drift", sheet.centre_drift),
+        ("sheet_axis_rate", sheet.axis_rate),
+        ("sheet_relief", sheet.relief),
+    ])?;
     Ok(d)
 }
 
@@ -521,7 +552,27 @@ fn clip_to_dict<'py>(py: Python<'py>, p: &ClipParams, bank: Option<&TextureBank>
     d.set_item("noise_seed", p.noise_seed)?;
     d.set_item("blur", p.blur)?;
     d.set_item("gamma", p.gamma)?;
+    d.set_item("sheet", p.sheet.as_ref().map(|sheet| sheet_to_dict(py, sheet)).transpose()?)?;
     d.set_item("redraws", p.redraws)?;
+    Ok(d)
+}
+
+fn sheet_to_dict<'py>(py: Python<'py>, sheet: &SheetParams) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("axis", sheet.axis)?;
+    let terms = sheet
+        .terms
+        .iter()
+        .map(|term| {
+            let t = PyDict::new(py);
+            t.set_item("angle", term.angle)?;
+            t.set_item("centre", term.centre)?;
+            t.set_item("width", term.width)?;
+            Ok(t)
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    d.set_item("terms", terms)?;
+    d.set_item("relief", sheet.relief)?;
     Ok(d)
 }
 

@@ -443,10 +443,7 @@ impl Synthesizer {
         let zeta = params.folding;
         let coordinates = &self.coordinates;
         for (frame, positions) in out.chunks_exact_mut(grid * grid * 3).enumerate() {
-            let t = frame_time(frame, frames);
-            let v = |a: [f64; 3], b: [f64; 3]| Vector3::new(a[0] + t * b[0], a[1] + t * b[1], a[2] + t * b[2]);
-            let rotation = Rotation3::new(v(params.rotation, params.rotation_rate));
-            let translation = v([0.0; 3], params.drift);
+            let (rotation, translation) = rigid_motion(params, frame_time(frame, frames));
             let rows = positions.chunks_exact_mut(3 * grid).zip(self.envelope.chunks_exact(grid)).zip(coordinates);
             for ((row, envelope), &y) in rows {
                 for ((p, &g), &x) in row.chunks_exact_mut(3).zip(envelope).zip(coordinates) {
@@ -457,6 +454,12 @@ impl Synthesizer {
             }
         }
     }
+}
+
+/// `E_t` as (rotation, translation): `E_t(p) = R(rotation + t · rotation_rate) p + t · drift`.
+pub fn rigid_motion(params: &SurfaceParams, t: f64) -> (Rotation3<f64>, Vector3<f64>) {
+    let v = |a: [f64; 3], b: [f64; 3]| Vector3::new(a[0] + t * b[0], a[1] + t * b[1], a[2] + t * b[2]);
+    (Rotation3::new(v(params.rotation, params.rotation_rate)), v([0.0; 3], params.drift))
 }
 
 /// How `run_pair` inverts a pair of fields' spectrum.

@@ -1,4 +1,4 @@
-//! Albedo textures: five procedural families with random parameters, and
+//! Albedo textures: six procedural families with random parameters, and
 //! random crops of a user's image folder (the paper used 256×256 crops of DTD).
 //!
 //! A texture is a grayscale `Texture` (row-major, values in [0, 1]) of
@@ -30,9 +30,16 @@ pub enum TextureFamily {
     Cells,
     /// Woven fabric: plain or twill over-under threads with fibre noise.
     Weave,
+    /// Print on white paper: lines of text-like glyphs and line drawings
+    /// (segments and circles) in dark ink.
+    Print,
 }
 
-pub const FAMILIES: [TextureFamily; 5] = [TextureFamily::Fractal, TextureFamily::Stripes, TextureFamily::Plaid, TextureFamily::Cells, TextureFamily::Weave];
+/// Every family, by name.
+pub const FAMILIES: [TextureFamily; 6] = [TextureFamily::Fractal, TextureFamily::Stripes, TextureFamily::Plaid, TextureFamily::Cells, TextureFamily::Weave, TextureFamily::Print];
+
+/// The families a clip draws from by default (the distribution the shipped model learnt).
+pub const DEFAULT_FAMILIES: [TextureFamily; 5] = [TextureFamily::Fractal, TextureFamily::Stripes, TextureFamily::Plaid, TextureFamily::Cells, TextureFamily::Weave];
 
 impl TextureFamily {
     pub fn name(self) -> &'static str {
@@ -42,6 +49,7 @@ impl TextureFamily {
             Self::Plaid => "plaid",
             Self::Cells => "cells",
             Self::Weave => "weave",
+            Self::Print => "print",
         }
     }
 
@@ -143,6 +151,61 @@ enum Pattern {
     Plaid { rotation: (f32, f32), freq: f32, checks: bool, duty: [f32; 2], levels: [f32; 3], soft: f32 },
     Cells { cells: usize, radius: f32, walls: bool, features: Vec<(f32, f32, f32)> },
     Weave { threads: usize, twill: bool, tones: (f32, f32), fibres: Fbm },
+    Print { text: Option<Text>, strokes: Vec<Stroke>, soft: f32 },
+}
+
+/// Lines of glyphs: each glyph a random 3 × 5 bitmap (a space one time in
+/// six), in rows of pitch `line` along a direction rotated by (c, s).
+struct Text {
+    rotation: (f32, f32),
+    line: f32,
+    glyph: f32,
+    seed: u64,
+}
+
+impl Text {
+    /// Ink (0 or 1) at texture position (x, y).
+    fn ink(&self, x: f32, y: f32) -> f32 {
+        let (c, s) = self.rotation;
+        let (u, v) = (c * x + s * y, -s * x + c * y);
+        let (lv, gu) = (v / self.line, u / self.glyph);
+        let (row, col) = (floor_fast(lv), floor_fast(gu));
+        let (fv, fu) = (lv - row, gu - col);
+        // Glyph body: the middle 60 % of a line's height, 80 % of a glyph's width.
+        if !(0.2..0.8).contains(&fv) || fu >= 0.8 {
+            return 0.0;
+        }
+        let bits = hash(self.seed, &[row as i64 as u64, col as i64 as u64]);
+        if bits % 6 == 0 {
+            return 0.0;
+        }
+        let (r, k) = (((fv - 0.2) / 0.6 * 5.0) as u32, (fu / 0.8 * 3.0) as u32);
+        ((bits >> (8 + r.min(4) * 3 + k.min(2))) & 1) as f32
+    }
+}
+
+/// A stroke of a line drawing: a segment from `a` to `b`, or a circle of
+/// centre `a` and radius `b.0`, `width` wide.
+struct Stroke {
+    a: (f32, f32),
+    b: (f32, f32),
+    circle: bool,
+    width: f32,
+}
+
+impl Stroke {
+    /// Distance from (x, y) to the stroke's centre line, less its half width.
+    fn distance(&self, x: f32, y: f32) -> f32 {
+        let (ax, ay) = self.a;
+        let d = if self.circle {
+            (((x - ax) * (x - ax) + (y - ay) * (y - ay)).sqrt() - self.b.0).abs()
+        } else {
+            let (dx, dy) = (self.b.0 - ax, self.b.1 - ay);
+            let t = (((x - ax) * dx + (y - ay) * dy) / (dx * dx + dy * dy).max(1e-12)).clamp(0.0, 1.0);
+            ((x - ax - t * dx).powi(2) + (y - ay - t * dy).powi(2)).sqrt()
+        };
+        d - 0.5 * self.width
+    }
 }
 
 impl Pattern {
@@ -197,6 +260,27 @@ impl Pattern {
                 let tones = (rng.uniform(0.3, 1.0) as f32, rng.uniform(0.3, 1.0) as f32);
                 Self::Weave { threads, twill, tones, fibres: Fbm::new(rng.next_u64(), 16, 3, 0.6) }
             }
+            TextureFamily::Print => {
+                // Text, a drawing, or both, in texture widths.
+                let kind = rng.next_u64() % 3;
+                let text = (kind != 1).then(|| {
+                    let angle = if rng.unit() < 0.7 { 0.0 } else { rng.uniform(0.0, std::f64::consts::PI) } as f32;
+                    let line = rng.log_uniform(1.0 / 40.0, 1.0 / 8.0) as f32;
+                    let glyph = line * rng.uniform(0.45, 0.8) as f32;
+                    Text { rotation: (angle.cos(), angle.sin()), line, glyph, seed: rng.next_u64() }
+                });
+                let count = if kind == 0 { 0 } else { 3 + (rng.next_u64() % 10) as usize };
+                let width = rng.log_uniform(1.0 / 300.0, 1.0 / 60.0) as f32;
+                let strokes = (0..count)
+                    .map(|_| {
+                        let circle = rng.unit() < 0.35;
+                        let a = (rng.unit() as f32, rng.unit() as f32);
+                        let b = if circle { (rng.uniform(0.03, 0.3) as f32, 0.0) } else { (rng.unit() as f32, rng.unit() as f32) };
+                        Stroke { a, b, circle, width }
+                    })
+                    .collect();
+                Self::Print { text, strokes, soft: 1.0 / size as f32 }
+            }
         }
     }
 
@@ -248,6 +332,17 @@ impl Pattern {
                     let profile = sin4(splat(std::f32::consts::PI) * across).fast_max(f32x4::ZERO);
                     let tone = on_top.bitselect(splat(*warp_tone), splat(*weft_tone));
                     tone * profile.sqrt() * (splat(0.75) + splat(0.5) * f32x4::new(texels.map(|k| noise[k])))
+                });
+            }
+            Self::Print { text, strokes, soft } => {
+                fill_texels4(size, rows, cols, out, |_, x, y| {
+                    f32x4::new(x.to_array().map(|x| {
+                        let glyph = text.as_ref().map_or(0.0, |t| t.ink(x, y));
+                        // Strokes anti-aliased over about a texel.
+                        let line = strokes.iter().map(|s| s.distance(x, y)).fold(f32::INFINITY, f32::min);
+                        let stroke = if line < *soft { 1.0 - (line / soft).max(0.0) } else { 0.0 };
+                        1.0 - glyph.max(stroke)
+                    }))
                 });
             }
         }
@@ -548,7 +643,7 @@ mod tests {
                         // √ of a sine near 0 magnifies its last bits.
                         (texels.enumerate().map(|(k, p)| value(k, p)).collect(), 1e-3)
                     }
-                    Pattern::Cells { .. } => unreachable!(),
+                    Pattern::Cells { .. } | Pattern::Print { .. } => unreachable!(),
                 };
                 assert_eq!(out.len(), expected.len());
                 for (k, (&v, e)) in out.iter().zip(expected).enumerate() {
@@ -645,6 +740,19 @@ mod tests {
                     assert_eq!(p.to_bits(), if inside { w.to_bits() } else { 0 }, "{family:?} seed {seed} texel {k}");
                 }
             }
+        }
+    }
+
+    #[test]
+    fn print_is_dark_ink_on_mostly_white_paper() {
+        for seed in 0..16 {
+            let mut t = Texture::default();
+            procedural(TextureFamily::Print, seed, 128, &mut t);
+            let texels = t.to_vec();
+            let (lo, hi) = texels.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+            let paper = texels.iter().filter(|&&v| v == hi).count() as f64 / texels.len() as f64;
+            let ink = texels.iter().filter(|&&v| v < lo + 0.5 * (hi - lo)).count() as f64 / texels.len() as f64;
+            assert!(paper > 0.4 && ink > 0.01, "seed {seed}: paper {paper}, ink {ink}");
         }
     }
 

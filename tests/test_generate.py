@@ -80,6 +80,32 @@ def test_camera_blur_and_response_change_only_the_frames():
         SMALL.replace(gamma=(0.0, 1.0))
 
 
+def test_sheets_bend_the_patch_and_leave_everything_else_drawn_as_it_was():
+    # The sheet is drawn after everything else: lights, material, texture and noise stay the plain clip's.
+    plain = nrdepth.generate_clips(6, seed=3, config=SMALL)
+    sheets = nrdepth.generate_clips(6, seed=3, config=SMALL.replace(sheet_probability=1.0))
+    assert all(p["sheet"] is None for p in plain.params)
+    assert all(p["sheet"] is not None and p["sheet"]["terms"] for p in sheets.params)
+    first_tries = [(a, b) for a, b in zip(plain.params, sheets.params) if a["redraws"] == b["redraws"] == 0]
+    assert len(first_tries) >= 3
+    for a, b in first_tries:
+        assert {k: v for k, v in a.items() if k != "sheet"} == {k: v for k, v in b.items() if k != "sheet"}
+    assert np.isfinite(sheets.depth).all() and not np.array_equal(sheets.depth, plain.depth)
+    # Bent sheets have depth beyond a plane's: the residual of each frame's best plane fit.
+    def off_plane(depth):
+        t, h, w = depth.shape[1:]
+        y, x = np.mgrid[0:h, 0:w]
+        a = np.stack([np.ones(h * w), x.ravel(), y.ravel()], 1)
+        frames = depth.reshape(-1, h * w).T
+        return np.abs(frames - a @ np.linalg.lstsq(a, frames, rcond=None)[0]).mean()
+    flat = SMALL.replace(surface=nrdepth.SurfaceConfig(intensity=(0.0, 0.0)))
+    assert off_plane(nrdepth.generate_clips(6, seed=3, config=flat.replace(sheet_probability=1.0)).depth) > 20 * off_plane(
+        nrdepth.generate_clips(6, seed=3, config=flat).depth) + 1e-3
+    half = nrdepth.generate_clips(8, seed=3, config=SMALL.replace(sheet_probability=0.5, texture_families=("print",)), start=1)
+    assert 0 < sum(p["sheet"] is not None for p in half.params) < 8
+    assert all(p["texture"]["family"] == "print" for p in half.params)
+
+
 def test_clip_i_depends_only_on_config_seed_and_i():
     whole = nrdepth.generate_clips(6, seed=4, config=SMALL)
     part = nrdepth.generate_clips(3, seed=4, config=SMALL, start=2)
@@ -92,8 +118,10 @@ def test_clip_i_depends_only_on_config_seed_and_i():
 
 _DIGEST = """
 import hashlib, nrdepth
-c = nrdepth.generate_clips(8, seed=7, config=nrdepth.GeneratorConfig(frames=4, size=32, grid=32, texture_size=64))
-print(hashlib.sha256(c.video.tobytes() + c.depth.tobytes()).hexdigest())
+config = nrdepth.GeneratorConfig(frames=4, size=32, grid=32, texture_size=64)
+c = nrdepth.generate_clips(8, seed=7, config=config)
+s = nrdepth.generate_clips(8, seed=7, config=config.replace(sheet_probability=1.0, texture_families=("print", "weave")))
+print(hashlib.sha256(c.video.tobytes() + c.depth.tobytes() + s.video.tobytes() + s.depth.tobytes()).hexdigest())
 """
 
 
@@ -153,6 +181,9 @@ def test_textures_from_a_folder(tmp_path):
         ({"light_count": (3, 1)}, "config.light_count"),
         ({"texture_families": ("velvet",)}, "config.texture_families"),
         ({"shading": "flat"}, "config.shading"),
+        ({"sheet_probability": 1.5}, "config.sheet_probability"),
+        ({"sheet_bends": (2, 1)}, "config.sheet_bends"),
+        ({"sheet_fold_width": (0.0, 0.1)}, "config.sheet_fold_width"),
         ({"textures": "/no/such/folder"}, "config.textures"),
     ],
 )
@@ -237,7 +268,7 @@ def test_a_folder_written_before_the_camera_fields_is_the_same_run(tmp_path):
     # Fields added to GeneratorConfig later take their defaults when an older manifest is read.
     write_dataset(tmp_path, 4, seed=1, config=SMALL, shard_size=2, progress=False)
     manifest = json.loads((tmp_path / "manifest.json").read_text())
-    for name in ("blur", "gamma"):
+    for name in ("blur", "gamma", "sheet_probability", "sheet_relief"):
         del manifest["config"][name]
     (tmp_path / "manifest.json").write_text(json.dumps(manifest))
     (tmp_path / "shard-00001.h5").unlink()

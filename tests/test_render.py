@@ -72,7 +72,7 @@ def test_point_light_and_supersampling_give_finite_partial_coverage_at_the_borde
 
 
 def test_procedural_textures():
-    assert set(nrdepth.TEXTURE_FAMILIES) == {"fractal", "stripes", "plaid", "cells", "weave"}
+    assert set(nrdepth.TEXTURE_FAMILIES) == {"fractal", "stripes", "plaid", "cells", "weave", "print"}
     for family in nrdepth.TEXTURE_FAMILIES:
         t = nrdepth.procedural_texture(family, 3, 32)
         assert t.shape == (32, 32) and t.dtype == np.float32

@@ -16,6 +16,9 @@
 #   bash tools/gpu_run.sh collect NAME SECONDS
 # which waits until the run ends or SECONDS pass and copies its resumable state
 # (config, last.pt, metrics, best weights; each under 16 MB) to $OUT/NAME.
+#   bash tools/gpu_run.sh stop NAME
+# interrupts a run that would outlast the lease (the epoch under way is lost;
+# last.pt holds the one before), so that collect can follow at once.
 # Committed to campaign/NAME, its config.json's "init" is set to the campaign
 # path of the same weights, so that it resumes from campaign/.
 #   bash tools/gpu_run.sh video x
@@ -26,7 +29,7 @@ shift 2
 export PYTHONPATH=/tmp/site RAYON_NUM_THREADS=1  # DEVICE and WORKERS override cuda and 14 (a check on a CPU)
 case $command in
 start)
-    pip install -q --no-deps --target /tmp/site .whl/*.whl
+    [ -d /tmp/site/nrdepth ] || pip install -q --no-deps --target /tmp/site .whl/*.whl
     mkdir -p /tmp/gpu
     setsid nohup python3 -m nrdepth train "/tmp/gpu/$name" "$@" --device "${DEVICE:-cuda}" --workers "${WORKERS:-14}" --quiet \
         > "/tmp/gpu/$name.log" 2>&1 < /dev/null &
@@ -42,15 +45,22 @@ collect)
     for f in config.json last.pt metrics.csv model.json model.safetensors; do
         if [ -f "/tmp/gpu/$name/$f" ]; then cp "/tmp/gpu/$name/$f" "$OUT/$name/"; fi
     done
+    # --keep-every's weights, to score along the curve.
+    if [ -d "/tmp/gpu/$name/epochs" ]; then cp -r "/tmp/gpu/$name/epochs" "$OUT/$name/"; fi
+    ;;
+stop)
+    pid=$(cat "/tmp/gpu/$name.pid")
+    kill -INT "$pid" 2> /dev/null || true
+    for _ in $(seq 30); do kill -0 "$pid" 2> /dev/null || break; sleep 1; done
     ;;
 video)
     # The main job's speed on the GPU (frames a second at 640×480 and 1080p, default and own size), into $OUT/video.txt.
-    pip install -q --no-deps --target /tmp/site .whl/*.whl
+    [ -d /tmp/site/nrdepth ] || pip install -q --no-deps --target /tmp/site .whl/*.whl
     mkdir -p "$OUT"
     (cd benchmarks && RAYON_NUM_THREADS=16 python3 bench_video.py --only rate --device "${DEVICE:-cuda}") 2>&1 | tee "$OUT/video.txt"
     ;;
 *)
-    echo "usage: $0 start NAME [train options] | collect NAME SECONDS | video" >&2
+    echo "usage: $0 start NAME [train options] | collect NAME SECONDS | stop NAME | video" >&2
     exit 2
     ;;
 esac

@@ -50,6 +50,10 @@ def _generator_config(args: argparse.Namespace):
     for name in ("blur", "gamma"):
         if getattr(args, name, None) is not None:
             extra[name] = getattr(args, name)
+    if args.sheets is not None:
+        extra["sheet_probability"] = args.sheets
+    if args.texture_families is not None:
+        extra["texture_families"] = tuple(args.texture_families.split(","))
     return GeneratorConfig(frames=args.frames, size=args.size, grid=args.grid, textures=args.textures, **extra)
 
 
@@ -274,6 +278,12 @@ def _add_generator_options(p: argparse.ArgumentParser) -> None:
                    help="range of the camera's Gaussian blur, standard deviation in pixels (default: 0,0, none)")
     p.add_argument("--gamma", type=_interval, default=None, metavar="LO,HI",
                    help="range of the camera's response exponent, v -> v**gamma (default: 1,1, linear)")
+    p.add_argument("--sheets", type=float, default=None, metavar="P",
+                   help="share of clips that are sheets bent isometrically: rolls, bends and folds whose curvature moves "
+                        "(default: 0, the coloured-noise surfaces alone)")
+    p.add_argument("--texture-families", default=None, metavar="A,B,...",
+                   help="procedural texture families to draw from, of fractal, stripes, plaid, cells, weave, print "
+                        "(print: text and line drawings on white paper; default: all but print)")
 
 
 class _DefaultsFormatter(argparse.HelpFormatter):

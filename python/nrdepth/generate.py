@@ -36,6 +36,14 @@ _RANGES = (
     "noise_std",
     "blur",
     "gamma",
+    "sheet_bend_angle",
+    "sheet_bend_width",
+    "sheet_fold_angle",
+    "sheet_fold_width",
+    "sheet_centre",
+    "sheet_centre_drift",
+    "sheet_axis_rate",
+    "sheet_relief",
 )
 _INTS = ("frames", "size", "grid", "supersample", "texture_size", "max_redraws")
 
@@ -92,6 +100,30 @@ class GeneratorConfig:
     Blur and response are off by default (README, "Watching the cloth while
     training", measures ``blur=(0, 1.5)``, ``gamma=(0.4, 1.2)``)."""
     max_redraws: int = _DEFAULT["max_redraws"]
+    sheet_probability: float = _DEFAULT["sheet_probability"]
+    """Share of clips that are sheets: the patch bent isometrically (rolls,
+    bends, folds about an axis that turns, their curvature changing over the
+    clip), with the coloured-noise relief scaled by ``sheet_relief``. 0 (the
+    default) keeps every clip as before. Each term ``j`` of the curvature
+    across the axis turns the sheet by an angle (drawn at the clip's start
+    and end from ``sheet_bend_angle`` / ``sheet_fold_angle``) spread over a
+    Gaussian of width ``sheet_bend_width`` / ``sheet_fold_width`` about a
+    centre (``sheet_centre``, moving by ``sheet_centre_drift``). Stretch
+    under 0.5 % at the default mesh (``cargo test sheet``)."""
+    sheet_bends: Tuple[int, int] = _DEFAULT["sheet_bends"]
+    """Number of wide terms (bends and rolls) of a sheet, inclusive."""
+    sheet_fold_probability: float = _DEFAULT["sheet_fold_probability"]
+    """Probability that a sheet also has one narrow term (a fold)."""
+    sheet_bend_angle: Interval = _DEFAULT["sheet_bend_angle"]
+    sheet_bend_width: Interval = _DEFAULT["sheet_bend_width"]
+    sheet_fold_angle: Interval = _DEFAULT["sheet_fold_angle"]
+    sheet_fold_width: Interval = _DEFAULT["sheet_fold_width"]
+    sheet_centre: Interval = _DEFAULT["sheet_centre"]
+    sheet_centre_drift: Interval = _DEFAULT["sheet_centre_drift"]
+    sheet_axis_rate: Interval = _DEFAULT["sheet_axis_rate"]
+    """Change of the bend axis's in-plane angle over the clip (radians)."""
+    sheet_relief: Interval = _DEFAULT["sheet_relief"]
+    """Factor on the surface's coloured-noise intensity for a sheet."""
     textures: Optional[str] = None
     """A folder of PNG/JPEG images to crop textures from instead of the procedural families."""
 
@@ -104,6 +136,10 @@ class GeneratorConfig:
         if lo != int(lo) or hi != int(hi):
             raise ValueError(f"config.light_count: expected two integers, got {self.light_count}")
         object.__setattr__(self, "light_count", (int(lo), int(hi)))
+        lo, hi = _float_tuple("config.sheet_bends", self.sheet_bends, 2)
+        if lo != int(lo) or hi != int(hi):
+            raise ValueError(f"config.sheet_bends: expected two integers, got {self.sheet_bends}")
+        object.__setattr__(self, "sheet_bends", (int(lo), int(hi)))
         if not isinstance(self.surface, SurfaceConfig):
             raise TypeError(f"config.surface: expected a SurfaceConfig, got {type(self.surface).__name__}")
         if isinstance(self.texture_families, str):
@@ -144,7 +180,7 @@ class Clips(NamedTuple):
     depth: np.ndarray
     """float32 (n, T, H, W) depth ``camera_z − z`` at pixel centres (never NaN)."""
     params: List[Dict[str, Any]]
-    """Per clip: surface, window, lights, material, texture, noise_std, noise_seed, blur, gamma, redraws."""
+    """Per clip: surface, window, lights, material, texture, noise_std, noise_seed, blur, gamma, sheet (None, or its axis, terms and relief), redraws."""
 
 
 def generate_clips(n: int, seed: int = 0, config: Optional[GeneratorConfig] = None, start: int = 0) -> Clips:

@@ -1,0 +1,178 @@
+"""Sheets: checkpoints along training runs scored on what issue 41 decides
+with, each beside the shape-blind references.
+
+For every model (the shipped one, and ``--run FOLDER`` runs' kept epochs,
+``epochs/epoch_E.safetensors``), one row of ``--csv``:
+
+- ``heldout_frame`` / ``heldout_first``: MAE-SN on the 128 held-out clips
+  (``nrdepth evaluate``'s seed, the default generator);
+- ``sheets_frame``: generated sheets, the new family (``GeneratorConfig``'s
+  ``sheet_probability=1`` and the print textures among the others), 32
+  videos of 256²×16 at a held-out seed, stitched as ``reconstruct`` does,
+  MAE-SN per frame; references ``sheets_plane`` / ``sheets_bowl``;
+- ``phisft_frame`` / ``phisft_first`` / ``phisft_sign``: the real cloth
+  (``bench_real.phisft``'s crop);
+- ``kinect_mm`` / ``kinect_sign`` (the whole sheet) and ``kinect_inner_mm``
+  (``bench_real.KINECT_INNER``): the real bending paper on ``gt_mdh.npz``.
+
+A picture (``--plot``) draws each score against the clips a run has seen,
+the references as horizontal lines.
+
+    python benchmarks/bench_sheets.py --run campaign/sheets41 --run campaign/sheets41_control \\
+        --epochs 3,6,9,12,15 --csv docs/sheets41.csv --plot docs/sheets41.png
+    python benchmarks/bench_sheets.py --plot docs/sheets41.png --csv docs/sheets41.csv --replot
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+import nrdepth
+from nrdepth.evaluate import TEST_SEED, evaluate
+from nrdepth.generate import GeneratorConfig, generate_clips
+from nrdepth.metrics import dense_baselines, flat_baseline, mae_sn, sign_rates
+from nrdepth.model.io import DEFAULT_MODEL
+from nrdepth.reconstruct import inference_model
+from nrdepth.videoio import read_video
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_real import DATA, KINECT_INNER, KINECT_ROI, kinect_references, kinect_score, kinect_truth  # noqa: E402
+
+SHEETS_SEED = TEST_SEED + 41
+PHISFT_CROP = (110, 218, 106, 214)
+FAMILIES = ("fractal", "stripes", "plaid", "cells", "weave", "print")
+
+
+def sheet_config() -> GeneratorConfig:
+    return GeneratorConfig(size=256, grid=128, sheet_probability=1.0, texture_families=FAMILIES)
+
+
+class Scorer:
+    """The fixed inputs (generated sheets, both real videos), loaded once."""
+
+    def __init__(self, sheets: int) -> None:
+        clips = generate_clips(sheets, seed=SHEETS_SEED, config=sheet_config())
+        self.sheets = (clips.video, clips.depth)
+        data = np.load(DATA / "phisft_R1" / "derived_q4.npz")
+        top, bottom, left, right = PHISFT_CROP
+        self.cloth = data["gray"][:, top:bottom, left:right], data["depth"][:, top:bottom, left:right]
+        self.truth = kinect_truth()
+        frames = read_video(DATA / "kinect_paper").frames
+        self.kinect = {region: frames[:, region[1] : region[1] + region[3], region[0] : region[0] + region[2]] for region in (KINECT_ROI, KINECT_INNER)}
+
+    def references(self) -> dict:
+        video, depth = self.sheets
+        bases = [dense_baselines(d) for d in depth]
+        cloth = dense_baselines(self.cloth[1], mask=np.isfinite(self.cloth[1]))
+        return {
+            "sheets_plane": np.mean([b["plane"] for b in bases]), "sheets_bowl": np.mean([b["bowl"] for b in bases]),
+            "sheets_quadratic": np.mean([b["quadratic"] for b in bases]),
+            "phisft_plane": cloth["plane"], "phisft_bowl": cloth["bowl"], "phisft_quadratic": cloth["quadratic"],
+            "phisft_plane_first": flat_baseline(self.cloth[1], "first", mask=np.isfinite(self.cloth[1])),
+            **{f"kinect{tag}_{k}": v for tag, region in (("", KINECT_ROI), ("_inner", KINECT_INNER)) for k, v in kinect_references(self.truth, region).items()},
+        }
+
+    def score(self, path) -> dict:
+        model = inference_model(path, torch.device("cpu"))
+        row = {}
+        held = evaluate(path, clips=128, device="cpu")
+        row["heldout_frame"], row["heldout_first"] = held["mae_sn_frame"]["mean"], held["mae_sn_first"]["mean"]
+        video, depth = self.sheets
+        row["sheets_frame"] = float(np.mean([mae_sn(nrdepth.reconstruct(v, model), d) for v, d in zip(video, depth)]))
+        gray, truth = self.cloth
+        mask = np.isfinite(truth)
+        pred = nrdepth.reconstruct(gray, model)
+        row["phisft_frame"], row["phisft_first"] = mae_sn(pred, truth, "frame", mask=mask), mae_sn(pred, truth, "first", mask=mask)
+        row["phisft_sign"] = sign_rates(pred, truth, mask=mask)["sign_correct"]
+        for tag, region in (("", KINECT_ROI), ("_inner", KINECT_INNER)):
+            pred = nrdepth.reconstruct(self.kinect[region], model)
+            row[f"kinect{tag}_mm"] = kinect_score(pred, self.truth, region)
+            row[f"kinect{tag}_sign"] = kinect_score(pred, self.truth, region, signs=True)
+        return row
+
+
+def clips_seen(run: Path, epoch: int) -> int:
+    with open(run / "metrics.csv") as f:
+        return next(int(r["clips_seen"]) for r in csv.DictReader(f) if int(r["epoch"]) == epoch)
+
+
+PANELS = (
+    ("kinect_mm", "kinect_paper, whole sheet (mm)", ("kinect_plane", "kinect_bowl")),
+    ("kinect_inner_mm", "kinect_paper, crop inside (mm)", ("kinect_inner_plane", "kinect_inner_bowl")),
+    ("phisft_frame", "phisft_R1, MAE-SN per frame", ("phisft_plane", "phisft_bowl")),
+    ("phisft_first", "phisft_R1, MAE-SN from the first frame", ("phisft_plane_first",)),
+    ("sheets_frame", "generated sheets, MAE-SN per frame", ("sheets_plane", "sheets_bowl")),
+    ("heldout_frame", "held-out clips, MAE-SN per frame", ()),
+)
+
+
+def plot(rows: list, references: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 3, figsize=(13, 7), constrained_layout=True)
+    runs = sorted({r["run"] for r in rows if r["run"] != "shipped"})
+    shipped = next(r for r in rows if r["run"] == "shipped")
+    for ax, (key, title, refs) in zip(axes.flat, PANELS):
+        for run in runs:
+            points = sorted((r["clips_seen"], r[key]) for r in rows if r["run"] == run)
+            x, y = zip(*([(0, shipped[key])] + points))
+            ax.plot(np.array(x) / 1000, y, marker="o", label=run)
+        for ref, style in zip(refs, ("--", ":")):
+            ax.axhline(references[ref], color="grey", linestyle=style, label=ref.split("_")[-1] if "first" not in ref else "plane")
+        ax.set_title(title)
+        ax.set_xlabel("clips seen after the warm start (thousands)")
+        ax.legend(fontsize=8)
+    fig.suptitle("Warm start from the shipped model: sheets and prints against a control (same seed, clips and steps)")
+    fig.savefig(path, dpi=90)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--run", action="append", type=Path, default=[], help="a run folder with epochs/ (again for several)")
+    parser.add_argument("--epochs", default="3,6,9,12,15", help="kept epochs to score")
+    parser.add_argument("--sheets", type=int, default=32, help="generated sheet videos")
+    parser.add_argument("--csv", type=Path, default=Path("sheets.csv"))
+    parser.add_argument("--plot", type=Path, default=None)
+    parser.add_argument("--replot", action="store_true", help="only draw --plot from --csv")
+    args = parser.parse_args()
+    refs_path = args.csv.with_suffix(".references.json")
+    if args.replot:
+        with open(args.csv) as f:
+            rows = [{k: (v if k == "run" else float(v)) for k, v in r.items()} for r in csv.DictReader(f)]
+        plot(rows, json.loads(refs_path.read_text()), args.plot)
+        return
+    torch.set_num_threads(max(1, torch.get_num_threads()))
+    scorer = Scorer(args.sheets)
+    references = {k: float(v) for k, v in scorer.references().items()}
+    refs_path.write_text(json.dumps(references, indent=1))
+    print("references:", ", ".join(f"{k} {v:.4f}" for k, v in references.items()), flush=True)
+    models = [("shipped", 0, 0, DEFAULT_MODEL)]
+    for run in args.run:
+        models += [(run.name, e, clips_seen(run, e), run / "epochs" / f"epoch_{e}.safetensors") for e in map(int, args.epochs.split(","))]
+    rows = []
+    for run, epoch, seen, path in models:
+        start = time.perf_counter()
+        rows.append({"run": run, "epoch": epoch, "clips_seen": seen, **scorer.score(path)})
+        print(", ".join(f"{k} {v:.4f}" if isinstance(v, float) else f"{k} {v}" for k, v in rows[-1].items()), f"({time.perf_counter() - start:.0f} s)", flush=True)
+        with open(args.csv, "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+    if args.plot:
+        plot(rows, references, args.plot)
+
+
+if __name__ == "__main__":
+    main()
