@@ -26,6 +26,7 @@ the best quadratic fitted to the truth.
 
     python benchmarks/bench_real.py [--model PATH] [--out docs] [--skip-csf2]
     python benchmarks/bench_real.py --write-kinect kinect_sheet.npz      # for nrdepth train --real
+    python benchmarks/bench_real.py --write-phisft phisft_bin4.npz       # the same for the cloth
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ import torch
 
 import nrdepth
 from nrdepth.reconstruct import inference_model
-from nrdepth.labels import titled, with_colour_bar
+from nrdepth.figures import ColourBar, labelled
 from nrdepth.metrics import dense_baselines, flat_baseline, gbr_align, mae_sn, sign_rates, sparse_baselines, sparse_mae, sparse_sign_rate
 from nrdepth.preview import save_png
 from nrdepth.videoio import colorize_depth, depth_range, read_video
@@ -47,19 +48,54 @@ from nrdepth.videoio import colorize_depth, depth_range, read_video
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
 
 
+CROP = (110, 218, 106, 214)
+"""the crop scored here of the 4×4-binned grid: TOP, BOTTOM, LEFT, RIGHT."""
+FOCAL, CENTRE = (971.522, 944.575), (962.134, 554.778)
+"""The full frames' intrinsics (pixels; the data set's README)."""
+
+
+def crop_at_bin(b: int) -> tuple:
+    """:data:`CROP`'s region on the full frames binned b×b: TOP, BOTTOM, LEFT, RIGHT."""
+    return tuple(round(c * 4 / b) for c in CROP)
+
+
+def phisft_at_bin(b: int) -> tuple:
+    """``phisft_R1`` on the full frames box-averaged b×b, cut to the region
+    of :data:`CROP`: gray uint8 (50, S, S) and ground-truth Z float32 (metres,
+    NaN where no point falls), with S = 108·4/b."""
+    root = DATA / "phisft_R1"
+    top, bottom, left, right = crop_at_bin(b)
+    if b == 4:
+        data = np.load(root / "derived_q4.npz")
+        return data["gray"][:, top:bottom, left:right], data["depth"][:, top:bottom, left:right]
+    full = read_video(root / "rgbs").frames.astype(np.float64)
+    t, h, w = full.shape
+    gray = np.rint(full[:, : h // b * b, : w // b * b].reshape(t, h // b, b, w // b, b).mean(axis=(2, 4))).astype(np.uint8)
+    clouds = np.load(root / "gt_pointclouds.npz")
+    depth = np.full(gray.shape, np.nan, np.float32)
+    for i in range(t):
+        p = clouds["points"][clouds["offsets"][i] : clouds["offsets"][i + 1]].astype(np.float64)
+        u, v = ((f * p[:, k] / p[:, 2] + c + 0.5) / b - 0.5 for k, f, c in zip((0, 1), FOCAL, CENTRE))
+        iu, iv = np.rint(u).astype(int), np.rint(v).astype(int)
+        inside = (iu >= 0) & (iu < w // b) & (iv >= 0) & (iv < h // b)
+        far_first = np.argsort(-p[inside, 2], kind="stable")  # the nearest point is written last
+        depth[i, iv[inside][far_first], iu[inside][far_first]] = p[inside, 2][far_first]
+    return gray[:, top:bottom, left:right], depth[:, top:bottom, left:right]
+
+
 def crop_arg(text: str) -> tuple:
     top, bottom, left, right = (int(v) for v in text.split(","))
     return top, bottom, left, right
 
 
-def picture(columns: list, titles: list, frames_shown: int = 4) -> np.ndarray:
-    """Rows of frames under column titles, with a depth colour bar; each
-    column a (T, H, W, 3) uint8 video."""
+def picture(columns: list, titles: list, colour_bar: "ColourBar | None" = None, frames_shown: int = 4) -> np.ndarray:
+    """Rows of frames under column titles, with a depth colour bar when the
+    depth columns share one range; each column a (T, H, W, 3) uint8 video."""
     t = len(columns[0])
     rows = []
     for k in np.linspace(0, t - 1, frames_shown).round().astype(int):
         rows.append(np.concatenate([np.pad(c[k], ((2, 2), (2, 2), (0, 0)), constant_values=255) for c in columns], axis=1))
-    return with_colour_bar(titled(np.concatenate(rows, axis=0), titles, columns[0].shape[2] + 4), "far", "near")
+    return labelled(np.concatenate(rows, axis=0), titles, columns[0].shape[2] + 4, colour_bar=colour_bar)
 
 
 def gray3(video: np.ndarray) -> np.ndarray:
@@ -93,7 +129,7 @@ def phisft(model, crop: tuple, out: Path) -> None:
     aligned = np.where(mask, gbr_align(depth, truth, "frame", mask=mask), np.nan)
     value_range = depth_range(np.where(mask, truth, np.nanmedian(truth)))
     colour = [colorize_depth(np.nan_to_num(d, nan=value_range[1]), value_range) for d in (truth, aligned)]
-    save_png(out / "phisft_R1.png", picture([gray3(video)] + colour, ["frames", "ground truth", "nrdepth (gbr-aligned)"]))
+    save_png(out / "phisft_R1.png", picture([gray3(video)] + colour, ["frames", "ground truth", "nrdepth (GBR-aligned)"], ColourBar(*value_range, "Kinect depth (m)")))
     print(f"wrote {out / 'phisft_R1.png'}: frames | ground truth | nrdepth (GBR-aligned per frame; far = blue, no ground truth = far)")
 
 
@@ -184,7 +220,8 @@ def kinect(model, out: Path, roi: tuple = KINECT_ROI, csf2: bool = True) -> None
         print(row + f", plane {base['plane']:.2f}, fixed bowl {base['bowl']:.2f}, best quadratic (oracle) {base['quadratic']:.2f}")
         if region == roi:
             shown = depth[:48]
-            save_png(out / "kinect_paper.png", picture([gray3(video[:48]), colorize_depth(shown, depth_range(shown))], ["frames", "nrdepth"]))
+            save_png(out / "kinect_paper.png", picture([gray3(video[:48]), colorize_depth(shown, depth_range(shown))], ["frames", "nrdepth"],
+                                                       ColourBar(*depth_range(shown), "depth (relative: a video shows it up to a GBR)")))
     print(f"wrote {out / 'kinect_paper.png'}: frames | nrdepth on the whole sheet (one colour range for the video; near = yellow, far = blue)")
 
 
@@ -197,7 +234,14 @@ def main() -> None:
     parser.add_argument("--skip-csf2", action="store_true", help="no CSF2 on kinect_paper (tracking and NRSfM take a minute)")
     parser.add_argument("--write-kinect", default=None, metavar="NPZ",
                         help="save kinect_paper's sheet (KINECT_ROI) with its sparse truth for `nrdepth train --real NPZ` and stop")
+    parser.add_argument("--write-phisft", default=None, metavar="NPZ",
+                        help="save phisft_R1's crop (4×4-binned frames) with its depth for `nrdepth train --real NPZ` and stop")
     args = parser.parse_args()
+    if args.write_phisft:
+        video, truth = phisft_at_bin(4)
+        np.savez_compressed(args.write_phisft, video=video, depth=truth)
+        print(f"wrote {args.write_phisft}: phisft_R1's crop, video {video.shape} uint8, depth in metres (NaN: no truth) for nrdepth train --real")
+        return
     if args.write_kinect:
         x, y, w, h = KINECT_ROI
         truth = kinect_truth()

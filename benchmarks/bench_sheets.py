@@ -19,8 +19,10 @@ A picture (``--plot``) draws each score against the clips a run has seen,
 the references as horizontal lines.
 
     python benchmarks/bench_sheets.py --run campaign/sheets41 --run campaign/sheets41_control \\
-        --epochs 3,6,9,12,15 --csv docs/sheets41.csv --plot docs/sheets41.png
-    python benchmarks/bench_sheets.py --plot docs/sheets41.png --csv docs/sheets41.csv --replot
+        --epochs 3,6,9,12,15 --csv docs/sheets41.csv --plot docs/sheets41.png \
+        --label "sheets41=half the clips sheets, print textures" --label "sheets41_control=control"
+    python benchmarks/bench_sheets.py --model soup=avg.safetensors --csv soups.csv     # any model besides the shipped one
+    python benchmarks/bench_sheets.py --plot docs/sheets41.png --csv docs/sheets41.csv --replot --label ...
 """
 
 from __future__ import annotations
@@ -115,20 +117,20 @@ PANELS = (
 )
 
 
-def plot(rows: list, references: dict, path: Path) -> None:
+def plot(rows: list, references: dict, path: Path, labels: dict) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(2, 3, figsize=(13, 7), constrained_layout=True)
-    runs = sorted({r["run"] for r in rows if r["run"] != "shipped"})
+    runs = sorted({r["run"] for r in rows if r["run"] != "shipped" and r["clips_seen"] > 0})
     shipped = next(r for r in rows if r["run"] == "shipped")
     for ax, (key, title, refs) in zip(axes.flat, PANELS):
         for run in runs:
             points = sorted((r["clips_seen"], r[key]) for r in rows if r["run"] == run)
             x, y = zip(*([(0, shipped[key])] + points))
-            ax.plot(np.array(x) / 1000, y, marker="o", label=run)
+            ax.plot(np.array(x) / 1000, y, marker="o", label=labels.get(run, run))
         for ref, style in zip(refs, ("--", ":")):
             ax.axhline(references[ref], color="grey", linestyle=style, label=ref.split("_")[-1] if "first" not in ref else "plane")
         ax.set_title(title)
@@ -142,16 +144,20 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--run", action="append", type=Path, default=[], help="a run folder with epochs/ (again for several)")
     parser.add_argument("--epochs", default="3,6,9,12,15", help="kept epochs to score")
+    parser.add_argument("--model", action="append", default=[], metavar="NAME=PATH",
+                        help="another model to score, e.g. a weight average (again for several)")
     parser.add_argument("--sheets", type=int, default=32, help="generated sheet videos")
     parser.add_argument("--csv", type=Path, default=Path("sheets.csv"))
     parser.add_argument("--plot", type=Path, default=None)
     parser.add_argument("--replot", action="store_true", help="only draw --plot from --csv")
+    parser.add_argument("--label", action="append", default=[], metavar="RUN=TEXT", help="a run's name in the plot's legend")
     args = parser.parse_args()
+    labels = dict(item.split("=", 1) for item in args.label)
     refs_path = args.csv.with_suffix(".references.json")
     if args.replot:
         with open(args.csv) as f:
             rows = [{k: (v if k == "run" else float(v)) for k, v in r.items()} for r in csv.DictReader(f)]
-        plot(rows, json.loads(refs_path.read_text()), args.plot)
+        plot(rows, json.loads(refs_path.read_text()), args.plot, labels)
         return
     torch.set_num_threads(max(1, torch.get_num_threads()))
     scorer = Scorer(args.sheets)
@@ -161,6 +167,7 @@ def main() -> None:
     models = [("shipped", 0, 0, DEFAULT_MODEL)]
     for run in args.run:
         models += [(run.name, e, clips_seen(run, e), run / "epochs" / f"epoch_{e}.safetensors") for e in map(int, args.epochs.split(","))]
+    models += [(name, 0, 0, Path(path)) for name, path in (m.split("=", 1) for m in args.model)]
     rows = []
     for run, epoch, seen, path in models:
         start = time.perf_counter()
@@ -171,7 +178,7 @@ def main() -> None:
             writer.writeheader()
             writer.writerows(rows)
     if args.plot:
-        plot(rows, references, args.plot)
+        plot(rows, references, args.plot, labels)
 
 
 if __name__ == "__main__":

@@ -113,14 +113,15 @@ def main() -> None:
             writer.writerow(row)
             handle.flush()
         if i == args.start and args.picture is not None:
-            from nrdepth.labels import titled, with_colour_bar
+            from nrdepth.figures import ColourBar, labelled
             from nrdepth.preview import save_png
             from nrdepth.videoio import colorize_depth, depth_range
 
             value_range = depth_range(truth)
             columns = [np.repeat(video[..., None], 3, axis=-1)] + [colorize_depth(nrdepth.gbr_align(d, truth), value_range) for d in (truth, depths["nrdepth"], depths["CSF2"], depths["KSTA"])]
             picture_rows = [np.concatenate([np.pad(c[t], ((2, 2), (2, 2), (0, 0)), constant_values=255) for c in columns], axis=1) for t in (0, 8, 15)]
-            save_png(args.picture, with_colour_bar(titled(np.concatenate(picture_rows), ["frames", "truth", "nrdepth", "csf2", "ksta"], 260), "far", "near"))
+            save_png(args.picture, labelled(np.concatenate(picture_rows), ["frames", "truth", "nrdepth", "CSF2", "KSTA"], 260,
+                                            colour_bar=ColourBar(*value_range, "depth (half-widths of the patch)")))
     summarise(rows, f"MAE-SN over {args.videos} generated 256×256×16 videos outside the training ranges (seed {TEST_SEED}); "
                     f"CSF2 and KSTA with K={args.K}, d={args.d}, tracks of up to 33×33 vertices, pixel noise {args.noise}")
 

@@ -38,6 +38,7 @@ from nrdepth.preview import save_png
 from nrdepth.tracks import densify, measurement_matrix, nrsfm_depth, track_video
 from nrdepth.videoio import colorize_depth, depth_range, read_video
 
+from nrdepth.figures import ColourBar
 from bench_real import DATA, picture  # the same data folder and layout (this script's folder is on sys.path)
 
 PHISFT_CROP = (110, 218, 106, 214)
@@ -102,7 +103,7 @@ def phisft(model, K: int, d_fraction: float, out: Path) -> None:
     for name in ("nrdepth", "CSF2", "KSTA"):
         aligned = np.where(mask, gbr_align(depths[name][0], truth, "frame", mask=mask), value_range[1])
         columns.append(colorize_depth(aligned, value_range))
-    save_png(out / "table3_phisft_R1.png", picture(columns, ["frames", "truth", "nrdepth", "csf2", "ksta"]))
+    save_png(out / "table3_phisft_R1.png", picture(columns, ["frames", "truth", "nrdepth", "CSF2", "KSTA"], ColourBar(*value_range, "Kinect depth (m)")))
     print(f"wrote {out / 'table3_phisft_R1.png'}: frames | ground truth | nrdepth | CSF2 | KSTA (GBR-aligned per frame; far = blue)")
 
 
@@ -120,7 +121,7 @@ def kinect(model, K: int, d_fraction: float, out: Path) -> None:
         columns.append(colorize_depth(depth, depth_range(depth)))
     print(f"kinect_paper: {len(video)} frames of {video.shape[2]}×{video.shape[1]} (rows {top}–{bottom}, columns {left}–{right}), "
           f"{xy.shape[1]} points tracked; CSF2/KSTA with K={K}, d={d}")
-    save_png(out / "table3_kinect_paper.png", picture(columns, ["frames", "nrdepth", "csf2", "ksta"]))
+    save_png(out / "table3_kinect_paper.png", picture(columns, ["frames", "nrdepth", "CSF2", "KSTA"]))
     print(f"wrote {out / 'table3_kinect_paper.png'}: frames | nrdepth | CSF2 | KSTA (each its own colour range for the video; "
           "NRSfM's reflection chosen to agree with nrdepth's; near = yellow)")
 

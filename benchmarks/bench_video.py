@@ -235,7 +235,7 @@ def resolution() -> None:
     from nrdepth.metrics import flat_baseline as flat, mae_sn, sparse_baselines
     from nrdepth.videoio import read_video
 
-    from real_scales import phisft_at_bin
+    from bench_real import phisft_at_bin
 
     net = inference_model(None, torch.device("cpu"))
     video, truth = phisft_at_bin(2)

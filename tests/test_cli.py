@@ -39,22 +39,31 @@ def test_unwritable_destination_is_a_clear_error(tmp_path, capsys):
     assert "cannot write" in capsys.readouterr().err
 
 
-def test_pictures_carry_readable_labels():
+def test_pictures_carry_titles_and_a_colour_bar_with_values():
     import numpy as np
 
-    from nrdepth.labels import text, titled, with_colour_bar
+    from nrdepth.figures import ColourBar, labelled
+    from nrdepth.videoio import colorize_depth
 
-    mask = text("ab 1", scale=2)
-    assert mask.shape == (14, 4 * 12) and mask.any()
-    assert not np.array_equal(text("a"), text("b")) and not text(" ").any()
-    picture = np.full((40, 60, 3), 128, np.uint8)
-    out = with_colour_bar(titled(picture, ["x", "y"], 30), "far", "near")
-    assert out.shape[0] == 40 + 22 and out.shape[1] > 60
-    assert (out[:22] == 0).any()  # the titles are drawn in black on the white band
-    # A title wider than its column wraps inside it instead of running into the next.
-    wrapped = titled(np.full((40, 90, 3), 128, np.uint8), ["ground truth", "", "nrdepth (gbr-aligned)"], 30)
-    band = wrapped[: wrapped.shape[0] - 40] == 0
-    assert wrapped.shape[0] > 62 and band[:, :30].any() and band[:, 60:].any() and not band[:, 30:60].any()
+    depth = np.linspace(1.0, 2.0, 60 * 90).reshape(1, 60, 90)
+    mosaic = colorize_depth(depth, (1.0, 2.0))[0]
+    plain = labelled(mosaic, ["a", "b", "c"], 30)
+    out = labelled(mosaic, ["a", "b", "c"], 30, colour_bar=ColourBar(1.0, 2.0, "depth (mm)"), title="a title")
+    assert plain.dtype == out.dtype == np.uint8 and plain.shape[0] > 60 and out.shape[0] > plain.shape[0] and out.shape[1] > plain.shape[1] + 60
+    # The mosaic is drawn pixel for pixel; titles above it and the bar's ticks beside it are dark text on white.
+    h, w = plain.shape[:2]
+    np.testing.assert_array_equal(plain[h - 8 - 60 : h - 8, 8 : 8 + 90], mosaic)
+    assert (plain[: h - 68] < 80).all(axis=-1).any()
+    bar = out[:, 8 + 90 + 10 :]
+    assert (bar < 80).all(axis=-1).sum() > 50  # tick labels and the axis label
+    ramp = {tuple(c) for c in mosaic.reshape(-1, 3)}
+    assert sum(tuple(c) in ramp for c in bar.reshape(-1, 3)) > 200  # the ramp's own colours
+    try:
+        labelled(np.zeros((4, 4)), [], 4)
+    except ValueError as e:
+        assert str(e).startswith("image:")
+    else:
+        raise AssertionError("a grey image was accepted")
 
 
 def test_help_shows_defaults():
@@ -92,3 +101,15 @@ def test_evaluate_passes_the_readings_to_the_scores(tmp_path, capsys):
     assert written["readings"] == 4
     assert written["mae_sn_frame"] == evaluate(DEFAULT_MODEL, clips=2, device="cpu", readings=4)["mae_sn_frame"]
     assert written["mae_sn_frame"] != evaluate(DEFAULT_MODEL, clips=2, device="cpu")["mae_sn_frame"]
+
+
+def test_train_defaults_to_the_recommended_recipe_and_the_paper_is_one_flag_away(tmp_path, capsys):
+    from nrdepth.train import PAPER, RECOMMENDED
+
+    tiny = ["--epochs", "1", "--steps", "1", "--batch-size", "1", "--validation-clips", "1", "--workers", "0", "--device", "cpu",
+            "--base", "4", "--frames", "4", "--quiet"]
+    for name, flags, recipe in (("ours", [], RECOMMENDED), ("paper", ["--paper"], PAPER), ("mixed", ["--paper", "--loss", "aligned"], {**PAPER, "loss": "aligned"})):
+        assert main(["train", str(tmp_path / name), *flags, *tiny]) == 0
+        config = json.loads((tmp_path / name / "config.json").read_text())
+        assert {k: config[k] for k in recipe} == recipe, name
+    assert RECOMMENDED["arch"] != PAPER["arch"] and RECOMMENDED["loss"] != PAPER["loss"]

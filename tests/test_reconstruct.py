@@ -196,8 +196,11 @@ def test_shipped_model_beats_the_flat_baseline_on_a_generated_256_video():
     assert result["depth"].shape == result["truth"].shape == (16, 256, 256)
     assert result["mae_sn"]["frame"] < result["flat"]["frame"]
     picture = demo_picture(result, frames_shown=2)
-    # Two rows of three 260-pixel cells under a title band, a colour bar on the right.
-    assert picture.dtype == np.uint8 and picture.shape[0] == 2 * 260 + 22 and picture.shape[1] > 3 * 260
+    # Two rows of three 260-pixel cells, drawn pixel for pixel under the titles, a colour bar on the right.
+    assert picture.dtype == np.uint8 and picture.shape[0] > 2 * 260 + 30 and picture.shape[1] > 3 * 260 + 60
+    h = picture.shape[0]
+    first = np.repeat(result["video"][0][..., None], 3, axis=-1)
+    np.testing.assert_array_equal(picture[h - 8 - 2 * 260 + 2 : h - 8 - 260 - 2, 8 + 2 : 8 + 258], first)
 
 
 def test_cli_demo_prints_both_alignments_and_writes_the_picture(tmp_path, capsys):

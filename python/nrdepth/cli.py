@@ -79,11 +79,12 @@ def _preview(args: argparse.Namespace) -> int:
 
 
 def _train(args: argparse.Namespace) -> int:
-    from .train import TrainConfig, train
+    from .train import PAPER, RECOMMENDED, TrainConfig, train
 
+    recipe = {k: v if getattr(args, k) is None else getattr(args, k) for k, v in (PAPER if args.paper else RECOMMENDED).items()}
     config = TrainConfig(
-        loss=args.loss, arch=args.arch, base=args.base, schedule=args.schedule, target=args.target, amplitude=args.amplitude, init=args.init, batch_size=args.batch_size, steps_per_epoch=args.steps, epochs=args.epochs,
-        lr=args.lr, seed=args.seed, data=args.data, generator=_generator_config(args),
+        **recipe, base=args.base, schedule=args.schedule, amplitude=args.amplitude, init=args.init, batch_size=args.batch_size, steps_per_epoch=args.steps, epochs=args.epochs,
+        seed=args.seed, data=args.data, generator=_generator_config(args),
         validation_clips=args.validation_clips, workers=args.workers, device=args.device, compile=args.compile,
         real=(args.real[0] if len(args.real) == 1 else args.real) if args.real else None, keep_every=args.keep_every, ema=args.ema,
     )
@@ -321,12 +322,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("train", help="train the depth network (online generation or a dataset); resumes in OUT")
     p.add_argument("out", help="run folder: config, checkpoints, weights, metrics")
-    p.add_argument("--loss", default="gbr", help="gbr | tr_sc | aligned | aligned_clip | aligned_signed | aligned_clip_signed | aligned_both_signed | "
-                   "aligned_clip_offsets_signed | aligned_both_offsets_signed | aligned_first | aligned_signed_first (default: gbr; see nrdepth.losses)")
-    p.add_argument("--arch", default="unet3d", help="unet3d (the paper's) | unet2p1d (factorised, ~15x cheaper) | unet2p1d_global (unet2p1d whose coarsest level sees the whole clip in time) | unet2p1d_deep (unet2p1d with 4 more residual blocks on its coarsest level) (default: unet3d)")
+    p.add_argument("--paper", action="store_true",
+                   help="the paper's recipe: --arch unet3d --loss gbr --target depth --lr 1e-3 (default: the recommended one, "
+                        "--arch unet2p1d_deep --loss aligned_both_signed --target observable --lr 3e-4); the options below override either")
+    p.add_argument("--loss", default=None, help="gbr | tr_sc | aligned | aligned_clip | aligned_signed | aligned_clip_signed | aligned_both_signed | "
+                   "aligned_clip_offsets_signed | aligned_both_offsets_signed | aligned_first | aligned_signed_first (default: aligned_both_signed; see nrdepth.losses)")
+    p.add_argument("--arch", default=None, help="unet3d (the paper's) | unet2p1d (factorised, ~15x cheaper) | unet2p1d_global (unet2p1d whose coarsest level sees the whole clip in time) | unet2p1d_deep (unet2p1d with 4 more residual blocks on its coarsest level) (default: unet2p1d_deep)")
     p.add_argument("--schedule", default="cosine", help="cosine | constant (a campaign: --epochs may grow on resume) (default: cosine)")
-    p.add_argument("--target", default="depth",
-                   help="depth (the rendered depth, the paper's) | observable (without the motion along the optical axis that no frame shows) (default: depth)")
+    p.add_argument("--target", default=None,
+                   help="depth (the rendered depth, the paper's) | observable (without the motion along the optical axis that no frame shows) (default: observable)")
     p.add_argument("--amplitude", type=float, default=0.0,
                    help="weight of the relief-amplitude term (targets in window widths; the model learns the relief's scale)")
     p.add_argument("--init", default=None, help="model.safetensors or run folder whose weights start a new run (a warm start)")
@@ -334,14 +338,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--steps", type=int, default=500, help="steps per epoch")
     p.add_argument("--max-epochs", type=int, default=None, help="epochs to run in this call (resume later)")
     p.add_argument("--batch-size", type=int, default=8, help="clips per step")
-    p.add_argument("--lr", type=float, default=1e-3, help="Adam's learning rate")
+    p.add_argument("--lr", type=float, default=None, help="Adam's learning rate (default: 3e-4; 1e-3 with --paper)")
     p.add_argument("--base", type=int, default=None, help="width of the first network stage (default: the architecture's, 16 / 24)")
     p.add_argument("--data", default=None, help="dataset folder; default: fresh clips every step")
     p.add_argument("--validation-clips", type=int, default=64, help="held-out clips scored after every epoch")
     p.add_argument("--real", default=None, metavar="NPZ", action="append",
                    help="a real video with ground truth, reconstructed and scored after every epoch (metrics.csv's real_* columns; it does not "
                         "choose the best weights); give it again for several (real_STEM_* columns). Dense: video uint8 (T, H, W), depth (T, H, W), "
-                        "NaN where none (benchmarks/real_scales.py --write); sparse: video, frames, uv, z (benchmarks/bench_real.py --write-kinect)")
+                        "NaN where none (benchmarks/bench_real.py --write-phisft); sparse: video, frames, uv, z (benchmarks/bench_real.py --write-kinect)")
     p.add_argument("--ema", type=float, default=0.0, metavar="DECAY",
                    help="score and save an exponential moving average of the weights with this decay per step, e.g. 0.999 (default: 0, the weights themselves)")
     p.add_argument("--keep-every", type=int, default=0, metavar="N",

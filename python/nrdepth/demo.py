@@ -59,9 +59,10 @@ def run_demo(
 def demo_picture(result: Dict[str, Any], frames_shown: int = 4) -> np.ndarray:
     """uint8 RGB picture: one row per shown frame, columns frame | ground-truth
     depth | reconstruction mapped onto the truth by its per-frame GBR (the
-    alignment MAE-SN scores), both depths in the truth's colour range, with
-    column titles and a colour bar (near is yellow, far is blue)."""
-    from .labels import titled, with_colour_bar
+    alignment MAE-SN scores), both depths in the truth's colour range, under
+    column titles and the scores, with a colour bar in the truth's units
+    (near is yellow, far is blue); drawn by matplotlib."""
+    from .figures import ColourBar, labelled
 
     video, truth = result["video"], result["truth"]
     aligned = gbr_align(result["depth"], truth, "frame")
@@ -71,8 +72,11 @@ def demo_picture(result: Dict[str, Any], frames_shown: int = 4) -> np.ndarray:
     for t in np.linspace(0, len(video) - 1, frames_shown).round().astype(int):
         cells = [np.repeat(video[t][..., None], 3, axis=-1)] + [c[t] for c in colour]
         rows.append(np.concatenate([np.pad(c, ((2, 2), (2, 2), (0, 0)), constant_values=255) for c in cells], axis=1))
-    picture = titled(np.concatenate(rows, axis=0), ["frames", "ground truth", "nrdepth (gbr-aligned)"], video.shape[2] + 4)
-    return with_colour_bar(picture, "far", "near")
+    score, flat = result["mae_sn"]["frame"], result["flat"]["frame"]
+    return labelled(
+        np.concatenate(rows, axis=0), ["frames", "ground truth", "nrdepth (GBR-aligned per frame)"], video.shape[2] + 4,
+        colour_bar=ColourBar(*value_range, "depth (half-widths of the patch)"),
+        title=f"a generated {video.shape[2]}×{video.shape[1]}×{len(video)} video: MAE-SN per frame {score:.3f} (flat plane {flat:.3f})")
 
 
 def demo_page(result: Dict[str, Any], path: "Union[str, os.PathLike[str]]") -> "os.PathLike[str]":

@@ -95,7 +95,7 @@ def evaluate(
 def load_real_video(path: Union[str, os.PathLike]) -> Tuple[np.ndarray, np.ndarray]:
     """A real video with ground-truth depth from an ``.npz``: ``video`` uint8
     (T, H, W) and ``depth`` float (T, H, W), NaN where there is no truth
-    (``benchmarks/real_scales.py --write`` makes one of ``phisft_R1``).
+    (``benchmarks/bench_real.py --write-phisft`` makes one of ``phisft_R1``).
     Returns (video, depth float32); refuses anything else by name."""
     try:
         data = np.load(os.fspath(path))  # allow_pickle stays off: arrays only

@@ -143,10 +143,10 @@ def clip_sheet(clips: int = 3, seed: int = 0, frames_shown: int = 4, scale: int 
         for c, img in enumerate(tiles):
             y0, x0 = gap + r * (tile + gap), gap + c * (tile + gap)
             sheet[y0 : y0 + tile, x0 : x0 + tile] = img
-    from .labels import titled
+    from .figures import labelled
 
     titles = [f"frame {f}" for f in picks] + [f"depth {f}" for f in picks] + ["mesh"]
-    return titled((sheet.clip(0, 1) * 255 + 0.5).astype(np.uint8), titles, tile + gap, scale=1 if tile < 100 else 2)
+    return labelled((sheet.clip(0, 1) * 255 + 0.5).astype(np.uint8), titles, tile + gap)
 
 
 def parameter_sweep(seed: int = 0, size: int = 128) -> np.ndarray:
@@ -186,10 +186,10 @@ def parameter_sweep(seed: int = 0, size: int = 128) -> np.ndarray:
         out = render(vertices, triangles, uv, texture, size, (-1.3, -1.3, 1.3, 1.3), lights, Material(0.25, 0.75, 0.3, 30.0))
         x0 = gap + k * (size + gap)
         sheet[gap : gap + size, x0 : x0 + size] = _tile(out.image.clip(0, 1), size) * 0.9 + 0.1 * (out.coverage[..., None] == 0)
-    from .labels import titled
+    from .figures import labelled
 
-    titles = ["low values", "more constraint", "sigma not i", "more flexibility", "more folding"]
-    return titled((sheet.clip(0, 1) * 255 + 0.5).astype(np.uint8), titles, size + gap, scale=1)
+    titles = ["low values", "more constraint ν", "anisotropic Σ", "more flexibility ξ", "more folding ζ"]
+    return labelled((sheet.clip(0, 1) * 255 + 0.5).astype(np.uint8), titles, size + gap)
 
 
 def preview_sheet(seed: int = 0, clips: int = 3, config: Optional["GeneratorConfig"] = None) -> np.ndarray:

@@ -67,7 +67,7 @@ still."""
 TEMPORAL_WEIGHT = 0.015
 """Default ν of the joint alignment's temporal tie, per pixel of a patch
 (``rust/joint.rs``); 0 solves each frame on its own. Measured with
-``benchmarks/temporal_tie.py`` (README, "Depth of a whole video"): at 0.015
+``experiments/temporal_tie.py`` (docs/stitching.md): at 0.015
 the real ``phisft_R1`` gains (epoch 178: 0.2323 → 0.2255 per frame), generated
 256×256 videos stay level per frame (within 0.002 either way over two
 draws) and gain from the first frame inside the training ranges; larger

@@ -43,6 +43,15 @@ from .surface import _check_int, _check_seed
 __all__ = ["TrainConfig", "train", "load_model", "save_model", "predict_depth", "DEFAULT_MODEL", "resolve_device"]
 
 VALIDATION_SEED_OFFSET = 1_000_003
+
+RECOMMENDED = {"arch": "unet2p1d_deep", "loss": "aligned_both_signed", "target": "observable", "lr": 3e-4}
+"""The recipe the README recommends, what ``nrdepth train`` runs without
+``--paper``: the factorised network with the deep coarse level, the
+sign-aware loss on each frame and the clip, the observable target."""
+
+PAPER = {"arch": "unet3d", "loss": "gbr", "target": "depth", "lr": 1e-3}
+"""The paper's recipe (``nrdepth train --paper``), also ``TrainConfig``'s defaults."""
+
 CALIBRATION_CLIPS = 32
 
 
