@@ -24,7 +24,7 @@
 //! paper's fit also counts the padding, against the coarse depth mirrored
 //! there. Neither term counts the padding: a video mirrored top to bottom
 //! is lit from below there, so the network reads its relief inverted, and
-//! fitting the mirrored coarse depth scored worse on real video (README).
+//! fitting the mirrored coarse depth scored worse on real video (docs/findings.md).
 //! Normal equations: `G g = μ b` with `G_kk = Σ_Ωk (w_k − w_k² + μ) a_k a_kᵀ`,
 //! `G_kl = −Σ_{Ωk∩Ωl} w_k w_l a_k a_lᵀ`, `b_k = Σ_Ωk a_k C`: block sparse, a
 //! patch-frame meeting at most 17 others
@@ -53,7 +53,7 @@
 //! kept; the ties of block b's first frame to the frame before pull toward
 //! its solved GBRs. A tie in only one direction (frame by frame) lags the
 //! surface and scored worse than none; solving ahead keeps the symmetric
-//! tie's gain (README). Ties add `ν_k I` to both diagonal blocks, `−ν_k I`
+//! tie's gain (docs/stitching.md). Ties add `ν_k I` to both diagonal blocks, `−ν_k I`
 //! between them, and `ν_k ĝ_k` to `b_k` toward a solved GBR ĝ_k. Block b + 1's
 //! equations are assembled once: the next span reuses them (only the anchor
 //! is new) and starts from their solution. The ties couple a patch's frames

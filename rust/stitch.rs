@@ -11,8 +11,8 @@
 //! neighbouring patches disagree, the stitched depth's slope jumps there,
 //! and the grid shows in its spectrum. The Hann window
 //! `w[n] = sin²(π (n + ½) / L)` has a continuous slope, zero where the
-//! triangle kinks, so disagreement blends in without a grid (README, "Depth
-//! of a whole video").
+//! triangle kinks, so disagreement blends in without a grid
+//! (docs/stitching.md).
 //!
 //! The video is expected padded symmetrically (numpy's "symmetric" mode) and
 //! the coarse depth is mirrored the same way under the padding. Each patch's

@@ -97,8 +97,8 @@ class GeneratorConfig:
     gamma: Interval = _DEFAULT["gamma"]
     """Exponent of the camera's response ``v ↦ v**gamma`` (1: linear; a
     camera's encoded output is about ``v**0.45`` of the light it received).
-    Blur and response are off by default (README, "Watching the cloth while
-    training", measures ``blur=(0, 1.5)``, ``gamma=(0.4, 1.2)``)."""
+    Blur and response are off by default (docs/findings.md measures
+    ``blur=(0, 1.5)``, ``gamma=(0.4, 1.2)``)."""
     max_redraws: int = _DEFAULT["max_redraws"]
     sheet_probability: float = _DEFAULT["sheet_probability"]
     """Share of clips that are sheets: the patch bent isometrically (rolls,

@@ -122,7 +122,7 @@ def coarse_depth(video: np.ndarray, net: "torch.nn.Module", batch_size: int, dev
     by default twice, as it is and mirrored left-right, the two depths
     averaged: the mirror keeps image-up (so the light prior, and the
     relief's sign), and this one reading sets every patch's large-scale
-    shape, so halving its variance pays (README, "Depth of a whole video"); the pass runs
+    shape, so halving its variance pays (docs/stitching.md); the pass runs
     one network window per 16 frames, so reading it twice is nearly free."""
     _, h, w = video.shape
     return _resize(coarse_half(_resize(_as_unit_float(video), PATCH[1:]), net, batch_size, device, readings), (h, w))

@@ -27,8 +27,7 @@ Two windows (``window``): ``"hann"`` (the default), sin², and
 ``"triangle"``, the paper's. The triangle's kinks, at every multiple of the
 hop, leave a grid wherever neighbouring patches disagree; the Hann window's
 slope is continuous, and its stitched depth shows no grid. The paper's
-stitch is ``alignment="coarse", window="triangle"``. Measured (README,
-"Depth of a whole video"): the default beats the paper's stitch on the
+stitch is ``alignment="coarse", window="triangle"``. Measured (docs/stitching.md): the default beats the paper's stitch on the
 real ``phisft_R1`` for every one of 24 checkpoints of the campaign (0.2501
 against 0.2719 on average; 0.2545 without its temporal tie), is level
 with it per frame on generated videos, and leaves the spectrum at the
@@ -60,7 +59,7 @@ WINDOWS = ("hann", "triangle")
 COARSE_WEIGHT = 0.005
 """Default μ of the joint alignment: the weight of the patches' fit to the
 coarse depth against their agreement with one another. On generated
-256×256 videos (README), 0.005 with Hann windows kept the stitched score
+256×256 videos (docs/stitching.md), 0.005 with Hann windows kept the stitched score
 of epoch 178 (shipped then) per frame within 0.002 of the paper's stitch,
 and smaller weights cost more; on the real ``phisft_R1`` smaller weights score better
 still."""

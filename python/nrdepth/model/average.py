@@ -5,7 +5,7 @@ Models fine-tuned from a common ancestor usually lie in one basin of the
 loss, where the average of their weights is itself a good model, and
 often better than the straight line between their scores. nrdepth ships
 one: the default model is a weighted average of the CPU campaign's epoch 178
-and the GPU-trained ``unet2p1d_deep`` (README, "The shipped model").
+and the GPU-trained ``unet2p1d_deep`` (docs/learning.md, "The shipped model").
 
 Architectures that extend one another average too. ``unet2p1d_deep`` is
 ``unet2p1d`` plus residual blocks that start as the identity (their temporal
