@@ -136,7 +136,7 @@ def plot(rows: list, references: dict, path: Path, labels: dict) -> None:
         ax.set_title(title)
         ax.set_xlabel("clips seen after the warm start (thousands)")
         ax.legend(fontsize=8)
-    fig.suptitle("Warm start from the shipped model: sheets and prints against a control (same seed, clips and steps)")
+    fig.suptitle("Warm starts from the shipped model, each against a control with the same seed, clips and steps")
     fig.savefig(path, dpi=90)
 
 
