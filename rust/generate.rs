@@ -175,7 +175,6 @@ impl GeneratorConfig {
         }
         size_in("config.max_redraws", self.max_redraws as i64, 0, 1_000_000)?;
         self.sheet.validate()
-
     }
 
     pub fn frame_len(&self) -> usize {

@@ -441,9 +441,10 @@ fn generator_config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<GeneratorConfig
         max_redraws: size("max_redraws")?,
         sheet: {
             let bends: (i64, i64) = field(d, "config", "sheet_bends")?;
+            let count = |v: i64| usize::try_from(v).map_err(|_| PyValueError::new_err(format!("config.sheet_bends: expected counts >= 0, got {bends:?}")));
             SheetConfig {
                 probability: field(d, "config", "sheet_probability")?,
-                bends: (bends.0.max(0) as usize, bends.1.max(0) as usize),
+                bends: (count(bends.0)?, count(bends.1)?),
                 bend_angle: range("sheet_bend_angle")?,
                 bend_width: range("sheet_bend_width")?,
                 fold_probability: field(d, "config", "sheet_fold_probability")?,

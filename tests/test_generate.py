@@ -183,6 +183,7 @@ def test_textures_from_a_folder(tmp_path):
         ({"shading": "flat"}, "config.shading"),
         ({"sheet_probability": 1.5}, "config.sheet_probability"),
         ({"sheet_bends": (2, 1)}, "config.sheet_bends"),
+        ({"sheet_bends": (-1, 1)}, "config.sheet_bends"),
         ({"sheet_fold_width": (0.0, 0.1)}, "config.sheet_fold_width"),
         ({"textures": "/no/such/folder"}, "config.textures"),
     ],
