@@ -159,7 +159,6 @@ def main() -> None:
             rows = [{k: (v if k == "run" else float(v)) for k, v in r.items()} for r in csv.DictReader(f)]
         plot(rows, json.loads(refs_path.read_text()), args.plot, labels)
         return
-    torch.set_num_threads(max(1, torch.get_num_threads()))
     scorer = Scorer(args.sheets)
     references = {k: float(v) for k, v in scorer.references().items()}
     refs_path.write_text(json.dumps(references, indent=1))

@@ -131,15 +131,6 @@ impl Default for GeneratorConfig {
     }
 }
 
-fn check_range(name: &str, r: Range, lo: f64, hi: f64) -> Result<()> {
-    in_range(&format!("{name}[0]"), r.lo, lo, hi)?;
-    in_range(&format!("{name}[1]"), r.hi, lo, hi)?;
-    if r.lo > r.hi {
-        return Err(InvalidArgument::new(name, format!("expected lo <= hi, got ({}, {})", r.lo, r.hi)));
-    }
-    Ok(())
-}
-
 impl GeneratorConfig {
     pub fn validate(&self) -> Result<()> {
         size_in("config.frames", self.frames as i64, 1, 4096)?;
@@ -148,28 +139,28 @@ impl GeneratorConfig {
         size_in("config.supersample", self.supersample as i64, 1, crate::raster::MAX_SUPERSAMPLE as i64)?;
         size_in("config.texture_size", self.texture_size as i64, 2, 4096)?;
         self.surface.validate()?;
-        check_range("config.window_width", self.window_width, 1e-3, 2.0)?;
-        check_range("config.window_offset", self.window_offset, -1.0, 1.0)?;
+        self.window_width.check("config.window_width", 1e-3, 2.0)?;
+        self.window_offset.check("config.window_offset", -1.0, 1.0)?;
         let (lo, hi) = self.light_count;
         if !(1..=16).contains(&lo) || !(lo..=16).contains(&hi) {
             return Err(InvalidArgument::new("config.light_count", format!("expected 1 <= lo <= hi <= 16, got ({lo}, {hi})")));
         }
         // Any interval of at most one turn inside ±2π, so that one around image-down (say (π − w, π + w)) needs no wrap.
-        check_range("config.light_azimuth", self.light_azimuth, -std::f64::consts::TAU, std::f64::consts::TAU)?;
+        self.light_azimuth.check("config.light_azimuth", -std::f64::consts::TAU, std::f64::consts::TAU)?;
         if self.light_azimuth.hi - self.light_azimuth.lo > std::f64::consts::TAU {
             return Err(InvalidArgument::new("config.light_azimuth", format!("expected an interval of at most 2π, got ({}, {})", self.light_azimuth.lo, self.light_azimuth.hi)));
         }
-        check_range("config.light_elevation", self.light_elevation, 0.0, std::f64::consts::FRAC_PI_2)?;
-        check_range("config.light_intensity", self.light_intensity, 0.0, 100.0)?;
+        self.light_elevation.check("config.light_elevation", 0.0, std::f64::consts::FRAC_PI_2)?;
+        self.light_intensity.check("config.light_intensity", 0.0, 100.0)?;
         in_range("config.point_light_probability", self.point_light_probability, 0.0, 1.0)?;
-        check_range("config.point_light_distance", self.point_light_distance, 0.1, 1000.0)?;
-        check_range("config.ambient", self.ambient, 0.0, 10.0)?;
-        check_range("config.diffuse", self.diffuse, 0.0, 10.0)?;
-        check_range("config.specular", self.specular, 0.0, 10.0)?;
-        check_range("config.shininess", self.shininess, 1e-3, 10_000.0)?;
-        check_range("config.noise_std", self.noise_std, 0.0, 1.0)?;
-        check_range("config.blur", self.blur, 0.0, 8.0)?;
-        check_range("config.gamma", self.gamma, 0.1, 10.0)?;
+        self.point_light_distance.check("config.point_light_distance", 0.1, 1000.0)?;
+        self.ambient.check("config.ambient", 0.0, 10.0)?;
+        self.diffuse.check("config.diffuse", 0.0, 10.0)?;
+        self.specular.check("config.specular", 0.0, 10.0)?;
+        self.shininess.check("config.shininess", 1e-3, 10_000.0)?;
+        self.noise_std.check("config.noise_std", 0.0, 1.0)?;
+        self.blur.check("config.blur", 0.0, 8.0)?;
+        self.gamma.check("config.gamma", 0.1, 10.0)?;
         if self.texture_families.is_empty() {
             return Err(InvalidArgument::new("config.texture_families", "expected at least one family"));
         }

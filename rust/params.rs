@@ -90,7 +90,8 @@ impl Range {
         Self { lo, hi }
     }
 
-    fn check(&self, name: &str, lo: f64, hi: f64) -> Result<()> {
+    /// Both ends inside [lo, hi] and ordered; errors name `name[0]`, `name[1]` or `name`.
+    pub(crate) fn check(&self, name: &str, lo: f64, hi: f64) -> Result<()> {
         in_range(&format!("{name}[0]"), self.lo, lo, hi)?;
         in_range(&format!("{name}[1]"), self.hi, lo, hi)?;
         if self.lo > self.hi {

@@ -82,15 +82,6 @@ impl Default for SheetConfig {
     }
 }
 
-fn check(name: &str, r: Range, lo: f64, hi: f64) -> Result<()> {
-    in_range(&format!("{name}[0]"), r.lo, lo, hi)?;
-    in_range(&format!("{name}[1]"), r.hi, lo, hi)?;
-    if r.lo > r.hi {
-        return Err(InvalidArgument::new(name, format!("expected lo <= hi, got ({}, {})", r.lo, r.hi)));
-    }
-    Ok(())
-}
-
 impl SheetConfig {
     pub fn validate(&self) -> Result<()> {
         in_range("config.sheet_probability", self.probability, 0.0, 1.0)?;
@@ -99,15 +90,15 @@ impl SheetConfig {
             return Err(InvalidArgument::new("config.sheet_bends", format!("expected 0 <= lo <= hi <= 8, got ({lo}, {hi})")));
         }
         let turn = std::f64::consts::TAU;
-        check("config.sheet_bend_angle", self.bend_angle, -turn, turn)?;
-        check("config.sheet_bend_width", self.bend_width, 0.01, 100.0)?;
+        self.bend_angle.check("config.sheet_bend_angle", -turn, turn)?;
+        self.bend_width.check("config.sheet_bend_width", 0.01, 100.0)?;
         in_range("config.sheet_fold_probability", self.fold_probability, 0.0, 1.0)?;
-        check("config.sheet_fold_angle", self.fold_angle, -turn, turn)?;
-        check("config.sheet_fold_width", self.fold_width, 0.01, 100.0)?;
-        check("config.sheet_centre", self.centre, -SPAN, SPAN)?;
-        check("config.sheet_centre_drift", self.centre_drift, -SPAN, SPAN)?;
-        check("config.sheet_axis_rate", self.axis_rate, -turn, turn)?;
-        check("config.sheet_relief", self.relief, 0.0, 1.0)?;
+        self.fold_angle.check("config.sheet_fold_angle", -turn, turn)?;
+        self.fold_width.check("config.sheet_fold_width", 0.01, 100.0)?;
+        self.centre.check("config.sheet_centre", -SPAN, SPAN)?;
+        self.centre_drift.check("config.sheet_centre_drift", -SPAN, SPAN)?;
+        self.axis_rate.check("config.sheet_axis_rate", -turn, turn)?;
+        self.relief.check("config.sheet_relief", 0.0, 1.0)?;
         Ok(())
     }
 
@@ -166,6 +157,8 @@ fn lerp([a, b]: [f64; 2], t: f64) -> f64 {
 /// The cross-section of one frame, tabulated: θ and C at `s_i = −SPAN + i·step`.
 #[derive(Default)]
 pub struct Bender {
+    /// Curvature k at the samples (kept between frames, so a clip allocates once).
+    k: Vec<f64>,
     theta: Vec<f64>,
     cb: Vec<f64>,
     cz: Vec<f64>,
@@ -186,7 +179,9 @@ impl Bender {
                 })
                 .sum()
         };
-        let k: Vec<f64> = (0..TABLE).map(|i| curvature(-SPAN + i as f64 * step)).collect();
+        self.k.clear();
+        self.k.extend((0..TABLE).map(|i| curvature(-SPAN + i as f64 * step)));
+        let k = &self.k;
         for table in [&mut self.theta, &mut self.cb, &mut self.cz] {
             table.clear();
             table.resize(TABLE, 0.0);
