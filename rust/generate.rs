@@ -21,6 +21,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use rayon::prelude::*;
 
+use crate::backdrop::{composite, covers, BackdropConfig, BackdropParams};
 use crate::error::{in_range, size_in, InvalidArgument, Result};
 use crate::geometry::{View, CAMERA_Z};
 use crate::mesh::grid_triangles;
@@ -97,6 +98,8 @@ pub struct GeneratorConfig {
     pub max_redraws: usize,
     /// Isometric bends and folds (`sheet`); none by default.
     pub sheet: SheetConfig,
+    /// Views that show the sheet's border and a background (`backdrop`); none by default.
+    pub backdrop: BackdropConfig,
 }
 
 impl Default for GeneratorConfig {
@@ -127,6 +130,7 @@ impl Default for GeneratorConfig {
             gamma: Range::new(1.0, 1.0),
             max_redraws: 200,
             sheet: SheetConfig::default(),
+            backdrop: BackdropConfig::default(),
         }
     }
 }
@@ -165,7 +169,8 @@ impl GeneratorConfig {
             return Err(InvalidArgument::new("config.texture_families", "expected at least one family"));
         }
         size_in("config.max_redraws", self.max_redraws as i64, 0, 1_000_000)?;
-        self.sheet.validate()
+        self.sheet.validate()?;
+        self.backdrop.validate()
     }
 
     pub fn frame_len(&self) -> usize {
@@ -200,7 +205,10 @@ pub struct ClipParams {
     pub gamma: f64,
     /// The sheet's bends and folds, if the clip is a sheet.
     pub sheet: Option<SheetParams>,
-    /// Attempts rejected before this one because the window showed background.
+    /// The background, if the clip shows the sheet's border (its window is then `window`).
+    pub backdrop: Option<BackdropParams>,
+    /// Attempts rejected before this one: the window showed background (or,
+    /// with a backdrop, too little of the sheet).
     pub redraws: usize,
 }
 
@@ -209,7 +217,7 @@ fn draw_clip(config: &GeneratorConfig, bank: Option<&TextureBank>, rng: &mut Spl
     let width = rng.uniform(config.window_width.lo, config.window_width.hi);
     let (cx, cy) = (rng.uniform(config.window_offset.lo, config.window_offset.hi), rng.uniform(config.window_offset.lo, config.window_offset.hi));
     let half = width / 2.0;
-    let window = [(cx - half) as f32, (cy - half) as f32, (cx + half) as f32, (cy + half) as f32];
+    let mut window = [(cx - half) as f32, (cy - half) as f32, (cx + half) as f32, (cy + half) as f32];
     let (lo, hi) = config.light_count;
     let count = lo + (rng.next_u64() % (hi - lo + 1) as u64) as usize;
     let total = rng.uniform(config.light_intensity.lo, config.light_intensity.hi);
@@ -254,7 +262,11 @@ fn draw_clip(config: &GeneratorConfig, bank: Option<&TextureBank>, rng: &mut Spl
     let blur = rng.uniform(config.blur.lo, config.blur.hi);
     let gamma = rng.uniform(config.gamma.lo, config.gamma.hi);
     let sheet = config.sheet.sample(rng);
-    Ok(ClipParams { surface, window, lights, material, texture, noise_std, noise_seed, blur, gamma, sheet, redraws: 0 })
+    let backdrop = config.backdrop.sample(&config.texture_families, rng);
+    if let Some(b) = &backdrop {
+        window = b.window;
+    }
+    Ok(ClipParams { surface, window, lights, material, texture, noise_std, noise_seed, blur, gamma, sheet, backdrop, redraws: 0 })
 }
 
 /// The camera's optics and response on a rendered `size`² frame, in place:
@@ -356,6 +368,8 @@ pub struct ClipWorker {
     scratch: Vec<f32>,
     bender: Bender,
     local: Vec<[f64; 3]>,
+    background_texture: Texture,
+    background: Vec<f32>,
 }
 
 impl ClipWorker {
@@ -377,6 +391,8 @@ impl ClipWorker {
             scratch: Vec::new(),
             bender: Bender::default(),
             local: Vec::new(),
+            background_texture: Texture::default(),
+            background: Vec::new(),
         }
     }
 
@@ -407,7 +423,7 @@ impl ClipWorker {
         }
         Err(InvalidArgument::new(
             "config",
-            format!("clip {index}: the view window showed background in {} attempts; shrink window_width or the motion ranges", config.max_redraws + 1),
+            format!("clip {index}: the view window showed background (or, with a backdrop, too little of the sheet) in {} attempts; shrink window_width (backdrop_window_width) or the motion ranges", config.max_redraws + 1),
         ))
     }
 
@@ -452,11 +468,17 @@ impl ClipWorker {
         }
         let scene = Scene { view, supersample: config.supersample, lights: &p.lights, material: p.material, texture: &self.texture, shading: config.shading };
         let (vertex_count, frame_len) = (grid * grid, config.frame_len());
+        if let Some(b) = &p.backdrop {
+            b.background_into(config.size, &mut self.background_texture, &mut self.background);
+        }
         for f in 0..frames {
             let vertices = &self.positions[f * vertex_count..(f + 1) * vertex_count];
             self.rasterizer.render_into(vertices, &self.triangles, &self.uv, &scene, &mut self.frame);
-            if self.frame.coverage.iter().any(|&c| c < 1.0) || self.frame.depth.iter().any(|d| d.is_nan()) {
-                return Ok(false);
+            match p.backdrop {
+                None if self.frame.coverage.iter().any(|&c| c < 1.0) || self.frame.depth.iter().any(|d| d.is_nan()) => return Ok(false),
+                None => {}
+                Some(_) if !covers(&self.frame.depth, config.backdrop.min_cover) => return Ok(false),
+                Some(_) => composite(&mut self.frame.image, &self.frame.coverage, &self.background),
             }
             depth[f * frame_len..(f + 1) * frame_len].copy_from_slice(&self.frame.depth);
             camera_response(&mut self.frame.image, config.size, p.blur, p.gamma, &mut self.kernel, &mut self.scratch);
@@ -636,6 +658,39 @@ mod tests {
             }
             assert!(partial > 0, "no clip used a partial texture");
         }
+    }
+
+    #[test]
+    fn a_backdrop_clip_is_the_rendered_sheet_over_its_background_with_depth_only_on_the_sheet() {
+        let config = GeneratorConfig { backdrop: BackdropConfig { probability: 1.0, ..BackdropConfig::default() }, ..small() };
+        let (video, depth, params) = run(&config, 4, 0, 6);
+        let worker = ClipWorker::new(&config);
+        let (mut off_sheet, mut background_texture, mut background) = (0, Texture::default(), Vec::new());
+        for (clip, p) in params.iter().enumerate() {
+            let b = p.backdrop.as_ref().expect("probability 1 draws a backdrop");
+            assert_eq!(p.window, b.window);
+            b.background_into(config.size, &mut background_texture, &mut background);
+            let TextureChoice::Procedural { family, seed } = p.texture else { unreachable!() };
+            let mut texture = Texture::default();
+            crate::textures::procedural(family, seed, config.texture_size, &mut texture);
+            let positions: Vec<[f32; 3]> = crate::synthesis::synthesize(&p.surface, config.frames, config.grid).unwrap().chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+            let view = View::new(config.size, config.size, p.window, CAMERA_Z).unwrap();
+            let scene = Scene { view, supersample: config.supersample, lights: &p.lights, material: p.material, texture: &texture, shading: config.shading };
+            for (f, vertices) in positions.chunks_exact(config.grid * config.grid).enumerate() {
+                let at = (clip * config.frames + f) * config.frame_len();
+                let mut frame = crate::raster::render(vertices, &worker.triangles, &worker.uv, &scene).unwrap();
+                composite(&mut frame.image, &frame.coverage, &background);
+                let mut expected = vec![0u8; config.frame_len()];
+                noisy_u8(&frame.image, p.noise_std, p.noise_seed, f, &mut expected);
+                assert_eq!(&video[at..][..config.frame_len()], &expected[..], "clip {clip} frame {f}");
+                let cast = crate::bvh::raycast_depth(vertices, &worker.triangles, &view).unwrap();
+                let rendered = &depth[at..][..config.frame_len()];
+                assert!(rendered.iter().zip(&cast).all(|(a, b)| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan())), "clip {clip} frame {f}");
+                assert!(covers(rendered, config.backdrop.min_cover), "clip {clip} frame {f} shows too little of the sheet");
+                off_sheet += rendered.iter().filter(|d| d.is_nan()).count();
+            }
+        }
+        assert!(off_sheet > 0, "no clip showed the border");
     }
 
     #[test]

@@ -3,6 +3,7 @@
 //! One module per stage, usable from Rust without Python; `python` (behind the
 //! `python` cargo feature) is the only place pyo3 appears.
 
+pub mod backdrop;
 pub mod bvh;
 pub mod error;
 pub mod generate;

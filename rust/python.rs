@@ -23,6 +23,7 @@ use crate::generate::{self, ClipParams, GeneratorConfig, TextureChoice};
 use crate::geometry::View;
 use crate::params::{Range, SurfaceConfig, SurfaceParams};
 use crate::raster::{self, Light, LightKind, Material, Scene, Shading, Texture};
+use crate::backdrop::{BackdropConfig, BackdropParams};
 use crate::sheet::{SheetConfig, SheetParams};
 use crate::synthesis::{self, check_sizes, clip_len};
 use crate::textures::{self, TextureBank, TextureFamily};
@@ -456,6 +457,14 @@ fn generator_config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<GeneratorConfig
                 relief: range("sheet_relief")?,
             }
         },
+        backdrop: BackdropConfig {
+            probability: field(d, "config", "backdrop_probability")?,
+            window_width: range("backdrop_window_width")?,
+            window_offset: range("backdrop_window_offset")?,
+            min_cover: field(d, "config", "backdrop_min_cover")?,
+            brightness: range("backdrop_brightness")?,
+            flat_probability: field(d, "config", "backdrop_flat_probability")?,
+        },
     };
     config.validate().map_err(value_error)?;
     Ok(config)
@@ -506,6 +515,15 @@ fn default_generator_config(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
         ("sheet_axis_rate", sheet.axis_rate),
         ("sheet_relief", sheet.relief),
     ])?;
+    let backdrop = &c.backdrop;
+    d.set_item("backdrop_probability", backdrop.probability)?;
+    d.set_item("backdrop_min_cover", backdrop.min_cover)?;
+    d.set_item("backdrop_flat_probability", backdrop.flat_probability)?;
+    set_ranges(&d, &[
+        ("backdrop_window_width", backdrop.window_width),
+        ("backdrop_window_offset", backdrop.window_offset),
+        ("backdrop_brightness", backdrop.brightness),
+    ])?;
     Ok(d)
 }
 
@@ -554,7 +572,16 @@ fn clip_to_dict<'py>(py: Python<'py>, p: &ClipParams, bank: Option<&TextureBank>
     d.set_item("blur", p.blur)?;
     d.set_item("gamma", p.gamma)?;
     d.set_item("sheet", p.sheet.as_ref().map(|sheet| sheet_to_dict(py, sheet)).transpose()?)?;
+    d.set_item("backdrop", p.backdrop.as_ref().map(|b| backdrop_to_dict(py, b)).transpose()?)?;
     d.set_item("redraws", p.redraws)?;
+    Ok(d)
+}
+
+fn backdrop_to_dict<'py>(py: Python<'py>, b: &BackdropParams) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("family", b.texture.map(|(family, _)| family.name()))?;
+    d.set_item("seed", b.texture.map(|(_, seed)| seed))?;
+    d.set_item("brightness", b.brightness)?;
     Ok(d)
 }
 

@@ -106,6 +106,25 @@ def test_sheets_bend_the_patch_and_leave_everything_else_drawn_as_it_was():
     assert all(p["texture"]["family"] == "print" for p in half.params)
 
 
+def test_backdrops_show_the_border_over_a_background_and_mask_the_depth_off_the_sheet():
+    # Drawn after the sheet: everything but the window stays the plain clip's.
+    plain = nrdepth.generate_clips(6, seed=3, config=SMALL)
+    config = SMALL.replace(backdrop_probability=1.0)
+    shown = nrdepth.generate_clips(6, seed=3, config=config)
+    assert all(p["backdrop"] is None for p in plain.params)
+    first_tries = [(a, b) for a, b in zip(plain.params, shown.params) if a["redraws"] == b["redraws"] == 0]
+    assert len(first_tries) >= 3
+    for a, b in first_tries:
+        assert {k: v for k, v in a.items() if k not in ("backdrop", "window")} == {k: v for k, v in b.items() if k not in ("backdrop", "window")}
+    widths = nrdepth.generate.window_widths(shown.params)
+    assert ((widths >= config.backdrop_window_width[0] - 1e-6) & (widths <= config.backdrop_window_width[1] + 1e-6)).all()
+    on_sheet = np.isfinite(shown.depth).mean(axis=(2, 3))
+    assert (on_sheet >= config.backdrop_min_cover).all() and on_sheet.min() < 1
+    assert np.isnan(shown.depth).any() and np.isfinite(plain.depth).all()
+    with pytest.raises(ValueError, match="config.backdrop_min_cover"):
+        SMALL.replace(backdrop_min_cover=2.0)
+
+
 def test_clip_i_depends_only_on_config_seed_and_i():
     whole = nrdepth.generate_clips(6, seed=4, config=SMALL)
     part = nrdepth.generate_clips(3, seed=4, config=SMALL, start=2)
@@ -120,7 +139,7 @@ _DIGEST = """
 import hashlib, nrdepth
 config = nrdepth.GeneratorConfig(frames=4, size=32, grid=32, texture_size=64)
 c = nrdepth.generate_clips(8, seed=7, config=config)
-s = nrdepth.generate_clips(8, seed=7, config=config.replace(sheet_probability=1.0, texture_families=("print", "weave")))
+s = nrdepth.generate_clips(8, seed=7, config=config.replace(sheet_probability=1.0, backdrop_probability=0.5, texture_families=("print", "weave")))
 print(hashlib.sha256(c.video.tobytes() + c.depth.tobytes() + s.video.tobytes() + s.depth.tobytes()).hexdigest())
 """
 

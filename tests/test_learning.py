@@ -16,6 +16,8 @@ from nrdepth.losses import (
     aligned_signed_first_loss,
     aligned_signed_loss,
     gbr_loss,
+    LOSSES,
+    MASKED_LOSSES,
     get_loss,
     tr_sc_loss,
 )
@@ -178,6 +180,40 @@ def test_losses_have_finite_gradients_on_flat_input(name):
         loss = loss_fn(pred, target)
         (grad,) = torch.autograd.grad(loss, pred)
         assert torch.isfinite(loss) and torch.isfinite(grad).all()
+
+
+@pytest.mark.parametrize("name", MASKED_LOSSES)
+def test_a_masked_target_scores_only_the_sheet(name):
+    # NaN off a rectangle = the loss on that rectangle alone (a plane fit and
+    # the standardised prediction's correlation do not depend on where the
+    # coordinates' origin lies), whatever the prediction is off the sheet.
+    loss_fn = get_loss(name)
+    target, pred = smooth_depth(6, (2, 4, 20, 20)), smooth_depth(7, (2, 4, 20, 20))
+    rows, cols = slice(3, 17), slice(5, 20)
+    masked = torch.full_like(target, float("nan"))
+    masked[..., rows, cols] = target[..., rows, cols]
+    crop = loss_fn(pred[..., rows, cols], target[..., rows, cols])
+    assert loss_fn(pred, masked).item() == pytest.approx(crop.item(), rel=1e-9)
+    scrambled = pred.clone()
+    scrambled[..., :3, :] = 100 * torch.randn_like(scrambled[..., :3, :])
+    scrambled.requires_grad_(True)
+    loss = loss_fn(scrambled, masked)
+    assert loss.item() == pytest.approx(crop.item(), rel=1e-9)
+    (grad,) = torch.autograd.grad(loss, scrambled)
+    assert torch.isfinite(grad).all() and grad[..., rows, cols].abs().sum() > 0
+    # A frame with under 4 pixels on the sheet weighs nothing.
+    sparse = masked.clone()
+    sparse[0, 1] = float("nan")
+    sparse[0, 1, 8, 8] = 1.0
+    assert torch.isfinite(loss_fn(pred, sparse))
+
+
+@pytest.mark.parametrize("name", sorted(set(LOSSES) - set(MASKED_LOSSES)))
+def test_the_other_losses_refuse_a_masked_target(name):
+    target = smooth_depth(6, (1, 2, 12, 12))
+    target[..., 0, 0] = float("nan")
+    with pytest.raises(ValueError, match="^target: .*signed loss"):
+        get_loss(name)(torch.zeros_like(target), target)
 
 
 def test_loss_inputs_are_checked():

@@ -52,6 +52,8 @@ def _generator_config(args: argparse.Namespace):
             extra[name] = getattr(args, name)
     if args.sheets is not None:
         extra["sheet_probability"] = args.sheets
+    if args.backdrops is not None:
+        extra["backdrop_probability"] = args.backdrops
     if args.texture_families is not None:
         extra["texture_families"] = tuple(args.texture_families.split(","))
     return GeneratorConfig(frames=args.frames, size=args.size, grid=args.grid, textures=args.textures, **extra)
@@ -282,6 +284,9 @@ def _add_generator_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sheets", type=float, default=None, metavar="P",
                    help="share of clips that are sheets bent isometrically: rolls, bends and folds whose curvature moves "
                         "(default: 0, the coloured-noise surfaces alone)")
+    p.add_argument("--backdrops", type=float, default=None, metavar="P",
+                   help="share of clips whose view is wider than the sheet: its border shows over a background, and "
+                        "the depth is masked to the sheet (needs a signed loss; default: 0, the view inside the sheet)")
     p.add_argument("--texture-families", default=None, metavar="A,B,...",
                    help="procedural texture families to draw from, of fractal, stripes, plaid, cells, weave, print "
                         "(print: text and line drawings on white paper; default: all but print)")

@@ -2,8 +2,9 @@
 
 Clip ``i`` is a pure function of ``(config, seed, i)`` (and the texture folder,
 if one is given): the same bytes whatever the thread count, batch split or
-``start``. A draw whose view window would show background in any frame is
-redrawn deterministically; ``params[k]["redraws"]`` counts the rejected draws.
+``start``. A draw whose view window would show background in any frame (or,
+in a backdrop clip, too little of the sheet) is redrawn deterministically;
+``params[k]["redraws"]`` counts the rejected draws.
 """
 
 from __future__ import annotations
@@ -44,6 +45,9 @@ _RANGES = (
     "sheet_centre_drift",
     "sheet_axis_rate",
     "sheet_relief",
+    "backdrop_window_width",
+    "backdrop_window_offset",
+    "backdrop_brightness",
 )
 _INTS = ("frames", "size", "grid", "supersample", "texture_size", "max_redraws")
 
@@ -124,6 +128,21 @@ class GeneratorConfig:
     """Change of the bend axis's in-plane angle over the clip (radians)."""
     sheet_relief: Interval = _DEFAULT["sheet_relief"]
     """Factor on the surface's coloured-noise intensity for a sheet."""
+    backdrop_probability: float = _DEFAULT["backdrop_probability"]
+    """Share of clips whose view is wider than the sheet, so that its border
+    shows and a background behind it: a window of side
+    ``backdrop_window_width`` offset by ``backdrop_window_offset``, over a
+    static background, flat (with ``backdrop_flat_probability``) or one of
+    ``texture_families`` at one texel per pixel, scaled by
+    ``backdrop_brightness``. Their depth is NaN off the sheet (the mask the
+    losses and metrics use); a draw is redrawn until every frame has
+    ``backdrop_min_cover`` of its pixels on the sheet. 0 (the default) keeps
+    every clip as before."""
+    backdrop_window_width: Interval = _DEFAULT["backdrop_window_width"]
+    backdrop_window_offset: Interval = _DEFAULT["backdrop_window_offset"]
+    backdrop_min_cover: float = _DEFAULT["backdrop_min_cover"]
+    backdrop_brightness: Interval = _DEFAULT["backdrop_brightness"]
+    backdrop_flat_probability: float = _DEFAULT["backdrop_flat_probability"]
     textures: Optional[str] = None
     """A folder of PNG/JPEG images to crop textures from instead of the procedural families."""
 
@@ -178,9 +197,11 @@ class Clips(NamedTuple):
     video: np.ndarray
     """uint8 (n, T, H, W) rendered grayscale frames."""
     depth: np.ndarray
-    """float32 (n, T, H, W) depth ``camera_z − z`` at pixel centres (never NaN)."""
+    """float32 (n, T, H, W) depth ``camera_z − z`` at pixel centres; NaN off
+    the sheet in a backdrop clip (``backdrop_probability``), never otherwise."""
     params: List[Dict[str, Any]]
-    """Per clip: surface, window, lights, material, texture, noise_std, noise_seed, blur, gamma, sheet (None, or its axis, terms and relief), redraws."""
+    """Per clip: surface, window, lights, material, texture, noise_std, noise_seed, blur, gamma, sheet (None, or its axis, terms and relief), backdrop (None, or
+    its background's family (None: flat), seed and brightness), redraws."""
 
 
 def generate_clips(n: int, seed: int = 0, config: Optional[GeneratorConfig] = None, start: int = 0) -> Clips:

@@ -45,6 +45,10 @@ so it sets only the scale (the losses above, which standardise pred, keep
 the shape) and needs the target in units the video shows: window widths (an
 orthographic video of a surface scaled by s in x, y and z is the same video).
 
+The signed losses take a masked target: NaN where a backdrop clip's view is
+off the sheet. Those pixels weigh 0 and each frame's variance is over its
+pixels on the sheet; the other losses refuse such a target.
+
 The invariant losses average over pixels where the target's invariant is
 defined: ``‖H_gt‖_F`` above ``MASK_RATIO`` × that frame's mean (flat and
 planar regions are excluded; a frame with no such pixel contributes nothing).
@@ -73,6 +77,7 @@ __all__ = [
     "relief_rms",
     "AMPLITUDE_FLOOR",
     "LOSSES",
+    "MASKED_LOSSES",
     "get_loss",
     "derivatives",
 ]
@@ -114,8 +119,14 @@ def _invariant(z: torch.Tensor, with_gradient: bool):
     return torch.stack([p / norm for p in parts], dim=-1), norm
 
 
+def _unmasked(name: str, target: torch.Tensor) -> None:
+    if not bool(torch.isfinite(target).all()):
+        raise ValueError(f"target: {name} needs depth at every pixel; a masked target (NaN off the sheet, backdrop clips) takes a signed loss ({', '.join(MASKED_LOSSES)})")
+
+
 def _masked_mse(pred: torch.Tensor, target: torch.Tensor, with_gradient: bool) -> torch.Tensor:
     pred, target = _frames("pred", pred), _frames("target", target)
+    _unmasked("gbr" if not with_gradient else "tr_sc", target)
     if pred.shape != target.shape:
         raise ValueError(f"pred: expected the shape of target {tuple(target.shape)}, got {tuple(pred.shape)}")
     inv_pred, _ = _invariant(pred, with_gradient)
@@ -139,6 +150,7 @@ def tr_sc_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
 
 def _aligned(pred: torch.Tensor, target: torch.Tensor, per_clip: bool, ridge: float, first_frame: bool = False) -> torch.Tensor:
     pred, target = _frames("pred", pred), _frames("target", target)
+    _unmasked("the unsigned aligned losses", target)
     if pred.shape != target.shape:
         raise ValueError(f"pred: expected the shape of target {tuple(target.shape)}, got {tuple(pred.shape)}")
     b, t, h, w = pred.shape
@@ -188,23 +200,51 @@ def _signed(pred: torch.Tensor, target: torch.Tensor, per_clip: bool, offsets: b
         raise ValueError(f"pred: expected the shape of target {tuple(target.shape)}, got {tuple(pred.shape)}")
     b, t, h, w = pred.shape
     groups, frames = (b, t) if per_clip else (b * t, 1)
+    valid = torch.isfinite(target)
+    masked = not bool(valid.all())
+    if masked:  # NaN off the sheet: those pixels weigh 0 (an unmasked batch keeps the exact sums below)
+        target = torch.where(valid, target, torch.zeros_like(target))
+        valid = valid.to(pred.dtype)
+        count = valid.sum((-2, -1), keepdim=True)
     if offsets:
         # A free depth offset per frame: each frame's mean is removed, and the
         # shared plane needs no constant column (x and y have zero mean).
-        pred = pred - pred.mean((-2, -1), keepdim=True)
-        target = target - target.mean((-2, -1), keepdim=True)
+        if masked:
+            pred = pred - (pred * valid).sum((-2, -1), keepdim=True) / count.clamp_min(1)
+            target = (target - target.sum((-2, -1), keepdim=True) / count.clamp_min(1)) * valid
+        else:
+            pred = pred - pred.mean((-2, -1), keepdim=True)
+            target = target - target.mean((-2, -1), keepdim=True)
     ys, xs = torch.meshgrid(torch.linspace(-1, 1, h, dtype=pred.dtype, device=pred.device), torch.linspace(-1, 1, w, dtype=pred.dtype, device=pred.device), indexing="ij")
-    columns = [xs.reshape(-1), ys.reshape(-1)] + ([] if offsets else [torch.ones_like(xs).reshape(-1)])
-    plane = torch.stack(columns, -1).repeat(frames, 1)  # (P, 2 or 3)
+    if masked and offsets:
+        # x and y centred on each frame's pixels on the sheet, as the depths are.
+        centred = [(c - (c * valid).sum((-2, -1), keepdim=True) / count.clamp_min(1)).reshape(groups, frames * h * w) for c in (xs, ys)]
+        plane = torch.stack(centred, -1)  # (G, P, 2)
+    else:
+        columns = [xs.reshape(-1), ys.reshape(-1)] + ([] if offsets else [torch.ones_like(xs).reshape(-1)])
+        plane = torch.stack(columns, -1).repeat(frames, 1)  # (P, 2 or 3)
     # Weight 1/(var(target frame) · pixels per frame): the weighted sum of
     # squares of a group is the sum over its frames of MSE / variance.
-    weight = 1.0 / (target.reshape(b * t, h * w).var(1, unbiased=False).clamp_min(1e-12) * h * w)
-    weight = weight.reshape(groups, frames, 1).expand(groups, frames, h * w).reshape(groups, frames * h * w)
+    if masked:
+        # The same over each frame's pixels on the sheet; a frame with fewer than 4 (a GBR's parameters) weighs 0.
+        mean = target.sum((-2, -1), keepdim=True) / count.clamp_min(1)
+        variance = (((target - mean) * valid) ** 2).sum((-2, -1), keepdim=True) / count.clamp_min(1)
+        weight = valid * (count >= 4) / (variance.clamp_min(1e-12) * count.clamp_min(1))
+        weight = weight.reshape(groups, frames * h * w)
+    else:
+        weight = 1.0 / (target.reshape(b * t, h * w).var(1, unbiased=False).clamp_min(1e-12) * h * w)
+        weight = weight.reshape(groups, frames, 1).expand(groups, frames, h * w).reshape(groups, frames * h * w)
     p = pred.reshape(groups, frames * h * w)
-    p = (p - p.mean(1, keepdim=True)) / (p.std(1, keepdim=True) + 1e-8)  # scale-free, as in _aligned
+    if masked:  # the same over the pixels on the sheet, so that nothing off it enters
+        on = valid.reshape(groups, frames * h * w)
+        n = on.sum(1, keepdim=True).clamp_min(2)
+        centred = (p - (p * on).sum(1, keepdim=True) / n) * on
+        p = centred / ((centred**2).sum(1, keepdim=True) / (n - 1)).sqrt().add(1e-8)
+    else:
+        p = (p - p.mean(1, keepdim=True)) / (p.std(1, keepdim=True) + 1e-8)  # scale-free, as in _aligned
     g = target.reshape(groups, frames * h * w)
     weighted_plane = plane * weight.unsqueeze(-1)  # (G, P, 3)
-    normal = plane.T @ weighted_plane + 1e-9 * torch.eye(plane.shape[1], dtype=pred.dtype, device=pred.device)  # (G, 3, 3)
+    normal = plane.transpose(-1, -2) @ weighted_plane + 1e-9 * torch.eye(plane.shape[-1], dtype=pred.dtype, device=pred.device)  # (G, 3, 3)
 
     def off_plane(v: torch.Tensor) -> torch.Tensor:
         coeffs = torch.linalg.solve(normal, (weighted_plane.transpose(1, 2) @ v.unsqueeze(-1)))
@@ -280,6 +320,7 @@ def relief_amplitude_loss(pred: torch.Tensor, target: torch.Tensor, floor: float
     pred, target = _frames("pred", pred), _frames("target", target)
     if pred.shape != target.shape:
         raise ValueError(f"pred: expected the shape of target {tuple(target.shape)}, got {tuple(pred.shape)}")
+    _unmasked("relief_amplitude_loss", target)
     with torch.no_grad():
         wanted = torch.log(relief_rms(target) + floor)
     return (torch.log(relief_rms(pred) + floor) - wanted).pow(2).mean()
@@ -298,6 +339,11 @@ LOSSES: Dict[str, Callable[[torch.Tensor, torch.Tensor], torch.Tensor]] = {
     "aligned_first": aligned_first_loss,
     "aligned_signed_first": aligned_signed_first_loss,
 }
+
+
+MASKED_LOSSES = ("aligned_signed", "aligned_clip_signed", "aligned_both_signed", "aligned_clip_offsets_signed", "aligned_both_offsets_signed")
+"""The losses that take a masked target: NaN where the view is off the
+sheet (``GeneratorConfig.backdrop_probability``); those pixels weigh 0."""
 
 
 def get_loss(name: str) -> Callable[[torch.Tensor, torch.Tensor], torch.Tensor]:

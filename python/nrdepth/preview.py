@@ -134,9 +134,10 @@ def clip_sheet(clips: int = 3, seed: int = 0, frames_shown: int = 4, scale: int 
     sheet = np.ones((clips * (tile + gap) + gap, columns * (tile + gap) + gap, 3))
     for r in range(clips):
         depth = data.depth[r]
-        near, far = float(depth.min()), float(depth.max())
+        near, far = float(np.nanmin(depth)), float(np.nanmax(depth))
+        off_sheet = np.isnan(depth)[..., None]  # backdrop clips: white where the view is off the sheet
         tiles = [_tile(data.video[r, f] / 255.0, tile) for f in picks]
-        tiles += [_tile(colormap((far - depth[f]) / max(far - near, 1e-12)), tile) for f in picks]
+        tiles += [_tile(np.where(off_sheet[f], 1.0, colormap(np.nan_to_num(far - depth[f]) / max(far - near, 1e-12))), tile) for f in picks]
         surface = SurfaceParams.from_dict(data.params[r]["surface"])
         positions = synthesize_surface(surface, config.frames, config.grid)[0]
         tiles.append(_wireframe(positions, data.params[r]["window"], tile))

@@ -34,7 +34,7 @@ import torch.distributed as dist
 
 from .evaluate import relief_ratio
 from .generate import GeneratorConfig, generate_clips, observable_depth, window_widths
-from .losses import get_loss, relief_amplitude_loss
+from .losses import MASKED_LOSSES, get_loss, relief_amplitude_loss
 from .metrics import flat_baseline, mae_sn, sign_rates
 from .model import ARCHITECTURES, build_model
 from .model.io import DEFAULT_MODEL, load_model, predict_depth, resolve_device, save_model
@@ -173,6 +173,9 @@ class TrainConfig:
             self.generator = GeneratorConfig.from_dict(self.generator)
         if not isinstance(self.generator, GeneratorConfig):
             raise TypeError(f"generator: expected a GeneratorConfig, got {type(self.generator).__name__}")
+        if self.generator.backdrop_probability > 0 and (self.loss not in MASKED_LOSSES or self.amplitude > 0):
+            raise ValueError(f"loss: backdrop clips have no depth off the sheet; they need a loss of {', '.join(MASKED_LOSSES)} "
+                             f"and no amplitude term, got {self.loss!r} with amplitude {self.amplitude}")
         if self.data is not None:
             self.data = os.fspath(self.data)
             if not os.path.isdir(self.data):
@@ -287,11 +290,12 @@ def evaluate_depth(pred: np.ndarray, depth_half: np.ndarray) -> Dict[str, float]
     the sign-correct rate (frames) and the in-clip flip rate (clips)."""
     scores: Dict[str, list] = {k: [] for k in ("frame", "first", "flat_frame", "flat_first", "sign_correct", "flip")}
     for p, g in zip(pred, depth_half):
-        scores["frame"].append(mae_sn(p, g, "frame"))
-        scores["first"].append(mae_sn(p, g, "first"))
-        scores["flat_frame"].append(flat_baseline(g, "frame"))
-        scores["flat_first"].append(flat_baseline(g, "first"))
-        for k, v in sign_rates(p, g).items():
+        mask = None if np.isfinite(g).all() else np.isfinite(g)  # backdrop clips: scored on the sheet
+        scores["frame"].append(mae_sn(p, g, "frame", mask=mask))
+        scores["first"].append(mae_sn(p, g, "first", mask=mask))
+        scores["flat_frame"].append(flat_baseline(g, "frame", mask=mask))
+        scores["flat_first"].append(flat_baseline(g, "first", mask=mask))
+        for k, v in sign_rates(p, g, mask=mask).items():
             scores[k].append(v)
     return {k: float(np.mean(v)) for k, v in scores.items()}
 
