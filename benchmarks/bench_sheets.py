@@ -23,6 +23,7 @@ the references as horizontal lines.
         --label "sheets41=half the clips sheets, print textures" --label "sheets41_control=control"
     python benchmarks/bench_sheets.py --model soup=avg.safetensors --csv soups.csv     # any model besides the shipped one
     python benchmarks/bench_sheets.py --plot docs/sheets41.png --csv docs/sheets41.csv --replot --label ...
+    python benchmarks/bench_sheets.py --csv docs/sheets41.csv --replot --pair sheets41=sheets41_control   # paired differences
 """
 
 from __future__ import annotations
@@ -140,6 +141,22 @@ def plot(rows: list, references: dict, path: Path, labels: dict) -> None:
     fig.savefig(path, dpi=90)
 
 
+def paired(rows: list, run: str, control: str) -> str:
+    """A markdown table: each score's mean over the epochs both runs kept,
+    and the run minus the control paired by epoch (mean ± standard error)."""
+    by_epoch = lambda name: {int(r["epoch"]): r for r in rows if r["run"] == name}  # noqa: E731
+    mine, theirs = by_epoch(run), by_epoch(control)
+    epochs = sorted(set(mine) & set(theirs))
+    if len(epochs) < 2:
+        raise SystemExit(f"--pair {run}={control}: expected at least 2 epochs both kept, got {epochs}")
+    lines = [f"{run} against {control}, epochs {', '.join(map(str, epochs))}:", "", f"| | {control} | {run} | difference |", "|---|---|---|---|"]
+    for key, title, _ in PANELS:
+        a, b = np.array([theirs[e][key] for e in epochs]), np.array([mine[e][key] for e in epochs])
+        d = b - a
+        lines.append(f"| {title} | {a.mean():.4f} | {b.mean():.4f} | {d.mean():+.4f} ± {d.std(ddof=1) / np.sqrt(len(d)):.4f} |")
+    return "\n".join(lines)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--run", action="append", type=Path, default=[], help="a run folder with epochs/ (again for several)")
@@ -151,13 +168,18 @@ def main() -> None:
     parser.add_argument("--plot", type=Path, default=None)
     parser.add_argument("--replot", action="store_true", help="only draw --plot from --csv")
     parser.add_argument("--label", action="append", default=[], metavar="RUN=TEXT", help="a run's name in the plot's legend")
+    parser.add_argument("--pair", action="append", default=[], metavar="RUN=CONTROL",
+                        help="print RUN minus CONTROL paired by epoch, over the epochs both kept (again for several)")
     args = parser.parse_args()
     labels = dict(item.split("=", 1) for item in args.label)
     refs_path = args.csv.with_suffix(".references.json")
     if args.replot:
         with open(args.csv) as f:
             rows = [{k: (v if k == "run" else float(v)) for k, v in r.items()} for r in csv.DictReader(f)]
-        plot(rows, json.loads(refs_path.read_text()), args.plot, labels)
+        if args.plot:
+            plot(rows, json.loads(refs_path.read_text()), args.plot, labels)
+        for pair in args.pair:
+            print(paired(rows, *pair.split("=", 1)), end="\n\n")
         return
     scorer = Scorer(args.sheets)
     references = {k: float(v) for k, v in scorer.references().items()}
@@ -178,6 +200,8 @@ def main() -> None:
             writer.writerows(rows)
     if args.plot:
         plot(rows, references, args.plot, labels)
+    for pair in args.pair:
+        print(paired(rows, *pair.split("=", 1)), end="\n\n")
 
 
 if __name__ == "__main__":
