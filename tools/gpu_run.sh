@@ -14,8 +14,10 @@
 # --workers 14` detached (it outlives the call; one Rust thread per worker), and,
 # within 30 s of each call's end so that the machine stays warm,
 #   bash tools/gpu_run.sh collect NAME SECONDS
-# which waits until the run ends or SECONDS pass and copies its resumable state
-# (config, last.pt, metrics, best weights; each under 16 MB) to $OUT/NAME.
+# which waits until the run ends or SECONDS pass and puts its resumable state
+# (config, last.pt, metrics, best weights, kept epochs) in $OUT as one tar in
+# 12 MB parts, NAME.tar.aa, .ab, ...; over 8 parts, collect again in a
+# later call after moving some epochs away.
 #   bash tools/gpu_run.sh stop NAME
 # interrupts a run that would outlast the lease (the epoch under way is lost;
 # last.pt holds the one before), so that collect can follow at once.
@@ -41,17 +43,22 @@ collect)
         sleep 5
     done
     tail -c 600 "/tmp/gpu/$name.log"
-    mkdir -p "$OUT/$name"
-    for f in config.json last.pt metrics.csv model.json model.safetensors; do
-        if [ -f "/tmp/gpu/$name/$f" ]; then cp "/tmp/gpu/$name/$f" "$OUT/$name/"; fi
-    done
-    # --keep-every's weights, to score along the curve.
-    if [ -d "/tmp/gpu/$name/epochs" ]; then cp -r "/tmp/gpu/$name/epochs" "$OUT/$name/"; fi
+    # The run tool brings back a few files a call, each under ~16 MB: one tar
+    # (with --keep-every's weights, to score along the curve) in 12 MB parts.
+    # Here: cat NAME.tar.* > NAME.tar, check its md5sum, tar xf.
+    (cd /tmp/gpu && ls -d "$name"/config.json "$name"/last.pt "$name"/metrics.csv "$name"/model.json \
+        "$name"/model.safetensors "$name"/epochs 2> /dev/null | tar cf "/tmp/gpu/$name.tar" -T -) || true  # ls: some are absent
+    mkdir -p "$OUT"
+    split -b 12m "/tmp/gpu/$name.tar" "$OUT/$name.tar."
+    md5sum "/tmp/gpu/$name.tar"
+    ls -l "$OUT"
     ;;
 stop)
     pid=$(cat "/tmp/gpu/$name.pid")
     kill -INT "$pid" 2> /dev/null || true
     for _ in $(seq 30); do kill -0 "$pid" 2> /dev/null || break; sleep 1; done
+    # DataLoader workers can hold it past the interrupt: end its session (setsid) outright.
+    kill -9 -- -"$pid" 2> /dev/null || true
     ;;
 video)
     # The main job's speed on the GPU (frames a second at 640×480 and 1080p, default and own size), into $OUT/video.txt.
