@@ -6,6 +6,9 @@ For every model (the shipped one, and ``--run FOLDER`` runs' kept epochs,
 
 - ``heldout_frame`` / ``heldout_first``: MAE-SN on the 128 held-out clips
   (``nrdepth evaluate``'s seed, the default generator);
+- ``backdrops_frame``: the same sheets seen whole (``backdrop_probability=1``:
+  the border and a background in view), MAE-SN per frame on the sheet;
+  references ``backdrops_plane`` / ``backdrops_bowl``;
 - ``sheets_frame``: generated sheets, the new family (``GeneratorConfig``'s
   ``sheet_probability=1`` and the print textures among the others), 32
   videos of 256²×16 at a held-out seed, stitched as ``reconstruct`` does,
@@ -55,8 +58,8 @@ PHISFT_CROP = (110, 218, 106, 214)
 FAMILIES = ("fractal", "stripes", "plaid", "cells", "weave", "print")
 
 
-def sheet_config() -> GeneratorConfig:
-    return GeneratorConfig(size=256, grid=128, sheet_probability=1.0, texture_families=FAMILIES)
+def sheet_config(backdrops: bool = False) -> GeneratorConfig:
+    return GeneratorConfig(size=256, grid=128, sheet_probability=1.0, texture_families=FAMILIES, backdrop_probability=float(backdrops))
 
 
 class Scorer:
@@ -65,6 +68,8 @@ class Scorer:
     def __init__(self, sheets: int) -> None:
         clips = generate_clips(sheets, seed=SHEETS_SEED, config=sheet_config())
         self.sheets = (clips.video, clips.depth)
+        clips = generate_clips(sheets, seed=SHEETS_SEED, config=sheet_config(backdrops=True))
+        self.backdrops = (clips.video, clips.depth)
         data = np.load(DATA / "phisft_R1" / "derived_q4.npz")
         top, bottom, left, right = PHISFT_CROP
         self.cloth = data["gray"][:, top:bottom, left:right], data["depth"][:, top:bottom, left:right]
@@ -76,9 +81,11 @@ class Scorer:
         video, depth = self.sheets
         bases = [dense_baselines(d) for d in depth]
         cloth = dense_baselines(self.cloth[1], mask=np.isfinite(self.cloth[1]))
+        framed = [dense_baselines(d, mask=np.isfinite(d)) for d in self.backdrops[1]]
         return {
             "sheets_plane": np.mean([b["plane"] for b in bases]), "sheets_bowl": np.mean([b["bowl"] for b in bases]),
             "sheets_quadratic": np.mean([b["quadratic"] for b in bases]),
+            "backdrops_plane": np.mean([b["plane"] for b in framed]), "backdrops_bowl": np.mean([b["bowl"] for b in framed]),
             "phisft_plane": cloth["plane"], "phisft_bowl": cloth["bowl"], "phisft_quadratic": cloth["quadratic"],
             "phisft_plane_first": flat_baseline(self.cloth[1], "first", mask=np.isfinite(self.cloth[1])),
             **{f"kinect{tag}_{k}": v for tag, region in (("", KINECT_ROI), ("_inner", KINECT_INNER)) for k, v in kinect_references(self.truth, region).items()},
@@ -91,6 +98,8 @@ class Scorer:
         row["heldout_frame"], row["heldout_first"] = held["mae_sn_frame"]["mean"], held["mae_sn_first"]["mean"]
         video, depth = self.sheets
         row["sheets_frame"] = float(np.mean([mae_sn(nrdepth.reconstruct(v, model), d) for v, d in zip(video, depth)]))
+        video, depth = self.backdrops
+        row["backdrops_frame"] = float(np.mean([mae_sn(nrdepth.reconstruct(v, model), d, mask=np.isfinite(d)) for v, d in zip(video, depth)]))
         gray, truth = self.cloth
         mask = np.isfinite(truth)
         pred = nrdepth.reconstruct(gray, model)
@@ -114,6 +123,7 @@ PANELS = (
     ("phisft_frame", "phisft_R1, MAE-SN per frame", ("phisft_plane", "phisft_bowl")),
     ("phisft_first", "phisft_R1, MAE-SN from the first frame", ("phisft_plane_first",)),
     ("sheets_frame", "generated sheets, MAE-SN per frame", ("sheets_plane", "sheets_bowl")),
+    ("backdrops_frame", "generated sheets seen whole, on the sheet", ("backdrops_plane", "backdrops_bowl")),
     ("heldout_frame", "held-out clips, MAE-SN per frame", ()),
 )
 
@@ -124,15 +134,21 @@ def plot(rows: list, references: dict, path: Path, labels: dict) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(2, 3, figsize=(13, 7), constrained_layout=True)
+    panels = [p for p in PANELS if any(p[0] in r for r in rows)]  # rows written before a score was added lack it
+    fig, axes = plt.subplots(2, (len(panels) + 1) // 2, figsize=(4.4 * ((len(panels) + 1) // 2), 7), constrained_layout=True, squeeze=False)
+    for ax in axes.flat[len(panels):]:
+        ax.axis("off")
     runs = sorted({r["run"] for r in rows if r["run"] != "shipped" and r["clips_seen"] > 0})
     shipped = next(r for r in rows if r["run"] == "shipped")
-    for ax, (key, title, refs) in zip(axes.flat, PANELS):
+    for ax, (key, title, refs) in zip(axes.flat, panels):
         for run in runs:
-            points = sorted((r["clips_seen"], r[key]) for r in rows if r["run"] == run)
-            x, y = zip(*([(0, shipped[key])] + points))
+            points = sorted((r["clips_seen"], r[key]) for r in rows if r["run"] == run and key in r)
+            points = ([(0, shipped[key])] if key in shipped else []) + points
+            if not points:
+                continue
+            x, y = zip(*points)
             ax.plot(np.array(x) / 1000, y, marker="o", label=labels.get(run, run))
-        for ref, style in zip(refs, ("--", ":")):
+        for ref, style in zip([r for r in refs if r in references], ("--", ":")):
             ax.axhline(references[ref], color="grey", linestyle=style, label=ref.split("_")[-1] if "first" not in ref else "plane")
         ax.set_title(title)
         ax.set_xlabel("clips seen after the warm start (thousands)")
@@ -151,6 +167,8 @@ def paired(rows: list, run: str, control: str) -> str:
         raise SystemExit(f"--pair {run}={control}: expected at least 2 epochs both kept, got {epochs}")
     lines = [f"{run} against {control}, epochs {', '.join(map(str, epochs))}:", "", f"| | {control} | {run} | difference |", "|---|---|---|---|"]
     for key, title, _ in PANELS:
+        if any(key not in row[e] for row in (mine, theirs) for e in epochs):
+            continue
         a, b = np.array([theirs[e][key] for e in epochs]), np.array([mine[e][key] for e in epochs])
         d = b - a
         lines.append(f"| {title} | {a.mean():.4f} | {b.mean():.4f} | {d.mean():+.4f} ± {d.std(ddof=1) / np.sqrt(len(d)):.4f} |")
@@ -175,7 +193,7 @@ def main() -> None:
     refs_path = args.csv.with_suffix(".references.json")
     if args.replot:
         with open(args.csv) as f:
-            rows = [{k: (v if k == "run" else float(v)) for k, v in r.items()} for r in csv.DictReader(f)]
+            rows = [{k: (v if k == "run" else float(v)) for k, v in r.items() if v != ""} for r in csv.DictReader(f)]
         if args.plot:
             plot(rows, json.loads(refs_path.read_text()), args.plot, labels)
         for pair in args.pair:
