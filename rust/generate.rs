@@ -4,7 +4,8 @@
 //! Clip `i` of a run is a pure function of (config, seed, i, texture folder):
 //! attempt `a` draws everything from `hash(seed, i, a)`; the first attempt
 //! whose view window lies inside the surface at every pixel subsample of every
-//! frame is kept, and `a` is reported as the clip's redraw count. Clips are
+//! frame (a backdrop clip's: whose every frame shows enough of the sheet,
+//! `backdrop`) is kept, and `a` is reported as the clip's redraw count. Clips are
 //! independent, so the bytes do not depend on the thread count or batch split.
 //!
 //! Per clip: surface (`synthesis`), texture (`textures`), then per frame the
@@ -13,8 +14,9 @@
 //! power-of-two supersampling factors and to rounding otherwise), the
 //! camera's blur and response are applied (`camera_response`; none by
 //! default), Gaussian noise of the drawn standard deviation is added and the
-//! intensity is clamped to [0, 1] and quantised to u8. Depth is
-//! `camera_z − z` (`geometry`).
+//! intensity is clamped to [0, 1] and quantised to u8; a backdrop clip's
+//! background is composited behind the sheet before the camera's effects.
+//! Depth is `camera_z − z` (`geometry`), NaN off the sheet.
 //! Shapes: video (n, T, H, W) u8, depth (n, T, H, W) f32; H = W = `size`.
 
 use std::sync::atomic::{AtomicBool, Ordering};
