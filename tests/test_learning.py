@@ -206,6 +206,9 @@ def test_a_masked_target_scores_only_the_sheet(name):
     sparse[0, 1] = float("nan")
     sparse[0, 1, 8, 8] = 1.0
     assert torch.isfinite(loss_fn(pred, sparse))
+    empty = masked.clone()
+    empty[0, 1] = float("nan")
+    assert loss_fn(pred, sparse).item() == pytest.approx(loss_fn(pred, empty).item(), rel=1e-12)
 
 
 @pytest.mark.parametrize("name", sorted(set(LOSSES) - set(MASKED_LOSSES)))
