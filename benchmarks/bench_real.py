@@ -133,6 +133,37 @@ def phisft(model, crop: tuple, out: Path) -> None:
     print(f"wrote {out / 'phisft_R1.png'}: frames | ground truth | nrdepth (GBR-aligned per frame; far = blue, no ground truth = far)")
 
 
+PHISFT_BORDER = 10
+"""``phisft_R1``'s border region: the cloth's pixels within this many pixels
+(on the 4×4-binned grid) of the black background. In :data:`CROP` they are
+the hem and the left edge, a quarter of the scored pixels, and they carry
+most of what separates checkpoints on this video (docs/learning.md)."""
+
+
+def phisft_regions(gray: np.ndarray, truth: np.ndarray) -> dict:
+    """The scored pixels (finite ``truth``) of ``phisft_R1`` frames ``gray``
+    (T, H, W) split into ``"border"`` (within :data:`PHISFT_BORDER` pixels of
+    the background, gray 0) and ``"inside"``: bool (T, H, W) each."""
+    from scipy.ndimage import distance_transform_edt
+
+    scored = np.isfinite(truth)
+    near = np.stack([distance_transform_edt(frame > 0) <= PHISFT_BORDER for frame in gray])
+    return {"border": scored & near, "inside": scored & ~near}
+
+
+def region_errors(depth: np.ndarray, truth: np.ndarray, regions: dict) -> dict:
+    """MAE-SN per frame split by region: each frame of ``depth`` GBR-aligned
+    over all its scored pixels as :func:`~nrdepth.metrics.mae_sn` does, its
+    absolute error divided by that frame's truth's standard deviation, then
+    averaged over each region's pixels (the regions' pixel-weighted mean is
+    close to, not equal to, MAE-SN's mean of frame means)."""
+    scored = np.isfinite(truth)
+    aligned = gbr_align(depth, truth, "frame", mask=scored)
+    spread = np.array([t[m].std() for t, m in zip(truth, scored)])[:, None, None]
+    error = np.abs(aligned - truth) / spread
+    return {name: float(error[region].mean()) for name, region in regions.items()}
+
+
 KINECT_ROI = (64, 24, 528, 416)
 """x, y, width, height of the whole sheet in kinect_paper's 640×480 frames."""
 

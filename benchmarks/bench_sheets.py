@@ -14,7 +14,9 @@ For every model (the shipped one, and ``--run FOLDER`` runs' kept epochs,
   videos of 256²×16 at a held-out seed, stitched as ``reconstruct`` does,
   MAE-SN per frame; references ``sheets_plane`` / ``sheets_bowl``;
 - ``phisft_frame`` / ``phisft_first`` / ``phisft_sign``: the real cloth
-  (``bench_real.phisft``'s crop);
+  (``bench_real.phisft``'s crop); ``phisft_border`` / ``phisft_inside``:
+  its per-frame error within ``bench_real.PHISFT_BORDER`` pixels of the
+  background and further in (``bench_real.region_errors``);
 - ``kinect_mm`` / ``kinect_sign`` (the whole sheet) and ``kinect_inner_mm``
   (``bench_real.KINECT_INNER``): the real bending paper on ``gt_mdh.npz``.
 
@@ -51,7 +53,7 @@ from nrdepth.reconstruct import inference_model
 from nrdepth.videoio import read_video
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_real import DATA, KINECT_INNER, KINECT_ROI, kinect_references, kinect_score, kinect_truth  # noqa: E402
+from bench_real import DATA, KINECT_INNER, KINECT_ROI, kinect_references, kinect_score, kinect_truth, phisft_regions, region_errors  # noqa: E402
 
 SHEETS_SEED = TEST_SEED + 41
 PHISFT_CROP = (110, 218, 106, 214)
@@ -73,6 +75,7 @@ class Scorer:
         data = np.load(DATA / "phisft_R1" / "derived_q4.npz")
         top, bottom, left, right = PHISFT_CROP
         self.cloth = data["gray"][:, top:bottom, left:right], data["depth"][:, top:bottom, left:right]
+        self.cloth_regions = phisft_regions(*self.cloth)
         self.truth = kinect_truth()
         frames = read_video(DATA / "kinect_paper").frames
         self.kinect = {region: frames[:, region[1] : region[1] + region[3], region[0] : region[0] + region[2]] for region in (KINECT_ROI, KINECT_INNER)}
@@ -88,6 +91,7 @@ class Scorer:
             "backdrops_plane": np.mean([b["plane"] for b in framed]), "backdrops_bowl": np.mean([b["bowl"] for b in framed]),
             "phisft_plane": cloth["plane"], "phisft_bowl": cloth["bowl"], "phisft_quadratic": cloth["quadratic"],
             "phisft_plane_first": flat_baseline(self.cloth[1], "first", mask=np.isfinite(self.cloth[1])),
+            **{f"phisft_plane_{k}": v for k, v in region_errors(np.zeros_like(self.cloth[1]), self.cloth[1], self.cloth_regions).items()},
             **{f"kinect{tag}_{k}": v for tag, region in (("", KINECT_ROI), ("_inner", KINECT_INNER)) for k, v in kinect_references(self.truth, region).items()},
         }
 
@@ -105,6 +109,7 @@ class Scorer:
         pred = nrdepth.reconstruct(gray, model)
         row["phisft_frame"], row["phisft_first"] = mae_sn(pred, truth, "frame", mask=mask), mae_sn(pred, truth, "first", mask=mask)
         row["phisft_sign"] = sign_rates(pred, truth, mask=mask)["sign_correct"]
+        row.update({f"phisft_{k}": v for k, v in region_errors(pred, truth, self.cloth_regions).items()})
         for tag, region in (("", KINECT_ROI), ("_inner", KINECT_INNER)):
             pred = nrdepth.reconstruct(self.kinect[region], model)
             row[f"kinect{tag}_mm"] = kinect_score(pred, self.truth, region)
@@ -122,6 +127,8 @@ PANELS = (
     ("kinect_inner_mm", "kinect_paper, crop inside (mm)", ("kinect_inner_plane", "kinect_inner_bowl")),
     ("phisft_frame", "phisft_R1, MAE-SN per frame", ("phisft_plane", "phisft_bowl")),
     ("phisft_first", "phisft_R1, MAE-SN from the first frame", ("phisft_plane_first",)),
+    ("phisft_border", "phisft_R1, per frame, ≤ 10 px from the border", ("phisft_plane_border",)),
+    ("phisft_inside", "phisft_R1, per frame, further inside", ("phisft_plane_inside",)),
     ("sheets_frame", "generated sheets, MAE-SN per frame", ("sheets_plane", "sheets_bowl")),
     ("backdrops_frame", "generated sheets seen whole, on the sheet", ("backdrops_plane", "backdrops_bowl")),
     ("heldout_frame", "held-out clips, MAE-SN per frame", ()),
@@ -149,7 +156,7 @@ def plot(rows: list, references: dict, path: Path, labels: dict) -> None:
             x, y = zip(*points)
             ax.plot(np.array(x) / 1000, y, marker="o", label=labels.get(run, run))
         for ref, style in zip([r for r in refs if r in references], ("--", ":")):
-            ax.axhline(references[ref], color="grey", linestyle=style, label=ref.split("_")[-1] if "first" not in ref else "plane")
+            ax.axhline(references[ref], color="grey", linestyle=style, label="plane" if "_plane" in ref else ref.split("_")[-1])
         ax.set_title(title)
         ax.set_xlabel("clips seen after the warm start (thousands)")
         ax.legend(fontsize=8)
