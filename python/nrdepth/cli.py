@@ -54,6 +54,8 @@ def _generator_config(args: argparse.Namespace):
         extra["sheet_probability"] = args.sheets
     if args.backdrops is not None:
         extra["backdrop_probability"] = args.backdrops
+    if args.backdrop_brightness is not None:
+        extra["backdrop_brightness"] = args.backdrop_brightness
     if args.texture_families is not None:
         extra["texture_families"] = tuple(args.texture_families.split(","))
     return GeneratorConfig(frames=args.frames, size=args.size, grid=args.grid, textures=args.textures, **extra)
@@ -287,6 +289,8 @@ def _add_generator_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--backdrops", type=float, default=None, metavar="P",
                    help="share of clips whose view is wider than the sheet: its border shows over a background, and "
                         "the depth is masked to the sheet (needs a signed loss; default: 0, the view inside the sheet)")
+    p.add_argument("--backdrop-brightness", type=_interval, default=None, metavar="LO,HI",
+                   help="range of the backdrops' brightness, 0 black to 1 white (default: 0.05,0.9)")
     p.add_argument("--texture-families", default=None, metavar="A,B,...",
                    help="procedural texture families to draw from, of fractal, stripes, plaid, cells, weave, print "
                         "(print: text and line drawings on white paper; default: all but print)")
