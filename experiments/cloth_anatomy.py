@@ -1,7 +1,7 @@
-"""Where a model's first-frame error on ``phisft_R1`` (the real cloth) comes
-from. Its crop (``bench_real.CROP``) shows the cloth's hem and left border
-over a black background, 5 % of the crop at frame 0 and 22–24 % from frame
-28 on; the score counts only the cloth's pixels with ground truth.
+"""Where a model's error on ``phisft_R1`` (the real cloth) comes from. Its
+crop (``bench_real.CROP``) shows the cloth's hem and left edge over the data
+set's black background, about 5 % of the crop at frame 0 and a quarter by
+the end; the score counts only the cloth's pixels with ground truth.
 
 For each model, MAE-SN per frame and from the first frame of:
 
