@@ -151,16 +151,21 @@ def phisft_regions(gray: np.ndarray, truth: np.ndarray) -> dict:
     return {"border": scored & near, "inside": scored & ~near}
 
 
+def scaled_error(aligned: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """MAE-SN's error map of a depth already aligned to ``truth`` (T, H, W):
+    the absolute error divided by each frame's truth's standard deviation
+    over its finite pixels; NaN where the truth is."""
+    spread = np.array([frame[np.isfinite(frame)].std() for frame in truth])[:, None, None]
+    return np.abs(aligned - truth) / spread
+
+
 def region_errors(depth: np.ndarray, truth: np.ndarray, regions: dict) -> dict:
     """MAE-SN per frame split by region: each frame of ``depth`` GBR-aligned
     over all its scored pixels as :func:`~nrdepth.metrics.mae_sn` does, its
-    absolute error divided by that frame's truth's standard deviation, then
-    averaged over each region's pixels (the regions' pixel-weighted mean is
-    close to, not equal to, MAE-SN's mean of frame means)."""
-    scored = np.isfinite(truth)
-    aligned = gbr_align(depth, truth, "frame", mask=scored)
-    spread = np.array([t[m].std() for t, m in zip(truth, scored)])[:, None, None]
-    error = np.abs(aligned - truth) / spread
+    :func:`scaled_error` averaged over each region's pixels (the regions'
+    pixel-weighted mean is close to, not equal to, MAE-SN's mean of frame
+    means)."""
+    error = scaled_error(gbr_align(depth, truth, "frame", mask=np.isfinite(truth)), truth)
     return {name: float(error[region].mean()) for name, region in regions.items()}
 
 

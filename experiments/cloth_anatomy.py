@@ -35,7 +35,7 @@ import numpy as np
 import torch
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # the benchmarks' data loaders
-from bench_real import CROP, DATA, PHISFT_BORDER, phisft_regions, region_errors  # noqa: E402
+from bench_real import CROP, DATA, PHISFT_BORDER, phisft_regions, region_errors, scaled_error  # noqa: E402
 
 import nrdepth  # noqa: E402
 from nrdepth.metrics import gbr_align, gbr_fit, mae_sn  # noqa: E402
@@ -46,7 +46,7 @@ THIRDS = (slice(0, 17), slice(17, 34), slice(34, 50))
 
 def by_third(aligned: np.ndarray, truth: np.ndarray, mask: np.ndarray) -> list:
     """MAE-SN of an aligned depth over the whole video, then over each third of it."""
-    per_frame = [np.abs(a[m] - g[m]).mean() / g[m].std() for a, g, m in zip(aligned, truth, mask)]
+    per_frame = [e[m].mean() for e, m in zip(scaled_error(aligned, truth), mask)]
     return [float(np.mean(per_frame))] + [float(np.mean(per_frame[s])) for s in THIRDS]
 
 
