@@ -1,4 +1,4 @@
-//! Bounding-volume hierarchy over a triangle mesh, and orthographic ray casting.
+//! Bounding-volume hierarchy over a triangle mesh, and ray casting.
 //!
 //! Layout: nodes in depth-first preorder; an inner node's left child is the
 //! next node and its right child is at `first`; a leaf holds triangles
@@ -14,7 +14,10 @@
 //!   smooth deformation keeps neighbouring cells close, so the refitted boxes
 //!   stay tight.
 //!
-//! Rays are orthographic, straight down −z from the camera plane: a ray hits
+//! Rays are vertical, straight down −z: the orthographic camera's, or a
+//! perspective camera's in the space where its rays are (`View::warp`: the
+//! tree is built over the warped mesh, and a hit's warped height maps back to
+//! its depth, `View::depth`). A ray hits
 //! the highest triangle (largest z) over its (x, y), found by traversing
 //! nearer boxes first and pruning boxes entirely below the best hit so far.
 //! `depth_into` casts the rays of a tile of 8×8 pixels as one packet (for an
@@ -205,8 +208,9 @@ impl Bvh {
         best
     }
 
-    /// Depth image `camera_z − z` of the first hit at each pixel centre, NaN on a
-    /// miss, into `depth` (H·W, row-major).
+    /// Depth image (`View::depth`) of the first hit at each pixel centre, NaN on a
+    /// miss, into `depth` (H·W, row-major); `vertices` warped (`View::warp`),
+    /// as the tree was built over them.
     pub fn depth_into(&self, vertices: &[[f32; 3]], triangles: &[[u32; 3]], view: &View, depth: &mut [f32]) {
         self.depth_band(vertices, triangles, view, 0, depth);
     }
@@ -223,7 +227,7 @@ impl Bvh {
             }
         }
         for d in band.iter_mut() {
-            *d = if *d == f32::NEG_INFINITY { f32::NAN } else { view.camera_z - *d };
+            *d = if *d == f32::NEG_INFINITY { f32::NAN } else { view.depth(*d) };
         }
     }
 
@@ -248,7 +252,7 @@ impl Bvh {
             top -= 1;
             let index = stack[top] as usize;
             let node = &self.nodes[index];
-            if node.hi[0] < x_lo || node.lo[0] > x_hi || node.hi[1] < y_lo || node.lo[1] > y_hi || node.hi[2] < floor_z || node.lo[2] > view.camera_z {
+            if node.hi[0] < x_lo || node.lo[0] > x_hi || node.hi[1] < y_lo || node.lo[1] > y_hi || node.hi[2] < floor_z || node.lo[2] > view.z_max() {
                 continue;
             }
             if node.count == 0 {
@@ -261,7 +265,7 @@ impl Bvh {
             }
             let mut updated = false;
             for &t in &self.order[node.first as usize..(node.first + node.count) as usize] {
-                let [a, b, c] = triangles[t as usize].map(|k| view.pixel_vertex(vertices[k as usize], 1.0));
+                let [a, b, c] = triangles[t as usize].map(|k| view.screen(vertices[k as usize], 1.0));
                 // Pixel rows/columns whose centres can lie in the triangle's bounds;
                 // a small margin absorbs rounding, vertical_hit decides exactly.
                 let (c0, c1) = (a[0].min(b[0]).min(c[0]), a[0].max(b[0]).max(c[0]));
@@ -282,7 +286,7 @@ impl Bvh {
                         let (row, col) = (row as usize, col as usize);
                         if let Some((z, _)) = setup.hit(col as f32 + 0.5, row as f32 + 0.5) {
                             let best = &mut band[(row - tile.row0) * width + col];
-                            if z > *best && z <= view.camera_z {
+                            if z > *best && z <= view.z_max() {
                                 *best = z;
                                 updated = true;
                             }
@@ -325,6 +329,12 @@ pub fn brute_force_hit(vertices: &[[f32; 3]], triangles: &[[u32; 3]], x: f32, y:
 /// Ray-cast depth of any mesh, rows in parallel: (H·W) row-major, NaN on a miss.
 pub fn raycast_depth(vertices: &[[f32; 3]], triangles: &[[u32; 3]], view: &View) -> Result<Vec<f32>> {
     check_mesh(vertices, triangles)?;
+    view.check_in_front(vertices)?;
+    let warped: std::borrow::Cow<[[f32; 3]]> = match view.pinhole {
+        None => vertices.into(),
+        Some(_) => vertices.iter().map(|&v| view.warp(v)).collect::<Vec<_>>().into(),
+    };
+    let vertices = &warped[..];
     let bvh = Bvh::build(vertices, triangles);
     let mut depth = vec![0.0; view.height * view.width];
     depth
@@ -415,6 +425,74 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The nearest hit along the ray from `origin` in `direction` of any
+    /// triangle (Möller–Trumbore, f64): the ray parameter t > 0.
+    fn nearest_along(vertices: &[[f32; 3]], triangles: &[[u32; 3]], origin: [f64; 3], direction: [f64; 3]) -> Option<f64> {
+        let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+        let cross = |a: [f64; 3], b: [f64; 3]| [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let mut best: Option<f64> = None;
+        for tri in triangles {
+            let [a, b, c] = tri.map(|k| vertices[k as usize].map(f64::from));
+            let (e1, e2) = (sub(b, a), sub(c, a));
+            let p = cross(direction, e2);
+            let det = dot(e1, p);
+            if det.abs() < 1e-14 {
+                continue;
+            }
+            let s = sub(origin, a);
+            let u = dot(s, p) / det;
+            let q = cross(s, e1);
+            let v = dot(direction, q) / det;
+            let t = dot(e2, q) / det;
+            if u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && best.is_none_or(|b| t < b) {
+                best = Some(t);
+            }
+        }
+        best
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(24))]
+        #[test]
+        fn perspective_depth_equals_casting_each_ray_from_the_pinhole(
+            waves in prop::collection::vec((0.5f32..3.0, 0.5f32..3.0, 0.0f32..6.3, 0.0f32..0.06), 1..4),
+            pinhole in (-0.6f32..0.6, -0.6f32..0.6),
+            camera_z in 0.9f32..4.0,
+            (h, w) in (1usize..24, 1usize..24),
+        ) {
+            // A smooth heightfield (slopes below 0.6, no self-occlusion) over [-2, 2]², seen through a window inside it.
+            let grid = 49;
+            let height = |x: f32, y: f32| waves.iter().map(|&(fx, fy, phase, a)| a * (fx * x + fy * y + phase).sin()).sum::<f32>();
+            let vertices: Vec<[f32; 3]> = (0..grid * grid).map(|k| {
+                let (x, y) = (-2.0 + 4.0 * (k % grid) as f32 / (grid - 1) as f32, -2.0 + 4.0 * (k / grid) as f32 / (grid - 1) as f32);
+                [x, y, height(x, y)]
+            }).collect();
+            let triangles = as_triangles(&grid_triangles(grid as i64).unwrap());
+            let view = View::new(h, w, [-0.7, -0.6, 0.6, 0.7], camera_z).unwrap().with_pinhole([pinhole.0, pinhole.1]).unwrap();
+            let depth = raycast_depth(&vertices, &triangles, &view).unwrap();
+            let origin = [f64::from(pinhole.0), f64::from(pinhole.1), f64::from(camera_z)];
+            for i in 0..h {
+                for j in 0..w {
+                    // The pixel's ray passes through its (x, y) on the plane z = 0.
+                    let (x, y) = view.world(i as f32 + 0.5, j as f32 + 0.5);
+                    let direction = [f64::from(x) - origin[0], f64::from(y) - origin[1], -origin[2]];
+                    let t = nearest_along(&vertices, &triangles, origin, direction).expect("every ray meets the heightfield");
+                    let expected = t * origin[2];
+                    let got = f64::from(depth[i * w + j]);
+                    prop_assert!((got - expected).abs() <= 1e-5 * expected, "({i},{j}): {got} vs {expected}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_point_behind_the_pinhole_is_refused() {
+        let view = View::new(4, 4, [-1.0, -1.0, 1.0, 1.0], 1.5).unwrap().with_pinhole([0.0, 0.0]).unwrap();
+        let err = raycast_depth(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 2.0]], &[[0, 1, 2]], &view).unwrap_err();
+        assert_eq!(err.name, "vertices");
     }
 
     #[test]

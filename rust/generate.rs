@@ -5,7 +5,8 @@
 //! attempt `a` draws everything from `hash(seed, i, a)`; the first attempt
 //! whose view window lies inside the surface at every pixel subsample of every
 //! frame (a backdrop clip's: whose every frame shows enough of the sheet,
-//! `backdrop`) is kept, and `a` is reported as the clip's redraw count. Clips are
+//! `backdrop`; a perspective clip's: whose surface also stays farther from
+//! the pinhole than half the window plane's distance) is kept, and `a` is reported as the clip's redraw count. Clips are
 //! independent, so the bytes do not depend on the thread count or batch split.
 //!
 //! Per clip: surface (`synthesis`), texture (`textures`), then per frame the
@@ -16,7 +17,8 @@
 //! default), Gaussian noise of the drawn standard deviation is added and the
 //! intensity is clamped to [0, 1] and quantised to u8; a backdrop clip's
 //! background is composited behind the sheet before the camera's effects.
-//! Depth is `camera_z − z` (`geometry`), NaN off the sheet.
+//! Depth is `camera_z − z` (`geometry`; a perspective clip's camera_z is
+//! its pinhole's, `geometry::CameraConfig`), NaN off the sheet.
 //! Shapes: video (n, T, H, W) u8, depth (n, T, H, W) f32; H = W = `size`.
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -25,7 +27,7 @@ use rayon::prelude::*;
 
 use crate::backdrop::{composite, covers, BackdropConfig, BackdropParams};
 use crate::error::{in_range, size_in, InvalidArgument, Result};
-use crate::geometry::{View, CAMERA_Z};
+use crate::geometry::{CameraConfig, Pinhole, View, CAMERA_Z};
 use crate::mesh::grid_triangles;
 use crate::params::{Range, SurfaceConfig, SurfaceParams};
 use crate::raster::{Shading, Frame, Light, LightKind, Material, Rasterizer, Scene, Texture};
@@ -102,6 +104,8 @@ pub struct GeneratorConfig {
     pub sheet: SheetConfig,
     /// Views that show the sheet's border and a background (`backdrop`); none by default.
     pub backdrop: BackdropConfig,
+    /// A perspective camera (`geometry::CameraConfig`); orthographic by default.
+    pub camera: CameraConfig,
 }
 
 impl Default for GeneratorConfig {
@@ -133,6 +137,7 @@ impl Default for GeneratorConfig {
             max_redraws: 200,
             sheet: SheetConfig::default(),
             backdrop: BackdropConfig::default(),
+            camera: CameraConfig::default(),
         }
     }
 }
@@ -172,7 +177,8 @@ impl GeneratorConfig {
         }
         size_in("config.max_redraws", self.max_redraws as i64, 0, 1_000_000)?;
         self.sheet.validate()?;
-        self.backdrop.validate()
+        self.backdrop.validate()?;
+        self.camera.validate()
     }
 
     pub fn frame_len(&self) -> usize {
@@ -209,6 +215,8 @@ pub struct ClipParams {
     pub sheet: Option<SheetParams>,
     /// The background, if the clip shows the sheet's border (its window is then `window`).
     pub backdrop: Option<BackdropParams>,
+    /// The perspective camera's pinhole; None: orthographic.
+    pub pinhole: Option<Pinhole>,
     /// Attempts rejected before this one: the window showed background (or,
     /// with a backdrop, too little of the sheet).
     pub redraws: usize,
@@ -268,7 +276,8 @@ fn draw_clip(config: &GeneratorConfig, bank: Option<&TextureBank>, rng: &mut Spl
     if let Some(b) = &backdrop {
         window = b.window;
     }
-    Ok(ClipParams { surface, window, lights, material, texture, noise_std, noise_seed, blur, gamma, sheet, backdrop, redraws: 0 })
+    let pinhole = config.camera.sample(window, rng);
+    Ok(ClipParams { surface, window, lights, material, texture, noise_std, noise_seed, blur, gamma, sheet, backdrop, pinhole, redraws: 0 })
 }
 
 /// The camera's optics and response on a rendered `size`² frame, in place:
@@ -372,6 +381,8 @@ pub struct ClipWorker {
     local: Vec<[f64; 3]>,
     background_texture: Texture,
     background: Vec<f32>,
+    /// The positions warped to where a perspective camera's rays are vertical (`View::warp`).
+    warped: Vec<[f32; 3]>,
 }
 
 impl ClipWorker {
@@ -395,6 +406,7 @@ impl ClipWorker {
             local: Vec::new(),
             background_texture: Texture::default(),
             background: Vec::new(),
+            warped: Vec::new(),
         }
     }
 
@@ -456,10 +468,19 @@ impl ClipWorker {
             None => self.synth.synthesize_into(&p.surface, frames, self.positions.as_flattened_mut())?,
             Some(sheet) => self.synthesize_sheet(&p.surface, sheet, frames)?,
         }
-        let view = View::new(config.size, config.size, p.window, CAMERA_Z)?;
+        let view = clip_view(config, p)?;
+        if let Some(pinhole) = p.pinhole {
+            // A surface point nearer the pinhole than half the window's plane is a close-up no real footage of a sheet shows.
+            if self.positions.iter().any(|v| v[2] > pinhole.camera_z / 2.0) {
+                return Ok(false);
+            }
+            self.warped.clear();
+            self.warped.extend(self.positions.iter().map(|&v| view.warp(v)));
+        }
         match &p.texture {
             TextureChoice::Procedural { family, seed } => {
-                let region = sampled_texels(&self.positions, grid, p.window, config.texture_size);
+                let seen = if p.pinhole.is_some() { &self.warped } else { &self.positions };
+                let region = sampled_texels(seen, grid, p.window, config.texture_size);
                 procedural_region(*family, *seed, config.texture_size, region, &mut self.texture)
             }
             TextureChoice::Image { index, top, left } => {
@@ -487,6 +508,15 @@ impl ClipWorker {
             noisy_u8(&self.frame.image, p.noise_std, p.noise_seed, f, &mut video[f * frame_len..(f + 1) * frame_len]);
         }
         Ok(true)
+    }
+}
+
+/// The view of a drawn clip: its window, seen by its camera.
+pub fn clip_view(config: &GeneratorConfig, p: &ClipParams) -> Result<View> {
+    let view = View::new(config.size, config.size, p.window, CAMERA_Z)?;
+    match p.pinhole {
+        None => Ok(view),
+        Some(pinhole) => View { camera_z: pinhole.camera_z, ..view }.with_pinhole(pinhole.xy),
     }
 }
 
@@ -556,6 +586,11 @@ mod tests {
         GeneratorConfig { frames: 4, size: 24, grid: 24, texture_size: 64, ..GeneratorConfig::default() }
     }
 
+    /// `small` seen by wide-angle perspective cameras, crops of their frames and whole frames.
+    fn perspective() -> GeneratorConfig {
+        GeneratorConfig { camera: CameraConfig { fov: Range::new(0.6, 1.3), crop_share: Range::new(0.3, 1.0) }, ..small() }
+    }
+
     fn run(config: &GeneratorConfig, seed: u64, start: u64, n: usize) -> (Vec<u8>, Vec<f32>, Vec<ClipParams>) {
         let len = config.clip_pixels();
         let (mut video, mut depth) = (vec![0u8; n * len], vec![0f32; n * len]);
@@ -610,12 +645,13 @@ mod tests {
             config.surface.intensity = Range::new(0.8, 1.0);
             config
         };
-        for (config, tolerance) in [(GeneratorConfig { supersample: 2, ..small() }, 0.0f32), (folded(2), 0.0), (GeneratorConfig { supersample: 3, ..small() }, 2e-6)] {
+        for (config, tolerance) in [(GeneratorConfig { supersample: 2, ..small() }, 0.0f32), (folded(2), 0.0), (GeneratorConfig { supersample: 3, ..small() }, 2e-6), (perspective(), 0.0)] {
             let (_, depth, params) = run(&config, 5, 0, 3);
             let triangles: Vec<[u32; 3]> = grid_triangles(config.grid as i64).unwrap().chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
             for (clip, p) in params.iter().enumerate() {
                 let positions = crate::synthesis::synthesize(&p.surface, config.frames, config.grid).unwrap();
-                let view = View::new(config.size, config.size, p.window, CAMERA_Z).unwrap();
+                assert_eq!(p.pinhole.is_some(), config.camera.fov.hi > 0.0);
+                let view = clip_view(&config, p).unwrap();
                 for (f, frame) in positions.chunks_exact(config.grid * config.grid * 3).enumerate() {
                     let vertices: Vec<[f32; 3]> = frame.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
                     let cast = crate::bvh::raycast_depth(&vertices, &triangles, &view).unwrap();
@@ -638,7 +674,9 @@ mod tests {
         // The generic `render` also computes every vertex normal, where a
         // clip computes only those of the triangles that light a pixel.
         let gouraud = GeneratorConfig { shading: Shading::Gouraud, ..small() };
-        for config in [GeneratorConfig { texture_size: 128, ..small() }, folded, gouraud] {
+        let wide = GeneratorConfig { texture_size: 128, ..perspective() };
+        let wide_gouraud = GeneratorConfig { shading: Shading::Gouraud, ..perspective() };
+        for config in [GeneratorConfig { texture_size: 128, ..small() }, folded, gouraud, wide, wide_gouraud] {
             let (video, _, params) = run(&config, 8, 0, 4);
             let worker = ClipWorker::new(&config);
             let mut partial = 0;
@@ -647,9 +685,10 @@ mod tests {
                 let mut texture = Texture::default();
                 crate::textures::procedural(family, seed, config.texture_size, &mut texture);
                 let positions: Vec<[f32; 3]> = crate::synthesis::synthesize(&p.surface, config.frames, config.grid).unwrap().chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-                let (rows, cols) = sampled_texels(&positions, config.grid, p.window, config.texture_size);
+                let view = clip_view(&config, p).unwrap();
+                let warped: Vec<[f32; 3]> = positions.iter().map(|&v| view.warp(v)).collect();
+                let (rows, cols) = sampled_texels(&warped, config.grid, p.window, config.texture_size);
                 partial += usize::from(rows.len() * cols.len() < config.texture_size.pow(2));
-                let view = View::new(config.size, config.size, p.window, CAMERA_Z).unwrap();
                 let scene = Scene { view, supersample: config.supersample, lights: &p.lights, material: p.material, texture: &texture, shading: config.shading };
                 for (f, vertices) in positions.chunks_exact(config.grid * config.grid).enumerate() {
                     let frame = crate::raster::render(vertices, &worker.triangles, &worker.uv, &scene).unwrap();

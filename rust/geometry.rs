@@ -3,30 +3,49 @@
 //!
 //! Coverage is decided in pixel space (`View::pixel_vertex`).
 //!
-//! Frames: world x right, y up, z toward the camera. The camera is
-//! orthographic and looks down −z; its image plane is z = `camera_z`, so the
-//! depth of a point is `camera_z − z`. Pixel (row i, column j) of an H×W image
-//! of window (xmin, ymin, xmax, ymax) has its centre at
-//! `x = xmin + (j + ½)(xmax − xmin)/W`, `y = ymax − (i + ½)(ymax − ymin)/H`
-//! (row 0 at the top). Subsample (a, b) of an s×s supersampling grid sits at
+//! Frames: world x right, y up, z toward the camera, which looks down −z.
+//! Pixel (row i, column j) of an H×W image of window (xmin, ymin, xmax, ymax)
+//! has its centre at `x = xmin + (j + ½)(xmax − xmin)/W`,
+//! `y = ymax − (i + ½)(ymax − ymin)/H` (row 0 at the top). Two cameras:
+//! - orthographic (the design's): the ray of a pixel is the vertical line
+//!   through its (x, y), from the plane z = `camera_z`; the depth of a point
+//!   is `camera_z − z`;
+//! - perspective (`View::with_pinhole`): the rays meet at the pinhole
+//!   C = (px, py, `camera_z`), and the window is what the image shows of the
+//!   plane z = 0 (a ray passes there through its pixel's (x, y)); the depth
+//!   of a point is its distance along the optical axis, `camera_z − z`.
+//!
+//! Both the rasteriser and the ray caster work in a space where every ray is
+//! vertical: `View::warp` maps a point by the projective map
+//! `(x, y, z) ↦ (px + (x − px)·k, py + (y − py)·k, camera_z·(k − 1))`,
+//! `k = camera_z / (camera_z − z)` (identity for the orthographic camera).
+//! It fixes the plane z = 0, sends the ray through a point to the vertical
+//! line through its image, keeps "nearer" as "higher", and, being
+//! projective, keeps a triangle a plane triangle, so the z' interpolated
+//! over it in pixel space is exact, and `View::depth` maps it back. Subsample (a, b) of an s×s supersampling grid sits at
 //! offsets `((b + ½)/s, (a + ½)/s)` inside the pixel.
 
 use crate::error::{InvalidArgument, Result};
 use crate::lanes::Lanes8;
+use crate::params::Range;
+use crate::rng::SplitMix64;
 
 /// Default camera plane: the undeformed patch (z = 0) is 2 units in front of it.
 pub const CAMERA_Z: f32 = 2.0;
 /// Largest image side accepted.
 pub const MAX_SIZE: usize = 8192;
 
-/// An orthographic view: image size and the world window it covers.
+/// A view: image size, the world window it covers and the camera (module header).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct View {
     pub height: usize,
     pub width: usize,
     /// (xmin, ymin, xmax, ymax) in world units.
     pub window: [f32; 4],
+    /// The orthographic camera's plane, or the pinhole's z.
     pub camera_z: f32,
+    /// The pinhole's (x, y) for a perspective camera; None: orthographic.
+    pub pinhole: Option<[f32; 2]>,
 }
 
 impl View {
@@ -41,7 +60,70 @@ impl View {
         if !camera_z.is_finite() {
             return Err(InvalidArgument::new("camera_z", format!("expected a finite number, got {camera_z}")));
         }
-        Ok(Self { height, width, window, camera_z })
+        Ok(Self { height, width, window, camera_z, pinhole: None })
+    }
+
+    /// This view seen by a perspective camera with its pinhole at
+    /// (x, y, `camera_z`); `camera_z` must be positive (the plane z = 0 in front).
+    pub fn with_pinhole(self, pinhole: [f32; 2]) -> Result<Self> {
+        if !pinhole.iter().all(|v| v.is_finite()) {
+            return Err(InvalidArgument::new("pinhole", format!("expected finite (x, y), got {pinhole:?}")));
+        }
+        if !(self.camera_z > 0.0) {
+            return Err(InvalidArgument::new("camera_z", format!("expected a pinhole above the plane z = 0 (camera_z > 0), got {}", self.camera_z)));
+        }
+        Ok(Self { pinhole: Some(pinhole), ..self })
+    }
+
+    /// A point in the space where rays are vertical (module header).
+    #[inline]
+    pub fn warp(&self, v: [f32; 3]) -> [f32; 3] {
+        match self.pinhole {
+            None => v,
+            Some([px, py]) => {
+                let k = self.camera_z / (self.camera_z - v[2]);
+                [px + (v[0] - px) * k, py + (v[1] - py) * k, self.camera_z * (k - 1.0)]
+            }
+        }
+    }
+
+    /// The depth of a hit at warped height `z` (the inverse of `warp`'s z).
+    #[inline]
+    pub fn depth(&self, z: f32) -> f32 {
+        match self.pinhole {
+            None => self.camera_z - z,
+            Some(_) => self.camera_z * self.camera_z / (z + self.camera_z),
+        }
+    }
+
+    /// The highest warped z a hit may have: the camera's plane, or any
+    /// height in front of the pinhole (points behind it are refused, `check_in_front`).
+    #[inline]
+    pub fn z_max(&self) -> f32 {
+        if self.pinhole.is_some() { f32::INFINITY } else { self.camera_z }
+    }
+
+    /// Unit vector from world point `p` toward the camera.
+    #[inline]
+    pub fn toward_camera(&self, p: [f32; 3]) -> [f32; 3] {
+        match self.pinhole {
+            None => [0.0, 0.0, 1.0],
+            Some([px, py]) => {
+                let d = [px - p[0], py - p[1], self.camera_z - p[2]];
+                let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                [d[0] / len, d[1] / len, d[2] / len]
+            }
+        }
+    }
+
+    /// With a pinhole, every vertex must lie in front of it (z < `camera_z`).
+    pub fn check_in_front(&self, vertices: &[[f32; 3]]) -> Result<()> {
+        if self.pinhole.is_some() {
+            if let Some(i) = vertices.iter().position(|v| !(v[2] < self.camera_z)) {
+                return Err(InvalidArgument::new("vertices", format!("expected every vertex in front of the pinhole (z < camera_z = {}), vertex {i} is {:?}", self.camera_z, vertices[i])));
+            }
+        }
+        Ok(())
     }
 
     /// World (x, y) of a point at fractional pixel coordinates (row `r`, column `c`),
@@ -52,14 +134,20 @@ impl View {
         (x0 + c * (x1 - x0) / self.width as f32, y1 - r * (y1 - y0) / self.height as f32)
     }
 
-    /// A vertex in pixel space `[column, row, z]`, pixel coordinates times
-    /// `scale` (the supersampling factor). Rasteriser and ray caster both test
-    /// coverage in this space, at sample centres (k + ½) — the same arithmetic,
-    /// so their depths agree.
+    /// A vertex in pixel space `[column, row, z']`, pixel coordinates times
+    /// `scale` (the supersampling factor) and the warped height (`warp`).
+    /// Rasteriser and ray caster both test coverage in this space, at sample
+    /// centres (k + ½) — the same arithmetic, so their depths agree.
     #[inline]
     pub fn pixel_vertex(&self, v: [f32; 3], scale: f32) -> [f32; 3] {
-        let (r, c) = self.pixel(v[0], v[1]);
-        [c * scale, r * scale, v[2]]
+        self.screen(self.warp(v), scale)
+    }
+
+    /// [`pixel_vertex`](Self::pixel_vertex) of a point already warped.
+    #[inline]
+    pub fn screen(&self, w: [f32; 3], scale: f32) -> [f32; 3] {
+        let (r, c) = self.pixel(w[0], w[1]);
+        [c * scale, r * scale, w[2]]
     }
 
     /// Fractional pixel coordinates (row, column) of world (x, y); inverse of `world`.
@@ -67,6 +155,55 @@ impl View {
     pub fn pixel(&self, x: f32, y: f32) -> (f32, f32) {
         let [x0, y0, x1, y1] = self.window;
         ((y1 - y) * self.height as f32 / (y1 - y0), (x - x0) * self.width as f32 / (x1 - x0))
+    }
+}
+
+/// The ranges a clip's camera is drawn from: a square crop of a perspective
+/// frame. The frame sees `fov` (radians) across its width; the clip's window
+/// is `crop_share` of that width, at a uniform place inside the frame, so
+/// the clip's own rays spread over about `fov · crop_share`, as in a patch
+/// a reconstruction cuts from a real frame (or its whole frame, at share 1).
+/// `fov` (0, 0), the default, is the orthographic camera.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraConfig {
+    pub fov: Range,
+    pub crop_share: Range,
+}
+
+impl Default for CameraConfig {
+    fn default() -> Self {
+        Self { fov: Range::new(0.0, 0.0), crop_share: Range::new(1.0, 1.0) }
+    }
+}
+
+/// The pinhole drawn for a clip: its (x, y) and height `camera_z` over the plane z = 0.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pinhole {
+    pub xy: [f32; 2],
+    pub camera_z: f32,
+}
+
+impl CameraConfig {
+    pub fn validate(&self) -> Result<()> {
+        self.fov.check("config.camera_fov", 0.0, 2.8)?;
+        self.crop_share.check("config.crop_share", 0.01, 1.0)
+    }
+
+    /// The pinhole for a clip with `window`, or None (orthographic) when the
+    /// fov range is (0, 0); draws nothing then, so such clips stay as they were.
+    pub fn sample(&self, window: [f32; 4], rng: &mut SplitMix64) -> Option<Pinhole> {
+        if self.fov.hi == 0.0 {
+            return None;
+        }
+        let fov = rng.uniform(self.fov.lo, self.fov.hi).max(1e-3);
+        let share = rng.uniform(self.crop_share.lo, self.crop_share.hi);
+        let width = f64::from(window[2] - window[0]);
+        let frame = width / share;
+        let centre = [f64::from(window[0] + window[2]) / 2.0, f64::from(window[1] + window[3]) / 2.0];
+        // The frame's centre (its principal point) lies where the window sits inside it: uniform.
+        let spread = (frame - width) / 2.0;
+        let xy = centre.map(|c| (c + rng.uniform(-spread, spread)) as f32);
+        Some(Pinhole { xy, camera_z: (frame / 2.0 / (fov / 2.0).tan()) as f32 })
     }
 }
 
@@ -217,6 +354,29 @@ mod tests {
         assert!((r - 0.5).abs() < 1e-6 && (c - 0.5).abs() < 1e-6);
         assert_eq!(View::new(0, 4, [0.0, 0.0, 1.0, 1.0], 0.0).unwrap_err().name, "size");
         assert_eq!(View::new(4, 4, [0.0, 0.0, 0.0, 1.0], 0.0).unwrap_err().name, "window");
+    }
+
+    #[test]
+    fn the_warp_sends_each_ray_to_one_vertical_and_keeps_depth_order() {
+        let view = View::new(8, 8, [-1.0, -1.0, 1.0, 1.0], 1.7).unwrap().with_pinhole([0.3, -0.2]).unwrap();
+        let c = [0.3f32, -0.2, 1.7];
+        for (x, y) in [(0.0f32, 0.0f32), (-0.9, 0.4), (0.7, 0.8)] {
+            // Points along the ray from the pinhole through (x, y, 0), nearest first.
+            let warped: Vec<[f32; 3]> = [0.2f32, 0.5, 1.0, 1.6].iter().map(|&t| view.warp([c[0] + t * (x - c[0]), c[1] + t * (y - c[1]), c[2] * (1.0 - t)])).collect();
+            for (w, t) in warped.iter().zip([0.2f32, 0.5, 1.0, 1.6]) {
+                assert!((w[0] - x).abs() < 1e-5 && (w[1] - y).abs() < 1e-5, "{w:?} is not over ({x}, {y})");
+                assert!((view.depth(w[2]) - t * c[2]).abs() < 1e-5, "depth {} vs {}", view.depth(w[2]), t * c[2]);
+            }
+            assert!(warped.windows(2).all(|p| p[0][2] > p[1][2]), "nearer must be higher: {warped:?}");
+        }
+        // The plane z = 0 stays where it is; the orthographic view warps nothing.
+        let w = view.warp([0.4, 0.1, 0.0]);
+        assert!((w[0] - 0.4).abs() < 1e-6 && (w[1] - 0.1).abs() < 1e-6 && w[2] == 0.0, "{w:?}");
+        let flat = View::new(8, 8, [-1.0, -1.0, 1.0, 1.0], 1.7).unwrap();
+        assert_eq!(flat.warp([0.4, 0.1, 0.9]), [0.4, 0.1, 0.9]);
+        assert_eq!(flat.depth(0.9), 1.7 - 0.9);
+        assert_eq!(View::new(8, 8, [-1.0, -1.0, 1.0, 1.0], -1.0).unwrap().with_pinhole([0.0, 0.0]).unwrap_err().name, "camera_z");
+        assert_eq!(flat.with_pinhole([f32::NAN, 0.0]).unwrap_err().name, "pinhole");
     }
 
     #[test]

@@ -20,7 +20,7 @@ use rayon::ThreadPool;
 use crate::bvh;
 use crate::error::InvalidArgument;
 use crate::generate::{self, ClipParams, GeneratorConfig, TextureChoice};
-use crate::geometry::View;
+use crate::geometry::{CameraConfig, View};
 use crate::params::{Range, SurfaceConfig, SurfaceParams};
 use crate::raster::{self, Light, LightKind, Material, Scene, Shading, Texture};
 use crate::backdrop::{BackdropConfig, BackdropParams};
@@ -285,12 +285,16 @@ fn rows<'a, T: numpy::Element, const N: usize>(name: &str, a: &'a PyReadonlyArra
     Ok(flat.as_chunks::<N>().0)
 }
 
-fn view_from(size: (i64, i64), window: [f32; 4], camera_z: f32) -> PyResult<View> {
+fn view_from(size: (i64, i64), window: [f32; 4], camera_z: f32, pinhole: Option<[f32; 2]>) -> PyResult<View> {
     let (h, w) = size;
     if h < 1 || w < 1 {
         return Err(PyValueError::new_err(format!("size: expected (H, W) >= 1, got ({h}, {w})")));
     }
-    View::new(h as usize, w as usize, window, camera_z).map_err(value_error)
+    let view = View::new(h as usize, w as usize, window, camera_z).map_err(value_error)?;
+    match pinhole {
+        None => Ok(view),
+        Some(xy) => view.with_pinhole(xy).map_err(value_error),
+    }
 }
 
 fn light_from_dict(d: &Bound<'_, PyAny>, i: usize) -> PyResult<Light> {
@@ -337,6 +341,7 @@ fn array2<'py, T: numpy::Element>(py: Python<'py>, data: Vec<T>, rows: usize, co
 
 /// Render a mesh: (image, coverage, depth at pixel centres), each (H, W) float32.
 #[pyfunction]
+#[pyo3(signature = (vertices, triangles, uv, texture, size, window, lights, material, supersample, camera_z, shading, pinhole=None))]
 #[allow(clippy::too_many_arguments)]
 fn render<'py>(
     py: Python<'py>,
@@ -351,9 +356,10 @@ fn render<'py>(
     supersample: i64,
     camera_z: f32,
     shading: &str,
+    pinhole: Option<[f32; 2]>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     let shading = Shading::from_name(shading).map_err(value_error)?;
-    let view = view_from(size, window, camera_z)?;
+    let view = view_from(size, window, camera_z, pinhole)?;
     let (v, t, uvs) = (vec3_rows("vertices", &vertices)?, rows::<u32, 3>("triangles", &triangles)?, rows::<f32, 2>("uv", &uv)?);
     let lights = lights.iter().enumerate().map(|(i, d)| light_from_dict(&d, i)).collect::<PyResult<Vec<_>>>()?;
     let material = material_from_dict(material)?;
@@ -371,6 +377,7 @@ fn render<'py>(
 
 /// Ray-cast depth (H, W) float32 of any mesh; NaN where a ray misses.
 #[pyfunction]
+#[pyo3(signature = (vertices, triangles, size, window, camera_z, pinhole=None))]
 fn raycast_depth<'py>(
     py: Python<'py>,
     vertices: PyReadonlyArray2<'py, f32>,
@@ -378,8 +385,9 @@ fn raycast_depth<'py>(
     size: (i64, i64),
     window: [f32; 4],
     camera_z: f32,
+    pinhole: Option<[f32; 2]>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let view = view_from(size, window, camera_z)?;
+    let view = view_from(size, window, camera_z, pinhole)?;
     let (v, t) = (vec3_rows("vertices", &vertices)?, rows::<u32, 3>("triangles", &triangles)?);
     let depth = parallel(py, || bvh::raycast_depth(v, t, &view))?.map_err(value_error)?;
     array2(py, depth, view.height, view.width)
@@ -465,6 +473,7 @@ fn generator_config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<GeneratorConfig
             brightness: range("backdrop_brightness")?,
             flat_probability: field(d, "config", "backdrop_flat_probability")?,
         },
+        camera: CameraConfig { fov: range("camera_fov")?, crop_share: range("crop_share")? },
     };
     config.validate().map_err(value_error)?;
     Ok(config)
@@ -523,6 +532,8 @@ fn default_generator_config(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
         ("backdrop_window_width", backdrop.window_width),
         ("backdrop_window_offset", backdrop.window_offset),
         ("backdrop_brightness", backdrop.brightness),
+        ("camera_fov", c.camera.fov),
+        ("crop_share", c.camera.crop_share),
     ])?;
     Ok(d)
 }
@@ -573,6 +584,13 @@ fn clip_to_dict<'py>(py: Python<'py>, p: &ClipParams, bank: Option<&TextureBank>
     d.set_item("gamma", p.gamma)?;
     d.set_item("sheet", p.sheet.as_ref().map(|sheet| sheet_to_dict(py, sheet)).transpose()?)?;
     d.set_item("backdrop", p.backdrop.as_ref().map(|b| backdrop_to_dict(py, b)).transpose()?)?;
+    let pinhole = p.pinhole.map(|pinhole| -> PyResult<_> {
+        let d = PyDict::new(py);
+        d.set_item("xy", pinhole.xy)?;
+        d.set_item("camera_z", pinhole.camera_z)?;
+        Ok(d)
+    });
+    d.set_item("pinhole", pinhole.transpose()?)?;
     d.set_item("redraws", p.redraws)?;
     Ok(d)
 }

@@ -1,11 +1,13 @@
-//! Software rasteriser: orthographic z-buffer, smooth normals, textured Phong.
+//! Software rasteriser: z-buffer (orthographic or perspective camera,
+//! `geometry`), smooth normals, textured Phong.
 //!
 //! Frames and pixel conventions are `geometry.rs`'s. Two passes over a band of
 //! pixel rows (rayon over bands for a single frame, one band a frame inside
 //! the per-clip generator):
 //! 1. visibility: every triangle is scanned over the sample points its
 //!    bounding box covers, on two grids: the s×s subsamples of each pixel and
-//!    the pixel centres. A sample keeps the highest hit (largest z ≤ camera_z)
+//!    the pixel centres. A sample keeps the highest hit (largest z ≤ `View::z_max`; for a
+//!    perspective camera z is the warped height, `View::warp`)
 //!    with its triangle and its texture coordinates (subsamples) or
 //!    barycentric weights (centres). The test is `geometry::TriangleSetup`'s
 //!    in subsample space, the ray caster's own arithmetic, so the centre depth
@@ -26,7 +28,10 @@
 //!    normals, flipped toward the camera: lighting is two-sided),
 //!    `Shading::Gouraud` interpolates lighting computed at the vertices. Phong:
 //!    `I = k_a ρ + Σ_l I_l (k_d ρ max(0, n·l) + k_s max(0, r·v)^α)` with
-//!    `v = +z` (orthographic view), `r = 2(n·l)n − l`; specular terms
+//!    `v` toward the camera (+z for the orthographic one, toward the
+//!    pinhole from the surface point for a perspective one; the point is
+//!    interpolated with the pixel-space weights, whose error on a grid's
+//!    pixel-sized triangles is negligible), `r = 2(n·l)n − l`; specular terms
 //!    `(r·v)^α` below 1e-4 are dropped, the power is `pow4`'s (polynomial
 //!    log₂ and exp₂ in plain f32 operations: no libm).
 //!
@@ -379,11 +384,11 @@ impl PairGroup<'_> {
     /// `0..HALF` are the upper row's samples. The other lanes are written
     /// back unchanged.
     #[inline(always)]
-    fn keep<L: Lanes8>(self, t: u32, inside: L, z: L, camera_z: f32, attribute: impl FnOnce() -> [L; 2]) {
+    fn keep<L: Lanes8>(self, t: u32, inside: L, z: L, z_max: f32, attribute: impl FnOnce() -> [L; 2]) {
         let [z_upper, z_lower] = self.z;
         let old = L::load(z_upper, z_lower);
         // Branch-free: a lane that keeps nothing is rewritten with its own value.
-        let higher = inside & z.simd_gt(old) & z.simd_le(L::splat(camera_z));
+        let higher = inside & z.simd_gt(old) & z.simd_le(L::splat(z_max));
         higher.select(z, old).store(z_upper, z_lower);
         let [t_upper, t_lower] = self.triangle;
         higher.select(L::splat_bits(t), L::load_bits(t_upper, t_lower)).store_bits(t_upper, t_lower);
@@ -435,7 +440,7 @@ pub struct Frame {
     pub image: Vec<f32>,
     /// Fraction of a pixel's subsamples that hit the mesh (H·W).
     pub coverage: Vec<f32>,
-    /// Depth `camera_z − z` of the highest hit at the pixel centre (H·W), NaN
+    /// Depth (`View::depth`) of the highest hit at the pixel centre (H·W), NaN
     /// for background: the ray caster's depth (bit for bit when s is a power of two).
     pub depth: Vec<f32>,
 }
@@ -480,7 +485,7 @@ impl Rasterizer {
         }
         let prepared = Prepared { normals: &self.normals, lit: &self.lit, ..visible };
         shade_band(&prepared, 0, band, &mut frame.image, &mut frame.coverage);
-        write_depth(&band.centres, scene.view.camera_z, &mut frame.depth);
+        write_depth(&band.centres, &scene.view, &mut frame.depth);
     }
 }
 
@@ -503,13 +508,13 @@ fn render_band(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], co
     band.subsamples.reset(rows * s, width * s);
     visibility_band(p, row0, rows, band);
     shade_band(p, row0, band, image, coverage);
-    write_depth(&band.centres, p.scene.view.camera_z, depth);
+    write_depth(&band.centres, &p.scene.view, depth);
 }
 
-/// Depth `camera_z − z` of the pixel centres, NaN where nothing was hit.
-fn write_depth(centres: &Samples, camera_z: f32, depth: &mut [f32]) {
+/// Depth (`View::depth`) of the pixel centres, NaN where nothing was hit.
+fn write_depth(centres: &Samples, view: &View, depth: &mut [f32]) {
     for (depth, z) in depth.chunks_exact_mut(centres.cols).zip(centres.z.chunks(centres.stride)) {
-        depth.iter_mut().zip(z).for_each(|(d, &z)| *d = if z.is_finite() { camera_z - z } else { f32::NAN });
+        depth.iter_mut().zip(z).for_each(|(d, &z)| *d = if z.is_finite() { view.depth(z) } else { f32::NAN });
     }
 }
 
@@ -551,7 +556,7 @@ pub fn vertex_normals(vertices: &[[f32; 3]], triangles: &[[u32; 3]], wanted: Opt
 #[inline(always)]
 fn visibility_pass<L: Lanes8>(p: &Prepared, row0: usize, rows: usize, band: &mut Band) {
     let view = &p.scene.view;
-    let (s, camera_z) = (p.scene.supersample, view.camera_z);
+    let (s, z_max) = (p.scene.supersample, view.z_max());
     let (cols, sf) = (view.width * s, s as f32);
     let (sub_lo, sub_hi) = ((row0 * s) as f32, ((row0 + rows) * s) as f32 - 1.0);
     // Most triangles of a grid lie outside the view: one bit per side of the
@@ -590,11 +595,11 @@ fn visibility_pass<L: Lanes8>(p: &Prepared, row0: usize, rows: usize, band: &mut
                 std::array::from_fn(|k| la * splat(ta[k]) + lb * splat(tb[k]) + lc * splat(tc[k]))
             };
             let (rows, columns) = ((row_lo as usize, row_hi as usize), (col_lo as usize, col_hi as usize));
-            scan_box(&setup, rows, columns, 1.0, row0 * s, &mut band.subsamples, t as u32, camera_z, texcoords);
+            scan_box(&setup, rows, columns, 1.0, row0 * s, &mut band.subsamples, t as u32, z_max, texcoords);
         }
         if centres {
             let (rows, columns) = ((centre_row_lo as usize, centre_row_hi as usize), (centre_col_lo as usize, centre_col_hi as usize));
-            scan_box(&setup, rows, columns, sf, row0, &mut band.centres, t as u32, camera_z, |lb: L, lc: L| [lb, lc]);
+            scan_box(&setup, rows, columns, sf, row0, &mut band.centres, t as u32, z_max, |lb: L, lc: L| [lb, lc]);
         }
     }
 }
@@ -659,7 +664,7 @@ fn scan_box<L: Lanes8>(
     first_row: usize,
     samples: &mut Samples,
     t: u32,
-    camera_z: f32,
+    z_max: f32,
     attribute: impl Fn(L, L) -> [L; 2],
 ) {
     // Lane l tests column l % HALF of a group, in the upper row of the pair
@@ -682,7 +687,7 @@ fn scan_box<L: Lanes8>(
             let px = (L::splat(col as u32 as f32) + column + half) * spacing_lanes;
             let (inside, z, lb, lc) = setup.hits(row, px);
             let in_box = column.simd_le(L::splat((columns.1 - col) as u32 as f32)) & rows_in;
-            group.keep(t, inside & in_box, z, camera_z, || attribute(lb, lc));
+            group.keep(t, inside & in_box, z, z_max, || attribute(lb, lc));
         }
     }
 }
@@ -692,13 +697,15 @@ fn prepared_lights(lights: &[Light]) -> Vec<Light> {
     lights.iter().map(|l| if l.kind == LightKind::Directional { Light { vector: normalize(l.vector), ..*l } } else { *l }).collect()
 }
 
-/// Phong terms at a point `p` with unit normal `n` (facing the camera):
+/// Phong terms at a point `p` with unit normal `n` (facing the camera) seen
+/// from unit direction `v` (`View::toward_camera`):
 /// `(k_a + Σ I_l k_d max(0, n·l), Σ I_l k_s max(0, r·v)^α)`, so that the
 /// intensity is `albedo · first + second`. `min_rdv`: (r·v)^α below
 /// SPECULAR_FLOOR is dropped, which skips the power for most points.
 #[inline(always)]
-fn lighting(n: [f32; 3], p: [f32; 3], lights: &[Light], m: &Material, min_rdv: f32) -> (f32, f32) {
+fn lighting(n: [f32; 3], p: [f32; 3], v: [f32; 3], lights: &[Light], m: &Material, min_rdv: f32) -> (f32, f32) {
     let (mut diffuse, mut specular) = (m.ambient, 0.0);
+    let ndv = dot(n, v);
     for light in lights {
         let l = match light.kind {
             LightKind::Directional => light.vector,
@@ -709,7 +716,7 @@ fn lighting(n: [f32; 3], p: [f32; 3], lights: &[Light], m: &Material, min_rdv: f
             continue;
         }
         diffuse += light.intensity * m.diffuse * ndl;
-        let rdv = 2.0 * ndl * n[2] - l[2];
+        let rdv = 2.0 * ndl * ndv - dot(l, v);
         if rdv > min_rdv && m.specular > 0.0 {
             specular += light.intensity * m.specular * pow4(f32x4::splat(rdv), m.shininess).to_array()[0];
         }
@@ -748,9 +755,17 @@ pub(crate) fn pow4(x: f32x4, alpha: f32) -> f32x4 {
     exp_t * scale
 }
 
+/// `a·b`; with b = (0, 0, 1) exactly `a[2]` (adding ±0 is exact), so the
+/// orthographic camera's shading keeps its bits.
 #[inline(always)]
-fn facing_camera(n: [f32; 3]) -> [f32; 3] {
-    if n[2] < 0.0 {
+fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// `n`, flipped to face the camera seen along `v` (lighting is two-sided).
+#[inline(always)]
+fn facing_camera(n: [f32; 3], v: [f32; 3]) -> [f32; 3] {
+    if dot(n, v) < 0.0 {
         [-n[0], -n[1], -n[2]]
     } else {
         n
@@ -767,7 +782,8 @@ pub fn vertex_lighting(vertices: &[[f32; 3]], normals: &[[f32; 3]], wanted: Opti
         if !wanted.is_none_or(|w| w[k]) {
             return [0.0; 2];
         }
-        let (d, s) = lighting(facing_camera(n), p, &lights, &scene.material, min_rdv);
+        let v = scene.view.toward_camera(p);
+        let (d, s) = lighting(facing_camera(n, v), p, v, &lights, &scene.material, min_rdv);
         [d, s]
     }));
 }
@@ -786,6 +802,7 @@ fn shade_pass(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], cov
     let lights = prepared_lights(scene.lights);
     let min_rdv = specular_cutoff(&scene.material);
     let point_lights = lights.iter().any(|l| l.kind == LightKind::Point);
+    let perspective = scene.view.pinhole.is_some();
     let (subsamples, centres, texels, covered) = (&band.subsamples, &band.centres, &mut band.texels, &mut band.covered);
     texels.resize(cols.next_multiple_of(LANES), 0.0);
     covered.resize(texels.len(), 0.0);
@@ -858,9 +875,10 @@ fn shade_pass(p: &Prepared, row0: usize, band: &mut Band, image: &mut [f32], cov
                 let corners = p.triangles[t as usize];
                 let (diffuse, specular) = match scene.shading {
                     Shading::Phong => {
-                        // The surface point matters only to point lights.
-                        let point = if point_lights { interpolate(p.vertices, corners, w) } else { [0.0; 3] };
-                        lighting(facing_camera(normalize(interpolate(p.normals, corners, w))), point, &lights, &scene.material, min_rdv)
+                        // The surface point matters only to point lights and a pinhole.
+                        let point = if point_lights || perspective { interpolate(p.vertices, corners, w) } else { [0.0; 3] };
+                        let v = scene.view.toward_camera(point);
+                        lighting(facing_camera(normalize(interpolate(p.normals, corners, w)), v), point, v, &lights, &scene.material, min_rdv)
                     }
                     Shading::Gouraud => {
                         let [diffuse, specular] = interpolate(p.lit, corners, w);
@@ -897,9 +915,21 @@ fn lighting4(p: &Prepared, lights: &[Light], min_rdv: f32, point_lights: bool, c
         [positive.bitselect(v[0] / len, f32x4::ZERO), positive.bitselect(v[1] / len, f32x4::ZERO), positive.bitselect(v[2] / len, f32x4::ONE)]
     };
     let n = unit(interpolate4(p.normals, &corners, w1, w2));
-    let away = n[2].simd_lt(f32x4::ZERO);
+    let view = &p.scene.view;
+    let point = if point_lights || view.pinhole.is_some() { interpolate4(p.vertices, &corners, w1, w2) } else { [f32x4::ZERO; 3] };
+    // `View::toward_camera` lane by lane.
+    let v = match view.pinhole {
+        None => [f32x4::ZERO, f32x4::ZERO, f32x4::ONE],
+        Some([px, py]) => {
+            let d = [splat(px) - point[0], splat(py) - point[1], splat(view.camera_z) - point[2]];
+            let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            d.map(|c| c / len)
+        }
+    };
+    let dot4 = |a: &[f32x4; 3], b: &[f32x4; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let away = dot4(&n, &v).simd_lt(f32x4::ZERO);
     let n = n.map(|c| away.bitselect(-c, c));
-    let point = if point_lights { interpolate4(p.vertices, &corners, w1, w2) } else { [f32x4::ZERO; 3] };
+    let ndv = dot4(&n, &v);
     let (mut diffuse, mut specular) = (splat(m.ambient), f32x4::ZERO);
     for light in lights {
         let l = match light.kind {
@@ -911,7 +941,7 @@ fn lighting4(p: &Prepared, lights: &[Light], min_rdv: f32, point_lights: bool, c
         let unlit = ndl.simd_le(f32x4::ZERO);
         diffuse = unlit.bitselect(diffuse, diffuse + splat(light.intensity * m.diffuse) * ndl);
         if m.specular > 0.0 {
-            let rdv = splat(2.0) * ndl * n[2] - l[2];
+            let rdv = splat(2.0) * ndl * ndv - dot4(&l, &v);
             let shiny = rdv.simd_gt(splat(min_rdv)) & !unlit;
             if shiny.any() {
                 specular = shiny.bitselect(specular + splat(light.intensity * m.specular) * pow4(rdv, m.shininess), specular);
@@ -952,6 +982,7 @@ fn normalize(v: [f32; 3]) -> [f32; 3] {
 /// Validate everything a render reads.
 pub fn check_render_inputs(vertices: &[[f32; 3]], triangles: &[[u32; 3]], uv: &[[f32; 2]], scene: &Scene) -> Result<()> {
     check_mesh(vertices, triangles)?;
+    scene.view.check_in_front(vertices)?;
     if uv.len() != vertices.len() {
         return Err(InvalidArgument::new("uv", format!("expected one (u, v) per vertex: {} rows, got {}", vertices.len(), uv.len())));
     }
@@ -1318,11 +1349,14 @@ mod tests {
         }
         let (mut unlit, mut shiny) = (0, 0);
         // All three lights, and the one from below alone (most points unlit).
-        for (lights, shading) in [(&lights[..], Shading::Phong), (&lights[2..], Shading::Phong), (&lights[..], Shading::Gouraud)] {
+        let flat = View::new(8, 8, [-1.0, -1.0, 1.0, 1.0], CAMERA_Z).unwrap();
+        // The orthographic camera, and a pinhole whose view direction changes from pixel to pixel.
+        for (view, (lights, shading)) in [flat, flat.with_pinhole([0.4, -0.3]).unwrap()].into_iter().flat_map(|v| {
+            [(&lights[..], Shading::Phong), (&lights[2..], Shading::Phong), (&lights[..], Shading::Gouraud)].map(|l| (v, l))
+        }) {
             let prepared = prepared_lights(lights);
             for shininess in [1.0, 7.5, 80.0] {
                 let material = Material { ambient: 0.1, diffuse: 0.7, specular: 0.5, shininess };
-                let view = View::new(8, 8, [-1.0, -1.0, 1.0, 1.0], CAMERA_Z).unwrap();
                 let scene = Scene { view, supersample: 2, lights, material, texture: &texture, shading };
                 let mut lit = Vec::new();
                 vertex_lighting(&vertices, &normals, None, &scene, &mut lit);
@@ -1335,8 +1369,9 @@ mod tests {
                         let (corners, w) = (triangles[centres.triangle[i] as usize], [centres.attribute[0][i], centres.attribute[1][i]]);
                         let expected = match shading {
                             Shading::Phong => {
-                                let n = facing_camera(normalize(interpolate(&normals, corners, w)));
-                                lighting(n, interpolate(&vertices, corners, w), &prepared, &material, min_rdv)
+                                let point = interpolate(&vertices, corners, w);
+                                let v = scene.view.toward_camera(point);
+                                lighting(facing_camera(normalize(interpolate(&normals, corners, w)), v), point, v, &prepared, &material, min_rdv)
                             }
                             Shading::Gouraud => (interpolate(&lit, corners, w)[0], interpolate(&lit, corners, w)[1]),
                         };

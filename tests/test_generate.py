@@ -125,6 +125,27 @@ def test_backdrops_show_the_border_over_a_background_and_mask_the_depth_off_the_
         SMALL.replace(backdrop_min_cover=2.0)
 
 
+def test_a_perspective_camera_is_drawn_last_and_shows_the_motion_along_its_axis():
+    # Drawn after everything else: a clip drawn at its first try keeps every other parameter.
+    plain = nrdepth.generate_clips(6, seed=3, config=SMALL)
+    config = SMALL.replace(camera_fov=(0.7, 1.2), crop_share=(0.2, 1.0))
+    seen = nrdepth.generate_clips(6, seed=3, config=config)
+    assert all(p["pinhole"] is None for p in plain.params)
+    first_tries = [(a, b) for a, b in zip(plain.params, seen.params) if a["redraws"] == b["redraws"] == 0]
+    assert len(first_tries) >= 3
+    for a, b in first_tries:
+        assert {k: v for k, v in a.items() if k != "pinhole"} == {k: v for k, v in b.items() if k != "pinhole"}
+    for p, depth in zip(seen.params, seen.depth):
+        x0, y0, x1, y1 = p["window"]
+        share = (x1 - x0) / (2 * p["pinhole"]["camera_z"] * np.tan(np.array(config.camera_fov) / 2))
+        # camera_z sets the frame's width at a drawn fov: the window's share of it lies in the drawn range.
+        assert share[1] - 1e-4 <= 1.0 and share[0] + 1e-4 >= config.crop_share[0] * np.tan(0.35) / np.tan(0.6)
+        # The target keeps the motion along the axis, which the image shows.
+        assert nrdepth.observable_depth(depth, p) is depth
+        assert np.isfinite(depth).all() and (depth > p["pinhole"]["camera_z"] / 2).all()
+    assert not np.array_equal(seen.video, plain.video)
+
+
 def test_clip_i_depends_only_on_config_seed_and_i():
     whole = nrdepth.generate_clips(6, seed=4, config=SMALL)
     part = nrdepth.generate_clips(3, seed=4, config=SMALL, start=2)
@@ -140,7 +161,8 @@ import hashlib, nrdepth
 config = nrdepth.GeneratorConfig(frames=4, size=32, grid=32, texture_size=64)
 c = nrdepth.generate_clips(8, seed=7, config=config)
 s = nrdepth.generate_clips(8, seed=7, config=config.replace(sheet_probability=1.0, backdrop_probability=0.5, texture_families=("print", "weave")))
-print(hashlib.sha256(c.video.tobytes() + c.depth.tobytes() + s.video.tobytes() + s.depth.tobytes()).hexdigest())
+p = nrdepth.generate_clips(8, seed=7, config=config.replace(camera_fov=(0.5, 1.2), crop_share=(0.1, 1.0), backdrop_probability=0.5))
+print(hashlib.sha256(c.video.tobytes() + c.depth.tobytes() + s.video.tobytes() + s.depth.tobytes() + p.video.tobytes() + p.depth.tobytes()).hexdigest())
 """
 
 
@@ -205,6 +227,8 @@ def test_textures_from_a_folder(tmp_path):
         ({"sheet_bends": (-1, 1)}, "config.sheet_bends"),
         ({"sheet_fold_width": (0.0, 0.1)}, "config.sheet_fold_width"),
         ({"textures": "/no/such/folder"}, "config.textures"),
+        ({"camera_fov": (0.0, 3.0)}, "config.camera_fov"),
+        ({"crop_share": (0.0, 1.0)}, "config.crop_share"),
     ],
 )
 def test_bad_config_is_named(changes, name):

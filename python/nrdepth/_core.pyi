@@ -37,6 +37,7 @@ def render(
     supersample: int,
     camera_z: float,
     shading: str,
+    pinhole: Tuple[float, float] | None = None,
 ) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.float32], npt.NDArray[np.float32]]: ...
 def raycast_depth(
     vertices: npt.NDArray[np.float32],
@@ -44,6 +45,7 @@ def raycast_depth(
     size: Tuple[int, int],
     window: Tuple[float, float, float, float],
     camera_z: float,
+    pinhole: Tuple[float, float] | None = None,
 ) -> npt.NDArray[np.float32]: ...
 def procedural_texture(family: str, seed: int, size: int) -> npt.NDArray[np.float32]: ...
 def texture_families() -> List[str]: ...

@@ -56,6 +56,10 @@ def _generator_config(args: argparse.Namespace):
         extra["backdrop_probability"] = args.backdrops
     if args.backdrop_brightness is not None:
         extra["backdrop_brightness"] = args.backdrop_brightness
+    if args.camera_fov is not None:
+        extra["camera_fov"] = tuple(math.radians(v) for v in args.camera_fov)
+    if args.crop_share is not None:
+        extra["crop_share"] = args.crop_share
     if args.texture_families is not None:
         extra["texture_families"] = tuple(args.texture_families.split(","))
     return GeneratorConfig(frames=args.frames, size=args.size, grid=args.grid, textures=args.textures, **extra)
@@ -291,6 +295,11 @@ def _add_generator_options(p: argparse.ArgumentParser) -> None:
                         "the depth is masked to the sheet (needs a signed loss; default: 0, the view inside the sheet)")
     p.add_argument("--backdrop-brightness", type=_interval, default=None, metavar="LO,HI",
                    help="range of the backdrops' brightness, 0 black to 1 white (default: 0.05,0.9)")
+    p.add_argument("--camera-fov", type=_interval, default=None, metavar="LO,HI",
+                   help="a perspective camera: range of the field of view, in degrees, across the frame a clip is cut from "
+                        "(default: 0,0, the orthographic camera)")
+    p.add_argument("--crop-share", type=_interval, default=None, metavar="LO,HI",
+                   help="with --camera-fov: range of a clip's width as a share of its frame's (default: 1,1, the whole frame)")
     p.add_argument("--texture-families", default=None, metavar="A,B,...",
                    help="procedural texture families to draw from, of fractal, stripes, plaid, cells, weave, print "
                         "(print: text and line drawings on white paper; default: all but print)")

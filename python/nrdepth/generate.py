@@ -48,6 +48,8 @@ _RANGES = (
     "backdrop_window_width",
     "backdrop_window_offset",
     "backdrop_brightness",
+    "camera_fov",
+    "crop_share",
 )
 _INTS = ("frames", "size", "grid", "supersample", "texture_size", "max_redraws")
 
@@ -143,6 +145,19 @@ class GeneratorConfig:
     backdrop_min_cover: float = _DEFAULT["backdrop_min_cover"]
     backdrop_brightness: Interval = _DEFAULT["backdrop_brightness"]
     backdrop_flat_probability: float = _DEFAULT["backdrop_flat_probability"]
+    camera_fov: Interval = _DEFAULT["camera_fov"]
+    """A perspective camera: the field of view (radians, up to 2.8) across the
+    width of the frame a clip is cut from; the clip's window is
+    ``crop_share`` of that width, at a uniform place in the frame, as a patch
+    of a real frame is (share 1: the whole frame, as the coarse pass sees
+    it). The pinhole sits at ``camera_z`` = half the frame's width over
+    ``tan(fov / 2)`` above the plane z = 0, and depth is ``camera_z − z``
+    along the optical axis (``params[k]["pinhole"]``). Under perspective a
+    relief and its mirror image no longer render alike, and motion along the
+    optical axis scales the image. A draw that brings the surface nearer the
+    pinhole than half that distance is redrawn. (0, 0), the default, is the
+    design's orthographic camera: every clip as before."""
+    crop_share: Interval = _DEFAULT["crop_share"]
     textures: Optional[str] = None
     """A folder of PNG/JPEG images to crop textures from instead of the procedural families."""
 
@@ -201,7 +216,7 @@ class Clips(NamedTuple):
     the sheet in a backdrop clip (``backdrop_probability``), never otherwise."""
     params: List[Dict[str, Any]]
     """Per clip: surface, window, lights, material, texture, noise_std, noise_seed, blur, gamma, sheet (None, or its axis, terms and relief), backdrop (None, or
-    its background's family (None: flat), seed and brightness), redraws."""
+    its background's family (None: flat), seed and brightness), pinhole (None: orthographic, or its ``xy`` and ``camera_z``), redraws."""
 
 
 def generate_clips(n: int, seed: int = 0, config: Optional[GeneratorConfig] = None, start: int = 0) -> Clips:
@@ -226,10 +241,14 @@ def observable_depth(depth: np.ndarray, params: Dict[str, Any]) -> np.ndarray:
     z changes no pixel under directional lights (and barely any under the
     generator's distant point lights), so no network can predict it; a
     training target without it asks only for what the frames hold
-    (``nrdepth train --target observable``)."""
+    (``nrdepth train --target observable``). A clip seen through a pinhole
+    (``camera_fov``) shows that motion, as its image grows or shrinks, so its
+    depth is returned as it is."""
     depth = np.asarray(depth)
     if depth.ndim != 3:
         raise ValueError(f"depth: expected one clip's (T, H, W) depth, got shape {depth.shape}")
+    if params.get("pinhole") is not None:
+        return depth
     drift_z = float(params["surface"]["drift"][2])
     t = np.linspace(0.0, 1.0, depth.shape[0]) if depth.shape[0] > 1 else np.zeros(1)
     # depth = camera_z − z and z grows by t · drift_z: adding it back removes the motion.

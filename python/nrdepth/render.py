@@ -2,7 +2,9 @@
 
 Conventions: world x right, y up, z toward the camera. The camera is
 orthographic and looks down −z from the plane ``z = camera_z``; depth is
-``camera_z − z``. An (H, W) image covers ``window = (xmin, ymin, xmax, ymax)``;
+``camera_z − z``. With a ``pinhole`` (x, y) it is a perspective camera at
+(x, y, ``camera_z``) instead, and the window is what it shows of the plane
+z = 0; depth is still ``camera_z − z``, along the optical axis. An (H, W) image covers ``window = (xmin, ymin, xmax, ymax)``;
 pixel (i, j) has its centre at ``x = xmin + (j + ½)(xmax − xmin)/W``,
 ``y = ymax − (i + ½)(ymax − ymin)/H`` (row 0 at the top). Texture coordinates
 ``(u, v)`` in [0, 1]: u along texture columns, v along rows (row 0 at v = 0).
@@ -114,6 +116,10 @@ def _window(window: Any) -> Tuple[float, float, float, float]:
     return _float_tuple("window", window, 4)  # type: ignore[return-value]
 
 
+def _pinhole(pinhole: Any) -> Optional[Tuple[float, float]]:
+    return None if pinhole is None else _float_tuple("pinhole", pinhole, 2)  # type: ignore[return-value]
+
+
 def render(
     vertices: np.ndarray,
     triangles: np.ndarray,
@@ -126,6 +132,7 @@ def render(
     supersample: int = 2,
     camera_z: float = CAMERA_Z,
     shading: str = "phong",
+    pinhole: Optional[Sequence[float]] = None,
 ) -> Render:
     """Render a textured mesh with Phong reflectance and s×s supersampling.
 
@@ -136,7 +143,10 @@ def render(
     light terms once per pixel, at its centre: ``shading="phong"`` with the
     interpolated normal there, ``"gouraud"`` interpolating lighting computed
     at the vertices (blurs highlights smaller than a triangle). Default: one
-    light along +z, ``Material()``.
+    light along +z, ``Material()``. ``pinhole`` (x, y): a perspective camera
+    with its pinhole at (x, y, ``camera_z``), ``camera_z > 0``, whose image
+    shows ``window`` of the plane z = 0; depth is then ``camera_z − z`` along
+    the optical axis, and every vertex must lie in front of the pinhole.
     """
     lights = [Light()] if lights is None else list(lights)
     for i, light in enumerate(lights):
@@ -160,6 +170,7 @@ def render(
             _check_int("supersample", supersample),
             _float_tuple("camera_z", (camera_z,), 1)[0],
             shading,
+            _pinhole(pinhole),
         )
     )
 
@@ -170,16 +181,20 @@ def raycast_depth(
     size: Any,
     window: Sequence[float],
     camera_z: float = CAMERA_Z,
+    pinhole: Optional[Sequence[float]] = None,
 ) -> np.ndarray:
-    """Depth (H, W) float32 of the first hit of one orthographic ray per pixel
-    centre (``camera_z − z``), NaN where the ray misses. A BVH (median split)
-    is built over the triangles; rays are cast in 8×8-pixel packets."""
+    """Depth (H, W) float32 of the first hit of one ray per pixel centre
+    (``camera_z − z``), NaN where the ray misses: orthographic rays, or with
+    ``pinhole`` (x, y) the rays of a perspective camera (as :func:`render`).
+    A BVH (median split) is built over the triangles; rays are cast in
+    8×8-pixel packets."""
     return _core.raycast_depth(
         _float_array("vertices", vertices, 3),
         _index_array("triangles", triangles),
         _size(size),
         _window(window),
         _float_tuple("camera_z", (camera_z,), 1)[0],
+        _pinhole(pinhole),
     )
 
 
