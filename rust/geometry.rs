@@ -69,7 +69,7 @@ impl View {
         if !pinhole.iter().all(|v| v.is_finite()) {
             return Err(InvalidArgument::new("pinhole", format!("expected finite (x, y), got {pinhole:?}")));
         }
-        if !(self.camera_z > 0.0) {
+        if self.camera_z <= 0.0 {
             return Err(InvalidArgument::new("camera_z", format!("expected a pinhole above the plane z = 0 (camera_z > 0), got {}", self.camera_z)));
         }
         Ok(Self { pinhole: Some(pinhole), ..self })
@@ -119,7 +119,7 @@ impl View {
     /// With a pinhole, every vertex must lie in front of it (z < `camera_z`).
     pub fn check_in_front(&self, vertices: &[[f32; 3]]) -> Result<()> {
         if self.pinhole.is_some() {
-            if let Some(i) = vertices.iter().position(|v| !(v[2] < self.camera_z)) {
+            if let Some(i) = vertices.iter().position(|v| v[2] >= self.camera_z) {
                 return Err(InvalidArgument::new("vertices", format!("expected every vertex in front of the pinhole (z < camera_z = {}), vertex {i} is {:?}", self.camera_z, vertices[i])));
             }
         }
