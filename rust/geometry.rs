@@ -22,8 +22,10 @@
 //! It fixes the plane z = 0, sends the ray through a point to the vertical
 //! line through its image, keeps "nearer" as "higher", and, being
 //! projective, keeps a triangle a plane triangle, so the z' interpolated
-//! over it in pixel space is exact, and `View::depth` maps it back. Subsample (a, b) of an s×s supersampling grid sits at
-//! offsets `((b + ½)/s, (a + ½)/s)` inside the pixel.
+//! over it in pixel space is exact, and `View::depth` maps it back.
+//!
+//! Subsample (a, b) of an s×s supersampling grid sits at offsets
+//! `((b + ½)/s, (a + ½)/s)` inside the pixel.
 
 use crate::error::{InvalidArgument, Result};
 use crate::lanes::Lanes8;
