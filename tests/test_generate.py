@@ -137,9 +137,14 @@ def test_a_perspective_camera_is_drawn_last_and_shows_the_motion_along_its_axis(
         assert {k: v for k, v in a.items() if k != "pinhole"} == {k: v for k, v in b.items() if k != "pinhole"}
     for p, depth in zip(seen.params, seen.depth):
         x0, y0, x1, y1 = p["window"]
-        share = (x1 - x0) / (2 * p["pinhole"]["camera_z"] * np.tan(np.array(config.camera_fov) / 2))
-        # camera_z sets the frame's width at a drawn fov: the window's share of it lies in the drawn range.
-        assert share[1] - 1e-4 <= 1.0 and share[0] + 1e-4 >= config.crop_share[0] * np.tan(0.35) / np.tan(0.6)
+        # camera_z = frame width / (2 tan(fov / 2)) and window = share · frame width, so
+        # window / (2 camera_z) = share · tan(fov / 2), within the drawn ranges' bounds.
+        spread = (x1 - x0) / (2 * p["pinhole"]["camera_z"])
+        lo, hi = config.crop_share[0] * np.tan(config.camera_fov[0] / 2), config.crop_share[1] * np.tan(config.camera_fov[1] / 2)
+        assert lo - 1e-5 <= spread <= hi + 1e-5, (spread, lo, hi)
+        # The pinhole lies over the frame, which holds the window: at most half a frame less half the window off its centre.
+        frame = (x1 - x0) / config.crop_share[0]
+        assert np.abs(np.array(p["pinhole"]["xy"]) - [(x0 + x1) / 2, (y0 + y1) / 2]).max() <= (frame - (x1 - x0)) / 2 + 1e-5
         # The target keeps the motion along the axis, which the image shows.
         assert nrdepth.observable_depth(depth, p) is depth
         assert np.isfinite(depth).all() and (depth > p["pinhole"]["camera_z"] / 2).all()

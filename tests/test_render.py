@@ -146,6 +146,8 @@ _W = (0, 0, 1, 1)
         (lambda: nrdepth.render(_V, _T, _UV[:2], _TEX, 4, _W), ValueError, "uv"),
         (lambda: nrdepth.render(_V, _T, _UV, np.ones(4), 4, _W), ValueError, "texture"),
         (lambda: nrdepth.render(_V, _T, _UV, _TEX, 4, _W, supersample=0), ValueError, "supersample"),
+        (lambda: nrdepth.render(_V + [0, 0, 1], _T, _UV, _TEX, 4, _W, camera_z=0.5, pinhole=(0.0, 0.0)), ValueError, "vertices"),
+        (lambda: nrdepth.render(_V, _T, _UV, _TEX, 4, _W, pinhole=(float("nan"), 0.0)), ValueError, "pinhole"),
         (lambda: nrdepth.render(_V, _T, _UV, _TEX, 4, _W, [Light(vector=(0, 0, 0))]), ValueError, "lights[0]"),
         (lambda: nrdepth.render(_V, _T, _UV, _TEX, 4, _W, [{"kind": "point"}]), TypeError, "lights[0]"),
         (lambda: nrdepth.render(_V, _T, _UV, _TEX, 4, _W, material=Material(shininess=-1)), ValueError, "material.shininess"),
