@@ -588,7 +588,7 @@ mod tests {
 
     /// `small` seen by wide-angle perspective cameras, crops of their frames and whole frames.
     fn perspective() -> GeneratorConfig {
-        GeneratorConfig { camera: CameraConfig { fov: Range::new(0.6, 1.3), crop_share: Range::new(0.3, 1.0) }, ..small() }
+        GeneratorConfig { camera: CameraConfig { fov: Range::new(0.6, 1.3), crop_share: Range::new(0.3, 1.0), probability: 1.0 }, ..small() }
     }
 
     fn run(config: &GeneratorConfig, seed: u64, start: u64, n: usize) -> (Vec<u8>, Vec<f32>, Vec<ClipParams>) {

@@ -27,7 +27,7 @@
 //! Subsample (a, b) of an s×s supersampling grid sits at offsets
 //! `((b + ½)/s, (a + ½)/s)` inside the pixel.
 
-use crate::error::{InvalidArgument, Result};
+use crate::error::{in_range, InvalidArgument, Result};
 use crate::lanes::Lanes8;
 use crate::params::Range;
 use crate::rng::SplitMix64;
@@ -165,16 +165,18 @@ impl View {
 /// is `crop_share` of that width, at a uniform place inside the frame, so
 /// the clip's own rays spread over about `fov · crop_share`, as in a patch
 /// a reconstruction cuts from a real frame (or its whole frame, at share 1).
+/// `probability` of the clips are seen so, the others orthographically.
 /// `fov` (0, 0), the default, is the orthographic camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CameraConfig {
     pub fov: Range,
     pub crop_share: Range,
+    pub probability: f64,
 }
 
 impl Default for CameraConfig {
     fn default() -> Self {
-        Self { fov: Range::new(0.0, 0.0), crop_share: Range::new(1.0, 1.0) }
+        Self { fov: Range::new(0.0, 0.0), crop_share: Range::new(1.0, 1.0), probability: 1.0 }
     }
 }
 
@@ -188,11 +190,15 @@ pub struct Pinhole {
 impl CameraConfig {
     pub fn validate(&self) -> Result<()> {
         self.fov.check("config.camera_fov", 0.0, 2.8)?;
-        self.crop_share.check("config.crop_share", 0.01, 1.0)
+        self.crop_share.check("config.crop_share", 0.01, 1.0)?;
+        in_range("config.camera_probability", self.probability, 0.0, 1.0).map(|_| ())
     }
 
     /// The pinhole for a clip with `window`, or None (orthographic) when the
     /// fov range is (0, 0); draws nothing then, so such clips stay as they were.
+    /// The orthographic share is drawn after the pinhole, and only when
+    /// `probability` < 1, so the clips seen through it are those a
+    /// probability of 1 draws.
     pub fn sample(&self, window: [f32; 4], rng: &mut SplitMix64) -> Option<Pinhole> {
         if self.fov.hi == 0.0 {
             return None;
@@ -205,7 +211,8 @@ impl CameraConfig {
         // The frame's centre (its principal point) lies where the window sits inside it: uniform.
         let spread = (frame - width) / 2.0;
         let xy = centre.map(|c| (c + rng.uniform(-spread, spread)) as f32);
-        Some(Pinhole { xy, camera_z: (frame / 2.0 / (fov / 2.0).tan()) as f32 })
+        let pinhole = Pinhole { xy, camera_z: (frame / 2.0 / (fov / 2.0).tan()) as f32 };
+        (self.probability == 1.0 || rng.unit() < self.probability).then_some(pinhole)
     }
 }
 
@@ -379,6 +386,26 @@ mod tests {
         assert_eq!(flat.depth(0.9), 1.7 - 0.9);
         assert_eq!(View::new(8, 8, [-1.0, -1.0, 1.0, 1.0], -1.0).unwrap().with_pinhole([0.0, 0.0]).unwrap_err().name, "camera_z");
         assert_eq!(flat.with_pinhole([f32::NAN, 0.0]).unwrap_err().name, "pinhole");
+    }
+
+    #[test]
+    fn a_share_of_perspective_clips_draws_their_pinholes_as_a_share_of_one_does() {
+        let window = [-0.8f32, -0.7, 0.9, 1.0];
+        let every = CameraConfig { fov: Range::new(0.5, 1.4), crop_share: Range::new(0.1, 1.0), probability: 1.0 };
+        let some = CameraConfig { probability: 0.3, ..every };
+        let mut seen = 0;
+        for seed in 0..2000u64 {
+            let full = every.sample(window, &mut SplitMix64::new(seed)).unwrap();
+            if let Some(pinhole) = some.sample(window, &mut SplitMix64::new(seed)) {
+                assert_eq!(pinhole, full);
+                seen += 1;
+            }
+        }
+        // 600 expected; a binomial's standard deviation is 20.5.
+        assert!((520..=680).contains(&seen), "{seen} of 2000 through the pinhole at probability 0.3");
+        assert!(CameraConfig { probability: 0.0, ..every }.sample(window, &mut SplitMix64::new(1)).is_none());
+        assert_eq!(CameraConfig { probability: 1.5, ..every }.validate().unwrap_err().name, "config.camera_probability");
+        assert_eq!(CameraConfig { probability: f64::NAN, ..every }.validate().unwrap_err().name, "config.camera_probability");
     }
 
     #[test]

@@ -473,7 +473,7 @@ fn generator_config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<GeneratorConfig
             brightness: range("backdrop_brightness")?,
             flat_probability: field(d, "config", "backdrop_flat_probability")?,
         },
-        camera: CameraConfig { fov: range("camera_fov")?, crop_share: range("crop_share")? },
+        camera: CameraConfig { fov: range("camera_fov")?, crop_share: range("crop_share")?, probability: field(d, "config", "camera_probability")? },
     };
     config.validate().map_err(value_error)?;
     Ok(config)
@@ -528,6 +528,7 @@ fn default_generator_config(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("backdrop_probability", backdrop.probability)?;
     d.set_item("backdrop_min_cover", backdrop.min_cover)?;
     d.set_item("backdrop_flat_probability", backdrop.flat_probability)?;
+    d.set_item("camera_probability", c.camera.probability)?;
     set_ranges(&d, &[
         ("backdrop_window_width", backdrop.window_width),
         ("backdrop_window_offset", backdrop.window_offset),

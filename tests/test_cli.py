@@ -120,12 +120,13 @@ def test_train_defaults_to_the_recommended_recipe_and_the_paper_is_one_flag_away
 def test_train_learns_from_backdrop_clips_with_a_signed_loss_and_refuses_others(tmp_path, capsys):
     tiny = ["--epochs", "1", "--steps", "1", "--batch-size", "2", "--validation-clips", "2", "--workers", "0", "--device", "cpu",
             "--base", "4", "--frames", "4", "--quiet", "--backdrops", "1"]
-    assert main(["train", str(tmp_path / "ours"), *tiny, "--backdrop-brightness", "0,0.1", "--camera-fov", "30,60", "--crop-share", "0.5,1"]) == 0
+    assert main(["train", str(tmp_path / "ours"), *tiny, "--backdrop-brightness", "0,0.1", "--camera-fov", "30,60", "--crop-share", "0.5,1", "--perspective", "0.5"]) == 0
     config = json.loads((tmp_path / "ours" / "config.json").read_text())
     assert config["generator"]["backdrop_probability"] == 1.0
     assert config["generator"]["backdrop_brightness"] == [0.0, 0.1]
     assert config["generator"]["camera_fov"] == pytest.approx([math.radians(30), math.radians(60)])
     assert config["generator"]["crop_share"] == [0.5, 1.0]
+    assert config["generator"]["camera_probability"] == 0.5
     metrics = (tmp_path / "ours" / "metrics.csv").read_text().splitlines()
     header, row = metrics[0].split(","), metrics[-1].split(",")
     assert all(np.isfinite(float(row[header.index(k)])) for k in ("train_loss", "val_mae_sn_frame", "val_mae_sn_flat_frame"))

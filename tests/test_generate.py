@@ -151,6 +151,24 @@ def test_a_perspective_camera_is_drawn_last_and_shows_the_motion_along_its_axis(
     assert not np.array_equal(seen.video, plain.video)
 
 
+def test_a_share_of_perspective_clips_are_those_every_clip_through_the_pinhole_would_be():
+    config = SMALL.replace(camera_fov=(0.7, 1.2), crop_share=(0.2, 1.0))
+    plain, every = (nrdepth.generate_clips(12, seed=8, config=c) for c in (SMALL, config))
+    some = nrdepth.generate_clips(12, seed=8, config=config.replace(camera_probability=0.5))
+    seen = 0
+    for k, p in enumerate(some.params):
+        # A redraw after the pinhole's draw moves the stream on; the first tries must match exactly.
+        if p["redraws"] or every.params[k]["redraws"] or plain.params[k]["redraws"]:
+            continue
+        same = every if p["pinhole"] is not None else plain
+        seen += p["pinhole"] is not None
+        assert p == same.params[k]
+        assert some.video[k].tobytes() == same.video[k].tobytes()
+        assert some.depth[k].tobytes() == same.depth[k].tobytes()
+    assert 0 < seen < 12
+    assert all(p["pinhole"] is None for p in nrdepth.generate_clips(4, seed=8, config=config.replace(camera_probability=0.0)).params)
+
+
 def test_clip_i_depends_only_on_config_seed_and_i():
     whole = nrdepth.generate_clips(6, seed=4, config=SMALL)
     part = nrdepth.generate_clips(3, seed=4, config=SMALL, start=2)
@@ -234,6 +252,7 @@ def test_textures_from_a_folder(tmp_path):
         ({"textures": "/no/such/folder"}, "config.textures"),
         ({"camera_fov": (0.0, 3.0)}, "config.camera_fov"),
         ({"crop_share": (0.0, 1.0)}, "config.crop_share"),
+        ({"camera_probability": -0.1}, "config.camera_probability"),
     ],
 )
 def test_bad_config_is_named(changes, name):

@@ -60,6 +60,8 @@ def _generator_config(args: argparse.Namespace):
         extra["camera_fov"] = tuple(math.radians(v) for v in args.camera_fov)
     if args.crop_share is not None:
         extra["crop_share"] = args.crop_share
+    if args.perspective is not None:
+        extra["camera_probability"] = args.perspective
     if args.texture_families is not None:
         extra["texture_families"] = tuple(args.texture_families.split(","))
     return GeneratorConfig(frames=args.frames, size=args.size, grid=args.grid, textures=args.textures, **extra)
@@ -300,6 +302,8 @@ def _add_generator_options(p: argparse.ArgumentParser) -> None:
                         "(default: 0,0, the orthographic camera)")
     p.add_argument("--crop-share", type=_interval, default=None, metavar="LO,HI",
                    help="with --camera-fov: range of a clip's width as a share of its frame's (default: 1,1, the whole frame)")
+    p.add_argument("--perspective", type=float, default=None, metavar="P",
+                   help="with --camera-fov: share of clips seen through the pinhole, the others orthographically (default: 1)")
     p.add_argument("--texture-families", default=None, metavar="A,B,...",
                    help="procedural texture families to draw from, of fractal, stripes, plaid, cells, weave, print "
                         "(print: text and line drawings on white paper; default: all but print)")

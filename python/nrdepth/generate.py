@@ -158,6 +158,10 @@ class GeneratorConfig:
     pinhole than half that distance is redrawn. (0, 0), the default, is the
     design's orthographic camera: every clip as before."""
     crop_share: Interval = _DEFAULT["crop_share"]
+    camera_probability: float = _DEFAULT["camera_probability"]
+    """With ``camera_fov``: the share of clips seen through the pinhole; the
+    others are orthographic. It is drawn after the pinhole, so the clips
+    seen through it are those a share of 1 (the default) draws."""
     textures: Optional[str] = None
     """A folder of PNG/JPEG images to crop textures from instead of the procedural families."""
 
