@@ -88,6 +88,8 @@ const TIE_SCALE: f64 = 0.02;
 /// Tied, blocks solved with a block's frames: this many blocks after it.
 const LOOKAHEAD: usize = 1;
 
+const OFF_SURFACE: &str = "expected finite values, or NaN off the surface";
+
 /// One patch-frame of the frame being solved.
 struct PatchFrame<'a> {
     /// The patch's frame f (Ly·Lx values, row-major).
@@ -147,8 +149,8 @@ impl JointStitcher {
         if coarse.len() % frame != 0 || coarse.len() > layout.shape.iter().product::<usize>() {
             return Err(InvalidArgument::new("coarse", format!("expected at most {} frames of {:?}, got {} values", layout.shape[0], &layout.shape[1..], coarse.len())));
         }
-        if !coarse.iter().all(|v| v.is_finite()) {
-            return Err(InvalidArgument::new("coarse", "expected finite values"));
+        if coarse.iter().any(|v| v.is_infinite()) {
+            return Err(InvalidArgument::new("coarse", OFF_SURFACE));
         }
         if !(coarse_weight.is_finite() && coarse_weight > 0.0) {
             return Err(InvalidArgument::new("coarse_weight", format!("expected a finite number > 0, got {coarse_weight}")));
@@ -257,8 +259,8 @@ impl JointStitcher {
         if frames.len() % frame != 0 || have + frames.len() / frame > self.layout.shape[0] {
             return Err(InvalidArgument::new("coarse", format!("expected whole frames of {:?}, at most {} more, got {} values", &self.layout.shape[1..], self.layout.shape[0] - have, frames.len())));
         }
-        if !frames.iter().all(|v| v.is_finite()) {
-            return Err(InvalidArgument::new("coarse", "expected finite values"));
+        if frames.iter().any(|v| v.is_infinite()) {
+            return Err(InvalidArgument::new("coarse", OFF_SURFACE));
         }
         self.coarse.extend_from_slice(frames);
         self.advance();
@@ -269,8 +271,10 @@ impl JointStitcher {
     /// they, and the coarse depth of every solved frame, are released.
     pub fn take(&mut self) -> Vec<f32> {
         let frame = self.layout.shape[1] * self.layout.shape[2];
-        self.coarse.drain(..(self.next - self.coarse_start) * frame);
-        self.coarse_start = self.next;
+        // The frame before the next stays: the tie reads which of its pixels are on the surface.
+        let kept = self.next.saturating_sub(1).max(self.coarse_start);
+        self.coarse.drain(..(kept - self.coarse_start) * frame);
+        self.coarse_start = kept;
         self.video_start = self.next;
         std::mem::take(&mut self.video)
     }
@@ -323,9 +327,17 @@ impl JointStitcher {
         Ok(std::mem::take(&mut self.video))
     }
 
-    /// The patch-frames covering frame t (all received).
+    /// Frame t's coarse depth (given, not yet released); NaN off the surface.
+    fn coarse_frame(&self, t: usize) -> &[f32] {
+        let len = self.layout.shape[1] * self.layout.shape[2];
+        &self.coarse[(t - self.coarse_start) * len..(t - self.coarse_start + 1) * len]
+    }
+
+    /// The patch-frames covering frame t (all received). Pixels off the
+    /// surface (NaN in the coarse depth) take part in nothing.
     fn patch_frames(&self, t: usize) -> Vec<PatchFrame<'_>> {
         let [_, hh, ww] = self.layout.shape;
+        let coarse = self.coarse_frame(t);
         let [lt, ly, lx] = self.layout.patch;
         let pad = self.layout.pad;
         let cells: Vec<[usize; 3]> = self
@@ -341,25 +353,39 @@ impl JointStitcher {
                 let corner = [(j * ly / 2) as isize - pad[1] as isize, (k * lx / 2) as isize - pad[2] as isize];
                 let span = |c: isize, l: usize, n: usize| (c.clamp(0, n as isize) as usize, (c + l as isize).clamp(0, n as isize) as usize);
                 let (rows, cols) = (span(corner[0], ly, hh), span(corner[1], lx, ww));
-                let inside = || (rows.0..rows.1).flat_map(|y| (cols.0..cols.1).map(move |x| (y as isize - corner[0]) as usize * lx + (x as isize - corner[1]) as usize));
-                let n = ((rows.1 - rows.0) * (cols.1 - cols.0)) as f64;
-                // Mean and inverse standard deviation of the patch's frame over its pixels in the video.
-                let standardise = |values: &[f32]| {
-                    let sum: f64 = inside().map(|i| values[i] as f64).sum();
-                    let sum2: f64 = inside().map(|i| (values[i] as f64).powi(2)).sum();
+                let tied = self.temporal_weight > 0.0 && f > 0 && t > 0;
+                let before_coarse = if tied { self.coarse_frame(t - 1) } else { coarse };
+                // Its pixels in the video and on the surface (`both`: in frame t − 1 too), as indices into the patch's frame.
+                let pixels = |both: bool| {
+                    (rows.0..rows.1)
+                        .flat_map(|y| (cols.0..cols.1).map(move |x| (y, x)))
+                        .filter(move |&(y, x)| !coarse[y * ww + x].is_nan() && !(both && before_coarse[y * ww + x].is_nan()))
+                        .map(|(y, x)| (y as isize - corner[0]) as usize * lx + (x as isize - corner[1]) as usize)
+                };
+                // Mean and inverse standard deviation of a frame of the patch over `pixels(both)`, and their count.
+                let standardise = |values: &[f32], both: bool| {
+                    let n = pixels(both).count() as f64;
+                    let sum: f64 = pixels(both).map(|i| values[i] as f64).sum();
+                    let sum2: f64 = pixels(both).map(|i| (values[i] as f64).powi(2)).sum();
                     let mean = sum / n;
                     let var = (sum2 / n - mean * mean).max(0.0);
                     // A patch-frame flat to f32 rounding has no relief to align: p̂ = 0.
-                    (mean, if var.sqrt() > 1e-6 * mean.abs() && var > 0.0 { 1.0 / var.sqrt() } else { 0.0 })
+                    (mean, if var.sqrt() > 1e-6 * mean.abs() && var > 0.0 { 1.0 / var.sqrt() } else { 0.0 }, n)
                 };
                 let frame = |f: usize| &patch[f * ly * lx..(f + 1) * ly * lx];
                 let values = frame(f);
-                let (mean, inv_std) = standardise(values);
-                let tie = if self.temporal_weight > 0.0 && f > 0 && t > 0 {
+                let (mean, inv_std, n) = standardise(values, false);
+                if n == 0.0 {
+                    // Off the surface: no equations but the ridge, and no tie.
+                    return PatchFrame { values, weight_t: self.windows[0][f] as f64, corner, rows, cols, cell: [j, k], index, tie: 0.0, mean: 0.0, inv_std: 0.0 };
+                }
+                let tie = if tied {
+                    // ρ over the pixels on the surface in both frames.
                     let before = frame(f - 1);
-                    let (mean_b, inv_std_b) = standardise(before);
-                    let rho = inside().map(|i| (values[i] as f64 - mean) * inv_std * (before[i] as f64 - mean_b) * inv_std_b).sum::<f64>() / n;
-                    self.temporal_weight * n * (-(1.0 - rho) / TIE_SCALE).exp()
+                    let (mean_t, inv_std_t, m) = standardise(values, true);
+                    let (mean_b, inv_std_b, _) = standardise(before, true);
+                    let rho = pixels(true).map(|i| (values[i] as f64 - mean_t) * inv_std_t * (before[i] as f64 - mean_b) * inv_std_b).sum::<f64>() / m.max(1.0);
+                    if m == 0.0 { 0.0 } else { self.temporal_weight * m * (-(1.0 - rho) / TIE_SCALE).exp() }
                 } else {
                     0.0
                 };
@@ -384,10 +410,11 @@ impl JointStitcher {
     /// Each tie adds ν_k I to its patch-frame's diagonal block; the pull toward
     /// a solved frame before (`b_k += ν_k ĝ_k`) is the span's (`solve_span`).
     fn assemble(&self, t: usize, frames: &[PatchFrame<'_>]) -> Normal {
-        let [_, hh, ww] = self.layout.shape;
+        let [_, _, ww] = self.layout.shape;
         let [_, ly, lx] = self.layout.patch;
         let mu = self.coarse_weight;
-        let coarse = &self.coarse[(t - self.coarse_start) * hh * ww..(t - self.coarse_start + 1) * hh * ww];
+        let coarse = self.coarse_frame(t);
+        let masked = coarse.iter().any(|v| v.is_nan());
         let (wy, wx) = (&self.windows[1], &self.windows[2]);
         let diagonal: Vec<(Matrix4<f64>, Vector4<f64>)> = frames
             .par_iter()
@@ -408,6 +435,9 @@ impl JointStitcher {
                         let c = w - w * w + mu;
                         let value = (values[px] as f64 - p.mean) * p.inv_std;
                         let depth = coarse[y * ww + x] as f64;
+                        if depth.is_nan() {
+                            continue;
+                        }
                         c0 += c;
                         cu += c * u;
                         cuu += c * u * u;
@@ -456,22 +486,29 @@ impl JointStitcher {
                         // so the sums of the coordinates alone over a row are the
                         // same in every row, and each row sums over x only the
                         // terms with a depth.
+                        // With pixels off the surface, each row sums its own.
                         let corner = |r: &PatchFrame<'_>, x: usize| (x as isize - r.corner[1]) as usize;
-                        let [mut x0, mut xu_k, mut xu_l, mut xuu] = [0.0; 4];
-                        for x in cols.0..cols.1 {
-                            let (pk, pl) = (corner(p, x), corner(q, x));
-                            let (uk, ul, o) = (coordinate(pk, lx), coordinate(pl, lx), (wx[pk] * wx[pl]) as f64);
-                            (x0, xu_k, xu_l, xuu) = (x0 + o, xu_k + o * uk, xu_l + o * ul, xuu + o * uk * ul);
-                        }
+                        let on = |y: usize, x: usize| !masked || !coarse[y * ww + x].is_nan();
+                        let coordinate_sums = |y: usize| {
+                            let [mut x0, mut xu_k, mut xu_l, mut xuu] = [0.0; 4];
+                            for x in (cols.0..cols.1).filter(|&x| on(y, x)) {
+                                let (pk, pl) = (corner(p, x), corner(q, x));
+                                let (uk, ul, o) = (coordinate(pk, lx), coordinate(pl, lx), (wx[pk] * wx[pl]) as f64);
+                                (x0, xu_k, xu_l, xuu) = (x0 + o, xu_k + o * uk, xu_l + o * ul, xuu + o * uk * ul);
+                            }
+                            [x0, xu_k, xu_l, xuu]
+                        };
+                        let every_row = coordinate_sums(rows.0);
                         let mut e = [[0.0f64; 4]; 4];
                         for y in rows.0..rows.1 {
+                            let [x0, xu_k, xu_l, xuu] = if masked { coordinate_sums(y) } else { every_row };
                             let (yk, yl) = ((y as isize - p.corner[0]) as usize, (y as isize - q.corner[0]) as usize);
                             let (vk, vl) = (coordinate(yk, ly), coordinate(yl, ly));
                             let weight_y = p.weight_t * q.weight_t * (wy[yk] * wy[yl]) as f64;
                             let (values_k, values_l) = (&p.values[yk * lx..(yk + 1) * lx], &q.values[yl * lx..(yl + 1) * lx]);
                             // Σ ω(x) times u_k p̂_l, p̂_l, p̂_k u_l, p̂_k, p̂_k p̂_l.
                             let [mut ukpl, mut pl0, mut pkul, mut pk0, mut pkpl] = [0.0; 5];
-                            for x in cols.0..cols.1 {
+                            for x in (cols.0..cols.1).filter(|&x| on(y, x)) {
                                 let (xk, xl) = (corner(p, x), corner(q, x));
                                 let o = (wx[xk] * wx[xl]) as f64;
                                 let value_k = (values_k[xk] as f64 - p.mean) * p.inv_std;
@@ -605,8 +642,9 @@ impl JointStitcher {
                                 sums[x] += w * a.dot(gk);
                             }
                         }
-                        for (o, s) in row.iter_mut().zip(sums.iter()) {
-                            *o = *s as f32;
+                        let coarse = &this.coarse_frame(system.t)[y * ww..(y + 1) * ww];
+                        for ((o, s), c) in row.iter_mut().zip(sums.iter()).zip(coarse) {
+                            *o = if c.is_nan() { f32::NAN } else { *s as f32 };
                         }
                     },
                 );
@@ -827,6 +865,66 @@ mod tests {
         }
     }
 
+    /// Off the surface (NaN in the coarse depth) the stitched depth is NaN,
+    /// and what the patches hold there changes nothing: patches that see the
+    /// truth through their own GBRs on the surface give it back there, with
+    /// noise off it, whole patch-frames off it included; tied or not, the
+    /// bytes do not depend on that noise.
+    #[test]
+    fn pixels_off_the_surface_take_no_part() {
+        let (layout, truth, patches, origins) = scene([9, 24, 28], [4, 8, 8]);
+        let [tt, hh, ww] = layout.shape;
+        let [lt, ly, lx] = layout.patch;
+        // A disc that drifts, so patches and patch-frames wholly off it occur.
+        let on = |t: usize, y: isize, x: isize| {
+            let (cy, cx) = (12.0 + 0.5 * t as f32, 13.0 - 0.4 * t as f32);
+            (y as f32 - cy).powi(2) + (x as f32 - cx).powi(2) < 81.0
+        };
+        let coarse: Vec<f32> = truth.iter().enumerate().map(|(i, &v)| if on(i / (hh * ww), (i / ww % hh) as isize, (i % ww) as isize) { v } else { f32::NAN }).collect();
+        let noisy = |seed: usize| -> Vec<f32> {
+            let mut out = patches.clone();
+            for (n, o) in origins.iter().enumerate() {
+                for f in 0..lt {
+                    for y in 0..ly {
+                        for x in 0..lx {
+                            let (t, gy, gx) = (o[0] + f, (o[1] + y) as isize - layout.pad[1] as isize, (o[2] + x) as isize - layout.pad[2] as isize);
+                            let t = t.saturating_sub(layout.pad[0]).min(tt - 1);
+                            if !on(t, gy.clamp(0, hh as isize - 1), gx.clamp(0, ww as isize - 1)) {
+                                out[((n * lt + f) * ly + y) * lx + x] = 40.0 * pseudo(seed + ((n * lt + f) * ly + y) * lx + x);
+                            }
+                        }
+                    }
+                }
+            }
+            out
+        };
+        let (a, b) = (noisy(5), noisy(1_000_033));
+        assert!(a != b);
+        for nu in [0.0, 0.5] {
+            let out = joint(&layout, &coarse, 1e-2, nu, Window::Hann, &a, &origins);
+            assert_eq!(out.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), joint(&layout, &coarse, 1e-2, nu, Window::Hann, &b, &origins).iter().map(|v| v.to_bits()).collect::<Vec<_>>(), "ν={nu}");
+            for (i, (o, c)) in out.iter().zip(&coarse).enumerate() {
+                if c.is_nan() {
+                    assert!(o.is_nan(), "ν={nu} {i}: {o}");
+                } else if nu == 0.0 {
+                    // (A tie trades the patches' own GBRs, drawn anew each frame, against their agreement.)
+                    assert!((o - c).abs() < 2e-3, "{i}: {o} vs {c}");
+                }
+            }
+        }
+        // Patch-frames with none of their pixels in the video on the surface.
+        let mut whole_frames_off = 0;
+        for o in &origins {
+            for f in 0..lt {
+                let Some(t) = (o[0] + f).checked_sub(layout.pad[0]).filter(|&t| t < tt) else { continue };
+                let rows = (o[1] as isize - layout.pad[1] as isize..(o[1] + ly) as isize - layout.pad[1] as isize).filter(|&y| (0..hh as isize).contains(&y));
+                let pixels: Vec<(isize, isize)> = rows.flat_map(|y| (o[2] as isize - layout.pad[2] as isize..(o[2] + lx) as isize - layout.pad[2] as isize).filter(|&x| (0..ww as isize).contains(&x)).map(move |x| (y, x))).collect();
+                whole_frames_off += (!pixels.is_empty() && !pixels.iter().any(|&(y, x)| on(t, y, x))) as usize;
+            }
+        }
+        assert!(whole_frames_off > 0, "some patch-frames lie wholly off the surface");
+    }
+
     /// With a coarse depth that is only a blurred, tilted guess, the joint
     /// alignment at a small weight μ still recovers the relief from the
     /// patches' agreement: far closer to the truth (after one GBR per frame)
@@ -871,17 +969,21 @@ mod tests {
     #[test]
     fn matches_a_dense_least_squares_solve() {
         for window in WINDOWS {
-            for (steady, nu) in [(false, 0.0), (false, 0.5), (true, 0.5)] {
-                matches_a_dense_least_squares_solve_with(window, steady, nu);
+            for (steady, nu, masked) in [(false, 0.0, false), (false, 0.5, false), (true, 0.5, false), (false, 0.0, true), (true, 0.5, true)] {
+                matches_a_dense_least_squares_solve_with(window, steady, nu, masked);
             }
         }
     }
 
-    fn matches_a_dense_least_squares_solve_with(window: Window, steady: bool, nu: f64) {
+    /// `masked`: pixels off the surface (NaN in the coarse depth) scattered
+    /// over the frames and a block in a corner, so that rows differ but every
+    /// patch-frame keeps some pixels: they take no part in the objective.
+    fn matches_a_dense_least_squares_solve_with(window: Window, steady: bool, nu: f64, masked: bool) {
         let (layout, truth, patches, origins) = scene_of([6, 12, 10], [4, 8, 8], steady);
         let [_, hh, ww] = layout.shape;
         let [lt, ly, lx] = layout.patch;
-        let coarse: Vec<f32> = truth.iter().enumerate().map(|(i, v)| 0.5 * v + pseudo(i + 99) * 0.3).collect();
+        let off = |i: usize| masked && ((i % ww + 2 * (i / ww % hh) + i / (hh * ww)) % 5 == 0 || (i % ww < 3 && i / ww % hh < 3));
+        let coarse: Vec<f32> = truth.iter().enumerate().map(|(i, v)| if off(i) { f32::NAN } else { 0.5 * v + pseudo(i + 99) * 0.3 }).collect();
         let mu = 0.05;
         let out = joint(&layout, &coarse, mu, nu, window, &patches, &origins);
         let plen = 4 * 8 * 8;
@@ -931,6 +1033,7 @@ mod tests {
                         let standardised = |f: usize| {
                             let v: Vec<f64> = (p.rows.0..p.rows.1)
                                 .flat_map(|y| (p.cols.0..p.cols.1).map(move |x| (y, x)))
+                                .filter(|&(y, x)| !off((t * hh + y) * ww + x) && !off(((t - 1) * hh + y) * ww + x))
                                 .map(|(y, x)| patch[(f * ly + (y as isize - p.corner[0]) as usize) * lx + (x as isize - p.corner[1]) as usize] as f64)
                                 .collect();
                             let n = v.len() as f64;
@@ -947,9 +1050,9 @@ mod tests {
                     assert!((p.tie - tie).abs() <= 1e-9 * tie.max(1.0), "t={t}: tie {} vs {tie}", p.tie);
                     tied += (*tie > 1e-3 * nu * 64.0) as usize;
                 }
-                // Rows: √w_k (a_kᵀg_k − S) per pixel and patch-frame, then √μ (a_kᵀg_k − C).
+                // Rows: √w_k (a_kᵀg_k − S) per pixel on the surface and patch-frame, then √μ (a_kᵀg_k − C).
                 for y in 0..hh {
-                    for x in 0..ww {
+                    for x in (0..ww).filter(|&x| !off((t * hh + y) * ww + x)) {
                         let cover: Vec<(usize, Vector4<f64>, f64)> = frames
                             .iter()
                             .enumerate()
@@ -1012,6 +1115,10 @@ mod tests {
                             })
                             .sum();
                         let got = out[(t * hh + y) * ww + x] as f64;
+                        if off((t * hh + y) * ww + x) {
+                            assert!(got.is_nan(), "off the surface, t={t} y={y} x={x}: {got}");
+                            continue;
+                        }
                         assert!((got - s).abs() < 1e-4 * (1.0 + s.abs()), "{window:?} ν={nu} t={t} y={y} x={x}: {got} vs {s}");
                     }
                 }
@@ -1192,6 +1299,11 @@ mod tests {
         assert_eq!(JointStitcher::new(layout, truth.clone(), 1.0, -1.0, Window::Hann).err().unwrap().name, "temporal_weight");
         assert_eq!(JointStitcher::new(layout, truth.clone(), 1.0, f64::INFINITY, Window::Hann).err().unwrap().name, "temporal_weight");
         assert_eq!(JointStitcher::new(layout, truth[1..].to_vec(), 1.0, 0.0, Window::Hann).err().unwrap().name, "coarse");
+        let mut infinite = truth.clone();
+        infinite[7] = f32::NEG_INFINITY;
+        assert_eq!(JointStitcher::new(layout, infinite.clone(), 1.0, 0.0, Window::Hann).err().unwrap().name, "coarse");
+        let mut streamed = JointStitcher::new(layout, Vec::new(), 1.0, 0.0, Window::Hann).unwrap();
+        assert_eq!(err(streamed.push_coarse(&infinite[..16 * 16])), "coarse");
         let mut s = JointStitcher::new(layout, truth.clone(), 1.0, 0.0, Window::Hann).unwrap();
         assert_eq!(err(s.add(&patches[..plen], &[[1, 0, 0]])), "origins");
         assert_eq!(err(s.add(&patches[..2 * plen], &[origins[0], origins[0]])), "origins");

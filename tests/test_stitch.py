@@ -242,6 +242,45 @@ def test_reconstruct_runs_on_any_size_and_refuses_bad_video():
         nrdepth.reconstruct(video.astype(np.int32), model, device="cpu")
 
 
+def test_pixels_off_the_surface_take_no_part_in_the_stitch_or_the_reconstruction():
+    # The stitcher: NaN in the coarse depth marks pixels off the surface; the
+    # distorted truth comes back on it, whatever the patches hold off it.
+    shape = (16, 64, 80)
+    truth = smooth_video(shape)
+    layout = nrdepth.patch_layout(shape)
+    t, y, x = np.mgrid[0 : shape[0], 0 : shape[1], 0 : shape[2]]
+    on = (y - 30 - t) ** 2 + (x - 35) ** 2 < 26**2  # a disc drifting down
+    coarse = np.where(on, truth, np.nan).astype(np.float32)
+    patches = distorted_patches(truth, layout)
+    noisy = patches.copy()
+    off = cut(~on, layout)
+    noisy[off] = np.random.default_rng(3).normal(scale=50, size=int(off.sum()))
+    out = nrdepth.stitch(patches, coarse, layout, temporal_weight=0)
+    assert np.isnan(out[~on]).all() and np.abs(out[on] - truth[on]).max() < 1e-2
+    assert nrdepth.stitch(noisy, coarse, layout).tobytes() == nrdepth.stitch(patches, coarse, layout).tobytes()
+    with pytest.raises(ValueError, match="^coarse:"):
+        nrdepth.stitch(patches, np.where(on, truth, np.inf).astype(np.float32), layout)
+    # reconstruct(mask=): NaN off the mask at the video's resolution, the working one smaller or not.
+    torch.manual_seed(0)
+    model = nrdepth.model.UNet3D(base=2)
+    video = (np.random.default_rng(0).random((10, 40, 72)) * 255).astype(np.uint8)
+    mask = np.zeros((40, 72), bool)
+    mask[5:35, 10:60] = True
+    for max_side in (None, 48):
+        depth = nrdepth.reconstruct(video, model, device="cpu", mask=mask, max_side=max_side)
+        assert np.isnan(depth[:, ~mask]).all() and np.isfinite(depth[:, mask]).all(), max_side
+        assert abs(float(depth[:, mask].mean())) < 1e-5 and float(depth[:, mask].std()) == pytest.approx(1, rel=1e-4)
+    moving = np.stack([np.roll(mask, k, axis=1) for k in range(10)])
+    part = nrdepth.reconstruct(video, model, device="cpu", mask=moving, frames=slice(2, 8), roi=(4, 0, 60, 40))
+    assert (np.isnan(part) == ~moving[2:8, :, 4:64]).all()
+    bad = [({"mask": mask.astype(np.uint8)}, TypeError), ({"mask": mask[:, :70]}, ValueError), ({"mask": moving[:9]}, ValueError),
+           ({"mask": mask, "alignment": "coarse"}, ValueError), ({"mask": mask, "temporal": True}, ValueError),
+           ({"mask": np.zeros_like(mask)}, ValueError)]
+    for options, error in bad:
+        with pytest.raises(error, match="^mask:"):
+            nrdepth.reconstruct(video, model, device="cpu", **options)
+
+
 def test_coarse_pass_commutes_with_a_left_right_mirror():
     """The coarse pass averages its readings of the video and of the mirrored
     video, so mirroring the input mirrors its depth, whatever the network;

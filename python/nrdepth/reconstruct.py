@@ -376,8 +376,12 @@ class _Pipeline:
     frames at a time; at the working resolution of ``max_side``."""
 
     def __init__(self, frame: Tuple[int, int], chunks: Callable[[], Iterable[np.ndarray]], net: Any, device: Any, batch_size: int, fine: str,
-                 alignment: str, coarse_weight: float, window: str, temporal_weight: float, max_side: Optional[int], tile: Optional[Tuple[int, int, int]]) -> None:
+                 alignment: str, coarse_weight: float, window: str, temporal_weight: float, max_side: Optional[int], tile: Optional[Tuple[int, int, int]],
+                 mask: Optional[np.ndarray] = None) -> None:
         self.full, self.work = frame, working_shape(frame, max_side)
+        # The surface's pixels (T or 1, H, W) at the video's resolution and at the working one (the majority of each working pixel's).
+        self.mask = mask
+        self.mask_work = None if mask is None else (mask if self.work == self.full else _resize(mask.astype(np.float32), self.work) >= 0.5)
         self.chunks, self.net, self.device, self.batch_size, self.fine, self.tile = chunks, net, device, batch_size, fine, tile
         self.stitching = (alignment, coarse_weight, window, temporal_weight)
         statistic, small = Statistic(), []
@@ -389,6 +393,8 @@ class _Pipeline:
         self.statistic = statistic.result()
         self.half = coarse_half(np.concatenate(small), net, batch_size, device)
         self.shape = (len(self.half), *self.work)
+        if mask is not None and len(mask) not in (1, self.shape[0]):
+            raise ValueError(f"mask: expected one frame or the video's {self.shape[0]}, got {len(mask)}")
 
     def working(self) -> Iterator[np.ndarray]:
         """The video's chunks at the working resolution (float32 in [0, 1] when resized)."""
@@ -401,7 +407,11 @@ class _Pipeline:
         """The coarse depth of frames ``start .. stop`` at the working resolution."""
         if stop <= start:
             return np.zeros((0, *self.work), np.float32)
-        return _resize(self.half[start:stop], self.work)
+        coarse = _resize(self.half[start:stop], self.work)
+        if self.mask_work is not None:
+            # NaN off the surface: the stitcher leaves those pixels out of every alignment.
+            coarse[~_frames_of(self.mask_work, start, stop)] = np.nan
+        return coarse
 
     def stitched(self, progress: Optional[Callable[[int, int], None]] = None) -> Iterator[np.ndarray]:
         """The stitched depth at the working resolution, in chunks of frames
@@ -458,21 +468,62 @@ class _Pipeline:
             return mean, scale * math.sqrt(h * w) * self.full[1] / w
         # A network without a depth scale (GBR-invariant losses only): a
         # canonical one rather than whatever magnitude its weights drifted to.
-        pivot = float(raw[0:1].mean(dtype=np.float64))  # sums about a value near the mean: no cancellation
-        total = squares = 0.0
+        pivot = float(np.nanmean(raw[0:1], dtype=np.float64))  # sums about a value near the mean: no cancellation
+        total = squares = n = 0.0
         for a, b in spans:
-            frames = self._full(raw[a:b]).astype(np.float64) - pivot
-            total, squares = total + float(frames.sum()), squares + float(np.square(frames).sum())
-        n = t * self.full[0] * self.full[1]
+            frames = self._full(raw[a:b], a).astype(np.float64) - pivot
+            on = np.isfinite(frames)
+            total, squares, n = total + float(frames[on].sum()), squares + float(np.square(frames[on]).sum()), n + int(on.sum())
         mean = total / n
         return pivot + mean, 1.0 / (math.sqrt(max(squares / n - mean * mean, 0.0)) or 1.0)
 
     def final(self, raw: np.ndarray, start: int, stop: int, offset: float, scale: float) -> np.ndarray:
         """Frames ``start .. stop`` of the final depth, float32 at the video's resolution (:meth:`finalise`)."""
-        return ((self._full(raw[start:stop]).astype(np.float64) - offset) * scale).astype(np.float32)
+        return ((self._full(raw[start:stop], start).astype(np.float64) - offset) * scale).astype(np.float32)
 
-    def _full(self, frames: np.ndarray) -> np.ndarray:
-        return np.asarray(frames, np.float32) if self.work == self.full else _resize(frames, self.full)
+    def _full(self, frames: np.ndarray, start: int) -> np.ndarray:
+        """Working frames from ``start`` at the video's resolution; NaN off the mask."""
+        if self.work == self.full:
+            return np.asarray(frames, np.float32)
+        if self.mask is None:
+            return _resize(frames, self.full)
+        # Each pixel off the working mask takes its nearest on it, so the resize blends only the surface.
+        from scipy.ndimage import distance_transform_edt
+
+        filled = np.array(frames, np.float32)
+        for frame in filled:
+            off = np.isnan(frame)
+            if off.any() and not off.all():
+                rows, cols = distance_transform_edt(off, return_distances=False, return_indices=True)
+                frame[:] = frame[rows, cols]
+        full = _resize(filled, self.full)
+        full[~_frames_of(self.mask, start, start + len(frames))] = np.nan
+        return full
+
+
+def _frames_of(mask: np.ndarray, start: int, stop: int) -> np.ndarray:
+    """Frames ``start .. stop`` of a mask (T, H, W), or its one frame repeated."""
+    return np.broadcast_to(mask, (stop - start, *mask.shape[1:])) if len(mask) == 1 else mask[start:stop]
+
+
+def _check_mask(mask: Any, video_shape: Tuple[int, ...], frames: Optional[slice], roi: Any, alignment: str, temporal: bool, units: str) -> Optional[np.ndarray]:
+    """``mask`` (bool (H, W) or (T, H, W) of the video as given) cut as the video is, (1 or T', h, w); None stays None."""
+    if mask is None:
+        return None
+    mask = np.asarray(mask)
+    if mask.dtype != bool:
+        raise TypeError(f"mask: expected a bool array (True on the surface), got dtype {mask.dtype}")
+    t, h, w = video_shape[:3]
+    if mask.shape not in ((h, w), (t, h, w)):
+        raise ValueError(f"mask: expected ({h}, {w}) or ({t}, {h}, {w}), the video's frames, got {mask.shape}")
+    if alignment != "joint":
+        raise ValueError("mask: the paper's alignment fits every pixel of a patch, padding included; use alignment='joint'")
+    if temporal or units != "standard":
+        raise ValueError("mask: works with temporal=False and units='standard'")
+    mask = select(mask[None] if mask.ndim == 2 else mask, None if mask.ndim == 2 else frames, roi)
+    if not mask.any(axis=(1, 2)).all():
+        raise ValueError("mask: a frame has no pixel on the surface")
+    return mask
 
 
 def _load_net(model: Any, units: str, dev: Any) -> Any:
@@ -526,6 +577,7 @@ def reconstruct(
     fine: str = "field",
     max_side: Optional[int] = MAX_SIDE,
     tile: Optional[Tuple[int, int, int]] = None,
+    mask: Optional[np.ndarray] = None,
 ) -> np.ndarray:
     """Depth video float32 (T, H, W) of a video (T, H, W) or colour video
     (T, H, W, 3) (uint8, or float in [0, 1]; colour becomes luma, ITU-R
@@ -556,6 +608,13 @@ def reconstruct(
       ``temporal_weight`` (the default) or ``"coarse"`` (the paper's);
       ``window``: ``"hann"`` (the default) or ``"triangle"`` (the paper's;
       :mod:`nrdepth.stitch`).
+    - ``mask``: bool (H, W) or (T, H, W) of the video as given, True on
+      the surface. Pixels off it take no part in the alignments and come
+      back NaN (the joint alignment, ``units="standard"``, ``temporal``
+      off). The network still reads them. Use it where the background
+      moves on its own (hands, other objects). A still background helps
+      the alignment: on ``phisft_R1``'s black matte, masking costs 0.007 to
+      0.017 per frame (docs/stitching.md).
 
     Depth is defined up to one GBR per frame (one for the video with
     ``temporal``) and returned with zero mean over the video, in ``units``:
@@ -575,12 +634,14 @@ def reconstruct(
     :func:`reconstruct_file`."""
     from .model.io import resolve_device
 
-    video = select(to_gray(video, "video"), frames, roi)
+    gray = to_gray(video, "video")
+    mask = _check_mask(mask, gray.shape, frames, roi, alignment, temporal, units)
+    video = select(gray, frames, roi)
     _check_options(batch_size, progress, units, fine, max_side, tile, alignment, coarse_weight, window, temporal_weight)
     dev = resolve_device(device)
     net = _load_net(model, units, dev)
     chunks = lambda: (video[a : a + CHUNK] for a in range(0, len(video), CHUNK))  # noqa: E731
-    pipeline = _Pipeline(video.shape[1:], chunks, net, dev, int(batch_size), fine, alignment, coarse_weight, window, temporal_weight, max_side, tile)
+    pipeline = _Pipeline(video.shape[1:], chunks, net, dev, int(batch_size), fine, alignment, coarse_weight, window, temporal_weight, max_side, tile, mask)
     raw = np.concatenate(list(pipeline.stitched(progress)))
     return pipeline.final(raw, 0, len(raw), *pipeline.finalise(raw, temporal, units))
 

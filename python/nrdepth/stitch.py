@@ -129,7 +129,9 @@ def stitch(
     the frame before by ``temporal_weight``; ``"coarse"``, each on its own
     to ``coarse``, as the paper does, which takes neither weight) and
     overlap-add them with ``window`` (``"hann"`` or the paper's
-    ``"triangle"``): float32 (T, H, W)."""
+    ``"triangle"``): float32 (T, H, W). With the joint alignment,
+    ``coarse`` may be NaN off the surface: those pixels take no part in
+    any alignment, and come back NaN."""
     patches = np.asarray(patches)
     coarse = np.asarray(coarse)
     for name, a, ndim in (("patches", patches, 4), ("coarse", coarse, 3)):
