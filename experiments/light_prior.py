@@ -13,6 +13,10 @@ boundary and how sharply.
 
     python experiments/light_prior.py campaign/prior_45 campaign/prior_70 campaign/prior_85 \\
         --labels "±45°,±70°,±85°" -o docs/light_prior
+
+``--camera-fov LO,HI`` (degrees) and ``--crop-share LO,HI`` render the bins
+through a pinhole (``GeneratorConfig.camera_fov``): a relief and its mirror
+image then render differently, so a model may be right on both sides.
 """
 
 from __future__ import annotations
@@ -34,14 +38,15 @@ from nrdepth.model import load_model, predict_depth
 BIN_DEGREES = 15
 
 
-def bin_clips(lo: float, hi: float, clips: int, seed: int):
+def bin_clips(lo: float, hi: float, clips: int, seed: int, camera: Dict[str, tuple]):
     """``clips`` held-out clips lit by one directional light with |azimuth| in
-    [lo, hi] degrees, half on each side of image-up; returns (video, truth at
-    the network's half resolution)."""
+    [lo, hi] degrees, half on each side of image-up, seen by ``camera``
+    (``GeneratorConfig`` fields); returns (video, truth at the network's half
+    resolution)."""
     videos, truths = [], []
     for side, count in ((-1, clips // 2), (1, clips - clips // 2)):
         azimuth = sorted((side * math.radians(lo), side * math.radians(hi)))
-        config = nrdepth.GeneratorConfig(light_count=(1, 1), light_azimuth=tuple(azimuth), point_light_probability=0.0)
+        config = nrdepth.GeneratorConfig(light_count=(1, 1), light_azimuth=tuple(azimuth), point_light_probability=0.0, **camera)
         generated = nrdepth.generate_clips(count, seed=seed + (side > 0), config=config)
         videos.append(generated.video)
         truths.append(torch.nn.functional.avg_pool2d(torch.from_numpy(generated.depth).float(), 2).numpy())
@@ -53,8 +58,14 @@ def main() -> None:
     parser.add_argument("models", nargs="+", help="model.safetensors files or run folders")
     parser.add_argument("--labels", default=None, help="comma-separated, one per model (default: the paths)")
     parser.add_argument("--clips", type=int, default=32, help="clips per azimuth bin")
+    parser.add_argument("--camera-fov", default=None, metavar="LO,HI", help="a pinhole camera's field of view, degrees (default: orthographic)")
+    parser.add_argument("--crop-share", default="1,1", metavar="LO,HI", help="with --camera-fov: the clip's share of its frame's width")
     parser.add_argument("-o", "--out", default=None, help="write OUT.csv and OUT.png")
     args = parser.parse_args()
+    camera = {}
+    if args.camera_fov:
+        fov = tuple(math.radians(float(v)) for v in args.camera_fov.split(","))
+        camera = {"camera_fov": fov, "crop_share": tuple(float(v) for v in args.crop_share.split(","))}
     labels = args.labels.split(",") if args.labels else args.models
     if len(labels) != len(args.models):
         parser.error(f"--labels: expected {len(args.models)} labels, got {len(labels)}")
@@ -65,7 +76,7 @@ def main() -> None:
     print(f"{'|azimuth|':>12s}" + "".join(f"{label:>24s}" for label in labels))
     for k, lo in enumerate(range(0, 180, BIN_DEGREES)):
         hi = lo + BIN_DEGREES
-        video, truth = bin_clips(lo, hi, args.clips, TEST_SEED + 1000 * (k + 1))
+        video, truth = bin_clips(lo, hi, args.clips, TEST_SEED + 1000 * (k + 1), camera)
         cells = []
         for label, net in zip(labels, nets):
             pred = predict_depth(net, video)
