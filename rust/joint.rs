@@ -359,7 +359,7 @@ impl JointStitcher {
                 let pixels = |both: bool| {
                     (rows.0..rows.1)
                         .flat_map(|y| (cols.0..cols.1).map(move |x| (y, x)))
-                        .filter(move |&(y, x)| !coarse[y * ww + x].is_nan() && !(both && before_coarse[y * ww + x].is_nan()))
+                        .filter(move |&(y, x)| !(coarse[y * ww + x].is_nan() || both && before_coarse[y * ww + x].is_nan()))
                         .map(|(y, x)| (y as isize - corner[0]) as usize * lx + (x as isize - corner[1]) as usize)
                 };
                 // Mean and inverse standard deviation of a frame of the patch over `pixels(both)`, and their count.
@@ -982,7 +982,7 @@ mod tests {
         let (layout, truth, patches, origins) = scene_of([6, 12, 10], [4, 8, 8], steady);
         let [_, hh, ww] = layout.shape;
         let [lt, ly, lx] = layout.patch;
-        let off = |i: usize| masked && ((i % ww + 2 * (i / ww % hh) + i / (hh * ww)) % 5 == 0 || (i % ww < 3 && i / ww % hh < 3));
+        let off = |i: usize| masked && ((i % ww + 2 * (i / ww % hh) + i / (hh * ww)).is_multiple_of(5) || (i % ww < 3 && i / ww % hh < 3));
         let coarse: Vec<f32> = truth.iter().enumerate().map(|(i, v)| if off(i) { f32::NAN } else { 0.5 * v + pseudo(i + 99) * 0.3 }).collect();
         let mu = 0.05;
         let out = joint(&layout, &coarse, mu, nu, window, &patches, &origins);
