@@ -337,9 +337,14 @@ impl JointStitcher {
     /// surface (NaN in the coarse depth) take part in nothing.
     fn patch_frames(&self, t: usize) -> Vec<PatchFrame<'_>> {
         let [_, hh, ww] = self.layout.shape;
-        let coarse = self.coarse_frame(t);
         let [lt, ly, lx] = self.layout.patch;
         let pad = self.layout.pad;
+        let coarse = self.coarse_frame(t);
+        let tie_frames = self.temporal_weight > 0.0 && t > 0;
+        let before_coarse = if tie_frames { self.coarse_frame(t - 1) } else { coarse };
+        // Without pixels off the surface every pixel counts: no test per pixel.
+        let masked = coarse.iter().any(|v| v.is_nan());
+        let masked_before = tie_frames && before_coarse.iter().any(|v| v.is_nan());
         let cells: Vec<[usize; 3]> = self
             .windows_of(t)
             .flat_map(|i| (0..self.counts[1]).flat_map(move |j| (0..self.counts[2]).map(move |k| [i, j, k])))
@@ -353,39 +358,40 @@ impl JointStitcher {
                 let corner = [(j * ly / 2) as isize - pad[1] as isize, (k * lx / 2) as isize - pad[2] as isize];
                 let span = |c: isize, l: usize, n: usize| (c.clamp(0, n as isize) as usize, (c + l as isize).clamp(0, n as isize) as usize);
                 let (rows, cols) = (span(corner[0], ly, hh), span(corner[1], lx, ww));
-                let tied = self.temporal_weight > 0.0 && f > 0 && t > 0;
-                let before_coarse = if tied { self.coarse_frame(t - 1) } else { coarse };
                 // Its pixels in the video and on the surface (`both`: in frame t − 1 too), as indices into the patch's frame.
                 let pixels = |both: bool| {
+                    let (masked, masked_before) = (masked, both && masked_before);
                     (rows.0..rows.1)
                         .flat_map(|y| (cols.0..cols.1).map(move |x| (y, x)))
-                        .filter(move |&(y, x)| !(coarse[y * ww + x].is_nan() || both && before_coarse[y * ww + x].is_nan()))
+                        .filter(move |&(y, x)| !(masked && coarse[y * ww + x].is_nan() || masked_before && before_coarse[y * ww + x].is_nan()))
                         .map(|(y, x)| (y as isize - corner[0]) as usize * lx + (x as isize - corner[1]) as usize)
                 };
-                // Mean and inverse standard deviation of a frame of the patch over `pixels(both)`, and their count.
-                let standardise = |values: &[f32], both: bool| {
-                    let n = pixels(both).count() as f64;
+                let count = |both: bool| if masked || both && masked_before { pixels(both).count() } else { (rows.1 - rows.0) * (cols.1 - cols.0) } as f64;
+                // Mean and inverse standard deviation of a frame of the patch over its `n` pixels `pixels(both)`.
+                let standardise = |values: &[f32], both: bool, n: f64| {
                     let sum: f64 = pixels(both).map(|i| values[i] as f64).sum();
                     let sum2: f64 = pixels(both).map(|i| (values[i] as f64).powi(2)).sum();
                     let mean = sum / n;
                     let var = (sum2 / n - mean * mean).max(0.0);
                     // A patch-frame flat to f32 rounding has no relief to align: p̂ = 0.
-                    (mean, if var.sqrt() > 1e-6 * mean.abs() && var > 0.0 { 1.0 / var.sqrt() } else { 0.0 }, n)
+                    (mean, if var.sqrt() > 1e-6 * mean.abs() && var > 0.0 { 1.0 / var.sqrt() } else { 0.0 })
                 };
                 let frame = |f: usize| &patch[f * ly * lx..(f + 1) * ly * lx];
                 let values = frame(f);
-                let (mean, inv_std, n) = standardise(values, false);
+                let n = count(false);
                 if n == 0.0 {
                     // Off the surface: no equations but the ridge, and no tie.
                     return PatchFrame { values, weight_t: self.windows[0][f] as f64, corner, rows, cols, cell: [j, k], index, tie: 0.0, mean: 0.0, inv_std: 0.0 };
                 }
-                let tie = if tied {
+                let (mean, inv_std) = standardise(values, false, n);
+                let m = if tie_frames && f > 0 { count(true) } else { 0.0 };
+                let tie = if m > 0.0 {
                     // ρ over the pixels on the surface in both frames.
                     let before = frame(f - 1);
-                    let (mean_t, inv_std_t, m) = standardise(values, true);
-                    let (mean_b, inv_std_b, _) = standardise(before, true);
-                    let rho = pixels(true).map(|i| (values[i] as f64 - mean_t) * inv_std_t * (before[i] as f64 - mean_b) * inv_std_b).sum::<f64>() / m.max(1.0);
-                    if m == 0.0 { 0.0 } else { self.temporal_weight * m * (-(1.0 - rho) / TIE_SCALE).exp() }
+                    let (mean_t, inv_std_t) = if m == n { (mean, inv_std) } else { standardise(values, true, m) };
+                    let (mean_b, inv_std_b) = standardise(before, true, m);
+                    let rho = pixels(true).map(|i| (values[i] as f64 - mean_t) * inv_std_t * (before[i] as f64 - mean_b) * inv_std_b).sum::<f64>() / m;
+                    self.temporal_weight * m * (-(1.0 - rho) / TIE_SCALE).exp()
                 } else {
                     0.0
                 };
@@ -435,7 +441,7 @@ impl JointStitcher {
                         let c = w - w * w + mu;
                         let value = (values[px] as f64 - p.mean) * p.inv_std;
                         let depth = coarse[y * ww + x] as f64;
-                        if depth.is_nan() {
+                        if masked && depth.is_nan() {
                             continue;
                         }
                         c0 += c;
@@ -508,7 +514,10 @@ impl JointStitcher {
                             let (values_k, values_l) = (&p.values[yk * lx..(yk + 1) * lx], &q.values[yl * lx..(yl + 1) * lx]);
                             // Σ ω(x) times u_k p̂_l, p̂_l, p̂_k u_l, p̂_k, p̂_k p̂_l.
                             let [mut ukpl, mut pl0, mut pkul, mut pk0, mut pkpl] = [0.0; 5];
-                            for x in (cols.0..cols.1).filter(|&x| on(y, x)) {
+                            for x in cols.0..cols.1 {
+                                if !on(y, x) {
+                                    continue;
+                                }
                                 let (xk, xl) = (corner(p, x), corner(q, x));
                                 let o = (wx[xk] * wx[xl]) as f64;
                                 let value_k = (values_k[xk] as f64 - p.mean) * p.inv_std;
