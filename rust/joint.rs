@@ -61,6 +61,13 @@
 //! the preconditioner solves each patch's chain of tied frames exactly
 //! (block tridiagonal); untied it is block Jacobi.
 //!
+//! Pixels off the surface, marked NaN in the coarse depth (a mask the
+//! caller gives), are left out of every sum: Ω_k holds only pixels on the
+//! surface, so they count in neither term nor in the standardisation of
+//! p̂_k, ρ_k is taken over the pixels on the surface in both frames, and the
+//! stitched depth is NaN there. A patch-frame wholly off the surface keeps
+//! only the ridge. Without NaN every pixel counts, with no test per pixel.
+//!
 //! Patches arrive in chunks in any order; frames are solved, in time order,
 //! as soon as every patch covering them has arrived (the work of a frame or
 //! block runs in parallel), and a patch is dropped once all its frames are

@@ -393,8 +393,6 @@ class _Pipeline:
         self.statistic = statistic.result()
         self.half = coarse_half(np.concatenate(small), net, batch_size, device)
         self.shape = (len(self.half), *self.work)
-        if mask is not None and len(mask) not in (1, self.shape[0]):
-            raise ValueError(f"mask: expected one frame or the video's {self.shape[0]}, got {len(mask)}")
 
     def working(self) -> Iterator[np.ndarray]:
         """The video's chunks at the working resolution (float32 in [0, 1] when resized)."""
