@@ -273,9 +273,11 @@ def test_pixels_off_the_surface_take_no_part_in_the_stitch_or_the_reconstruction
     moving = np.stack([np.roll(mask, k, axis=1) for k in range(10)])
     part = nrdepth.reconstruct(video, model, device="cpu", mask=moving, frames=slice(2, 8), roi=(4, 0, 60, 40))
     assert (np.isnan(part) == ~moving[2:8, :, 4:64]).all()
+    dot = np.zeros_like(mask)
+    dot[20, 36] = True  # one pixel: none of the 16-pixel-wide working frame's is mostly on it
     bad = [({"mask": mask.astype(np.uint8)}, TypeError), ({"mask": mask[:, :70]}, ValueError), ({"mask": moving[:9]}, ValueError),
            ({"mask": mask, "alignment": "coarse"}, ValueError), ({"mask": mask, "temporal": True}, ValueError),
-           ({"mask": np.zeros_like(mask)}, ValueError)]
+           ({"mask": np.zeros_like(mask)}, ValueError), ({"mask": dot, "max_side": 16}, ValueError)]
     for options, error in bad:
         with pytest.raises(error, match="^mask:"):
             nrdepth.reconstruct(video, model, device="cpu", **options)

@@ -382,6 +382,8 @@ class _Pipeline:
         # The surface's pixels (T or 1, H, W) at the video's resolution and at the working one (the majority of each working pixel's).
         self.mask = mask
         self.mask_work = None if mask is None else (mask if self.work == self.full else _resize(mask.astype(np.float32), self.work) >= 0.5)
+        if self.mask_work is not None and not self.mask_work.any(axis=(1, 2)).all():
+            raise ValueError(f"mask: a frame has no pixel on the surface at the working resolution {self.work} (max_side); mark more of it or raise max_side")
         self.chunks, self.net, self.device, self.batch_size, self.fine, self.tile = chunks, net, device, batch_size, fine, tile
         self.stitching = (alignment, coarse_weight, window, temporal_weight)
         statistic, small = Statistic(), []
