@@ -128,6 +128,74 @@ def test_a_file_streamed_to_a_folder_matches_the_in_memory_reconstruction(tmp_pa
     assert len(list((tmp_path / "out" / "png16").iterdir())) == 34
 
 
+def test_a_mask_file_streamed_to_a_folder_matches_the_in_memory_masked_reconstruction_and_every_output_marks_it(tmp_path, capsys):
+    import base64
+    import struct
+
+    import av
+
+    from nrdepth.cli import main
+    from nrdepth.preview import save_png
+    from nrdepth.train import save_model
+    from nrdepth.videoio import read_video, select
+    from nrdepth.viewer import HOLE, ViewerFrames, _block_mean
+
+    torch.manual_seed(0)
+    model = nrdepth.model.UNet3D(base=2)
+    video = (np.random.default_rng(3).random((26, 40, 56)) * 255).astype(np.uint8)
+    np.save(tmp_path / "clip.npy", video)
+    still = np.zeros((40, 56), bool)
+    still[6:34, 8:50] = True
+    moving = np.stack([np.roll(still, k - 13, axis=1) for k in range(26)])
+    save_png(tmp_path / "still.png", np.repeat(np.where(still, 255, 0).astype(np.uint8)[..., None], 3, axis=-1))
+    np.save(tmp_path / "moving.npy", np.where(moving, 200, 30).astype(np.uint8))  # 128 or more is on the surface
+    options = {"roi": (4, 2, 48, 36), "frames": slice(3, None), "max_side": 32}
+    for given, file in ((still, "still.png"), (moving, "moving.npy")):
+        expected = nrdepth.reconstruct(video, model, device="cpu", mask=given, **options)
+        out = tmp_path / f"out_{file}"
+        reconstruct_file(tmp_path / "clip.npy", out, model, device="cpu", png16=True, ply=True, mask=tmp_path / file, **options)
+        with np.load(out / "depth.npz") as saved:
+            depth, png16_range = saved["depth"], saved["png16_range"]
+        off = ~select(given[None] if given.ndim == 2 else given, None if given.ndim == 2 else options["frames"], options["roi"])
+        assert np.isnan(depth[np.broadcast_to(off, depth.shape)]).all() and np.isfinite(depth[~np.broadcast_to(off, depth.shape)]).all()
+        np.testing.assert_allclose(depth, expected, atol=1e-5)  # NaN where the other is NaN
+        assert png16_range[0] <= np.nanmin(depth) and np.nanmax(depth) <= png16_range[1]
+        with av.open(str(out / "png16" / "depth_0005.png")) as c:
+            v = next(c.decode(video=0)).to_ndarray(format="gray16le").astype(np.float64)
+        nan = np.isnan(depth[5])
+        assert (v[nan] == 0).all() and (v[~nan] >= 1).all()
+        lo, hi = png16_range
+        assert np.abs(lo + (v[~nan] - 1) / 65534 * (hi - lo) - depth[5][~nan]).max() <= (hi - lo) / 65534
+        header, body = (out / "ply" / "frame_0005.ply").read_bytes().split(b"end_header\n")
+        assert f"element vertex {int((~nan).sum())}".encode() in header and len(body) == int((~nan).sum()) * 15
+        assert all(np.isfinite(struct.unpack_from("<fff", body, 15 * i)).all() for i in range(0, int((~nan).sum()), 97))
+        colour = read_video(out / "depth.mp4").frames
+        assert colour[np.broadcast_to(off, colour.shape) & (np.roll(np.broadcast_to(off, colour.shape), 3, axis=2))].mean() < 20  # black, away from the edge
+    frames = ViewerFrames(depth.shape, side=12)
+    frames.add(depth)
+    z = np.frombuffer(base64.b64decode(frames.payload("depth")["z"]), "<i2").reshape(len(depth), *frames.mesh)
+    blocks = np.isnan(_block_mean(depth, frames.step))
+    assert blocks.any() and (z[blocks] == HOLE).all() and (z[~blocks] > HOLE).all()
+    # The command line takes the same file; a mask of another size or frame count is refused, naming --mask.
+    save_model(model, tmp_path / "m.safetensors")
+    assert main(["reconstruct", str(tmp_path / "clip.npy"), "-o", str(tmp_path / "cli"), "--device", "cpu", "--quiet", "--no-viewer",
+                 "--mask", str(tmp_path / "still.png"), "--max-side", "32", "--model", str(tmp_path / "m.safetensors")]) == 0
+    with np.load(tmp_path / "cli" / "depth.npz") as saved:
+        assert np.isnan(saved["depth"][:, ~still]).all() and np.isfinite(saved["depth"][:, still]).all()
+    assert main(["reconstruct", str(tmp_path / "clip.npy"), "-o", str(tmp_path / "cli2"), "--device", "cpu", "--quiet",
+                 "--mask", str(tmp_path / "nothing.png"), "--model", str(tmp_path / "m.safetensors")]) == 2
+    assert "error: --mask: " in capsys.readouterr().err
+    np.save(tmp_path / "short.npy", np.where(moving[:20], 255, 0).astype(np.uint8))
+    save_png(tmp_path / "small.png", np.zeros((40, 50, 3), np.uint8))
+    np.save(tmp_path / "none.npy", np.zeros((26, 40, 56), np.uint8))
+    for bad, says in (("short.npy", "the input's 26 frames"), ("small.png", "input's size"), ("none.npy", "no pixel on the surface")):
+        with pytest.raises(ValueError, match=f"^mask: .*{says}"):
+            reconstruct_file(tmp_path / "clip.npy", tmp_path / "bad", model, device="cpu", mask=tmp_path / bad)
+        assert not (tmp_path / "bad").exists()
+    with pytest.raises(ValueError, match="^mask: .*alignment='joint'"):
+        reconstruct_file(tmp_path / "clip.npy", tmp_path / "bad", model, device="cpu", mask=tmp_path / "still.png", alignment="coarse")
+
+
 def test_an_interrupted_streaming_run_leaves_no_folder(tmp_path):
     torch.manual_seed(0)
     np.save(tmp_path / "clip.npy", (np.random.default_rng(2).random((40, 32, 32)) * 255).astype(np.uint8))

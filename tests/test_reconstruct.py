@@ -105,7 +105,7 @@ def test_cli_reconstructs_an_mp4_into_every_output(tmp_path, tiny_model):
 
     with av.open(str(pngs[3])) as c:
         v = next(c.decode(video=0)).to_ndarray(format="gray16le").astype(np.float64)
-    expected = (depth[3] - depth.min()) / (depth.max() - depth.min()) * 65535
+    expected = 1 + (depth[3] - depth.min()) / (depth.max() - depth.min()) * 65534  # 0: no depth
     assert np.abs(v - expected).max() <= 0.5 + 1e-6
     # One PLY point per pixel, in frame widths, z = −relief · depth.
     ply = (out / "ply" / "frame_0002.ply").read_bytes()

@@ -160,3 +160,12 @@ def test_the_demo_page_shows_truth_and_reconstruction_under_one_slider(tmp_path,
     assert page_problems(browser, page) == []
     assert browser.execute_script("return document.querySelectorAll('#nrdepth-view canvas').length") >= 1
     assert browser.execute_script("return document.getElementById('nrdepth-view').data.length") == 2
+
+
+def test_depth_off_the_surface_leaves_a_hole_in_the_page(tmp_path, browser):
+    video, depth = clip()
+    background = []
+    for name, shown in (("whole", depth), ("holed", np.where(np.arange(depth.shape[2]) < depth.shape[2] // 2, np.nan, depth).astype(np.float32))):
+        assert page_problems(browser, view(shown, video, tmp_path / f"{name}.html", fps=10)) == [], name
+        background.append((screenshot(browser).min(axis=2) > 245).mean())
+    assert (1 - background[1]) < 0.7 * (1 - background[0]), background  # half the surface gone, the scene's scale kept: the page's white shows through

@@ -211,11 +211,11 @@ def _reconstruct(args: argparse.Namespace) -> int:
                          roi=args.roi, frames=args.frames, units=args.units, alignment=args.alignment, coarse_weight=args.coarse_weight,
                          window=args.window, temporal_weight=args.temporal_weight, fine=args.fine, max_side=args.max_side or None,
                          flip=args.flip, png16=args.png16, ply=args.ply, ply_relief=args.ply_relief, overwrite=args.overwrite,
-                         viewer=not args.no_viewer)
+                         viewer=not args.no_viewer, mask=args.mask)
     except ValueError as e:
         # The API names its arguments; the command line names its flags.
         name = str(e).split(":", 1)[0]
-        if name in ("out", "roi", "frames", "max_side"):
+        if name in ("out", "roi", "frames", "max_side", "mask"):
             raise ValueError(f"--{name.replace('_', '-')}{str(e)[len(name):]}") from None
         raise
     finally:
@@ -416,7 +416,11 @@ def build_parser() -> argparse.ArgumentParser:
                    "(the network reads relief at the scale of 64-pixel patches; docs/reconstruction.md)")
     p.add_argument("--fine", choices=FINE_PASSES, default=FINE_PASSES[0],
                    help="fine pass: field (the network once over the video, in tiles; default) or patches (every 64×64×16 window on its own, as the paper: 8× the work)")
-    p.add_argument("--png16", action="store_true", help="also write 16-bit PNG depth frames")
+    p.add_argument("--mask", default=None,
+                   help="the surface's pixels: an image (every frame) or a video, image folder or .npy of the input's frames, white (128 or more of 255) "
+                   "on the surface. Off it the depth is NaN (black in the videos, 0 in the PNGs, no PLY point, a hole in the viewer) and takes no part "
+                   "in the alignments: for a background that moves on its own")
+    p.add_argument("--png16", action="store_true", help="also write 16-bit PNG depth frames (0: no depth; 1 … 65535 span depth.npz's png16_range)")
     p.add_argument("--ply", action="store_true", help="also write a PLY point cloud per frame")
     p.add_argument("--ply-relief", type=float, default=None,
                    help="PLY depth standard deviation in frame widths (default: 0.073, as the training surfaces)")

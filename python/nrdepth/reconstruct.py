@@ -526,6 +526,25 @@ def _check_mask(mask: Any, video_shape: Tuple[int, ...], frames: Optional[slice]
     return mask
 
 
+def _file_mask(mask: Any, source: Any, frames: Optional[slice], roi: Any, alignment: str, temporal: bool, units: str) -> Optional[np.ndarray]:
+    """:func:`reconstruct_file`'s ``mask`` (an array, or a file of one frame or
+    of the input's frames) cut as the input ``source`` is, (1 or T', h, w)."""
+    from .videoio import open_video
+
+    if mask is None or not isinstance(mask, (str, os.PathLike)):
+        t = source.count_all() if np.ndim(mask) == 3 else 0  # a video file is decoded to count its frames only for a mask of each
+        return _check_mask(mask, (t, *source.raw_size), frames, roi, alignment, temporal, units)
+    whole = open_video(mask, "mask")
+    if whole.raw_size != source.raw_size:
+        raise ValueError(f"mask: expected frames of the input's size {source.raw_size}, got {whole.raw_size} in {mask}")
+    if whole.count_all() == 1:
+        return _check_mask(next(whole.chunks(1))[0] >= 128, (0, *source.raw_size), None, roi, alignment, temporal, units)
+    if whole.count_all() != source.count_all():
+        raise ValueError(f"mask: expected one image or the input's {source.count_all()} frames, got {whole.count_all()} in {mask}")
+    cut = np.concatenate([chunk >= 128 for chunk in open_video(mask, "mask", frames, roi).chunks(CHUNK)])
+    return _check_mask(cut, cut.shape, None, None, alignment, temporal, units)
+
+
 def _load_net(model: Any, units: str, dev: Any) -> Any:
     """The network of ``model`` (a module, a path, or None: the shipped one, the scaled one for pixel units) on ``dev``."""
     import torch
@@ -670,6 +689,7 @@ def reconstruct_file(
     ply_relief: Optional[float] = None,
     overwrite: bool = False,
     viewer: bool = True,
+    mask: Union[None, np.ndarray, str, "os.PathLike[str]"] = None,
 ) -> "Path":  # noqa: F821
     """:func:`reconstruct` a video file, image folder or array file
     (:class:`~nrdepth.videoio.VideoSource`) into the folder ``out``
@@ -685,8 +705,14 @@ def reconstruct_file(
     ``fine="patches"``, which holds it). ``flip`` negates the depth (the
     other convex/concave reading); ``ply_relief``: the PLYs' depth scale
     (:func:`~nrdepth.videoio.write_ply`; default: the training surfaces'
-    for standard units, one frame width per pixel for pixel units). The
-    other arguments as :func:`reconstruct`. Returns ``out``."""
+    for standard units, one frame width per pixel for pixel units).
+    ``mask``: as :func:`reconstruct`'s, or a file: one image (for every
+    frame) or a video, image folder or array of the input's frame count,
+    of the input's frame size; pixels of 128 or more (of 255) are on the
+    surface. A mask of every frame is held in memory (a byte a pixel of
+    the selected frames). Off it the depth is NaN: black in the videos, 0
+    in the PNGs, no point in the PLYs, a hole in the viewer. The other
+    arguments as :func:`reconstruct`. Returns ``out``."""
     from .model.io import resolve_device
     from .videoio import PLY_RELIEF, ReconstructionWriter, check_output_folder, open_video
 
@@ -695,7 +721,8 @@ def reconstruct_file(
     net = _load_net(model, units, dev)
     out = check_output_folder(out, overwrite, inputs=(input,))
     source = open_video(input, "input", frames, roi)
-    pipeline = _Pipeline(source.frame_size, lambda: source.chunks(CHUNK), net, dev, int(batch_size), fine, alignment, coarse_weight, window, temporal_weight, max_side, tile)
+    mask = _file_mask(mask, source, frames, roi, alignment, temporal, units)
+    pipeline = _Pipeline(source.frame_size, lambda: source.chunks(CHUNK), net, dev, int(batch_size), fine, alignment, coarse_weight, window, temporal_weight, max_side, tile, mask)
     t = pipeline.shape[0]
     if ply_relief is None:
         ply_relief = 1.0 / source.frame_size[1] if units == "pixels" else PLY_RELIEF  # pixels to frame widths, the PLY's x and y unit
@@ -708,9 +735,9 @@ def reconstruct_file(
         # The ranges from the working resolution (bilinear resizing makes no new extremes), a chunk at a time.
         stride = max(1, int(math.sqrt(raw.size / 4e6)))
         sample = np.concatenate([raw[a : a + CHUNK][:, ::stride, ::stride].ravel() for a in range(0, t, CHUNK)])
-        lo, hi = np.percentile((sample.astype(np.float64) - offset) * scale, [1.0, 99.0])
-        ends = sorted(((min(float(raw[a : a + CHUNK].min()) for a in range(0, t, CHUNK)) - offset) * scale,
-                       (max(float(raw[a : a + CHUNK].max()) for a in range(0, t, CHUNK)) - offset) * scale))
+        lo, hi = np.nanpercentile((sample.astype(np.float64) - offset) * scale, [1.0, 99.0])  # NaN: off the mask
+        ends = sorted(((min(float(np.nanmin(raw[a : a + CHUNK])) for a in range(0, t, CHUNK)) - offset) * scale,
+                       (max(float(np.nanmax(raw[a : a + CHUNK])) for a in range(0, t, CHUNK)) - offset) * scale))
         writer.set_ranges((float(lo), float(max(hi, lo + 1e-12))), (ends[0], ends[1]))
         # A few frames a write at large sizes: the colour and side-by-side frames take 9 bytes a pixel.
         step = max(1, min(CHUNK, 4_000_000 // (source.frame_size[0] * source.frame_size[1])))

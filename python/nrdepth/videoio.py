@@ -177,6 +177,7 @@ class VideoSource:
             if frames.step is not None and frames.step <= 0:
                 raise ValueError(f"frames: expected a positive step, got {frames.step}")
         self.selection, self.roi = frames, roi
+        self.raw_size: Tuple[int, int] = first.shape  # the frames as given
         # Checks the region against the frame size.
         self.frame_size: Tuple[int, int] = select(first[None], None, roi).shape[1:]  # type: ignore[assignment]
         if frames is not None and len(self) == 0:
@@ -289,8 +290,11 @@ def read_left_half(path: PathLike, size: Tuple[int, int]) -> Tuple[float, Iterat
 
 def depth_range(depth: np.ndarray) -> Tuple[float, float]:
     """One colour range for a whole depth video: its 1st and 99th percentiles
-    (robust to a few outliers, and the same for every frame, so no flicker)."""
-    lo, hi = np.percentile(depth, [1.0, 99.0])
+    (robust to a few outliers, and the same for every frame, so no flicker),
+    NaN (off the surface) left out."""
+    if not np.isfinite(depth).any():
+        raise ValueError("depth: expected some finite depth, got none")
+    lo, hi = np.nanpercentile(depth, [1.0, 99.0])
     return float(lo), float(max(hi, lo + 1e-12))
 
 
@@ -299,11 +303,18 @@ _COLOURS = np.rint(colormap(np.linspace(0.0, 1.0, 1024)) * 255.0).astype(np.uint
 
 
 def colorize_depth(depth: np.ndarray, value_range: Optional[Tuple[float, float]] = None) -> np.ndarray:
-    """uint8 RGB (T, H, W, 3): near (small depth) yellow, far blue, over one range."""
+    """uint8 RGB (T, H, W, 3): near (small depth) yellow, far blue, over one
+    range; NaN (off the surface) black."""
     lo, hi = depth_range(depth) if value_range is None else value_range
+    depth = np.asarray(depth, np.float32)
     step = np.float32(1023.0 / (hi - lo))
-    index = np.clip((np.float32(hi) - np.asarray(depth, np.float32)) * step + np.float32(0.5), 0, 1023).astype(np.uint16)
-    return _COLOURS[index]
+    off = np.isnan(depth)
+    masked = bool(off.any())
+    index = np.clip((np.float32(hi) - (np.where(off, np.float32(hi), depth) if masked else depth)) * step + np.float32(0.5), 0, 1023).astype(np.uint16)
+    colour = _COLOURS[index]
+    if masked:
+        colour[off] = 0
+    return colour
 
 
 class Mp4Writer:
@@ -360,37 +371,41 @@ def write_mp4(path: PathLike, frames: np.ndarray, fps: float = 25.0, crf: int = 
 
 def write_depth_png16(folder: PathLike, depth: np.ndarray, value_range: Optional[Tuple[float, float]] = None, start: int = 0) -> Tuple[float, float]:
     """One 16-bit PNG per frame (``depth_0000.png`` …, numbered from
-    ``start``): 0 … 65535 spans ``value_range`` (default: the whole video's
-    min and max), the same for every frame. Returns the range, so depth =
-    lo + v / 65535 · (hi − lo)."""
+    ``start``): 1 … 65535 spans ``value_range`` (default: the whole video's
+    min and max), the same for every frame, and 0 is no depth (NaN: off the
+    surface), as in depth cameras' PNGs. Returns the range, so depth =
+    lo + (v − 1) / 65534 · (hi − lo)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    lo, hi = (float(depth.min()), float(depth.max())) if value_range is None else value_range
-    scale = 65535.0 / max(hi - lo, 1e-12)
+    lo, hi = (float(np.nanmin(depth)), float(np.nanmax(depth))) if value_range is None else value_range
+    scale = 65534.0 / max(hi - lo, 1e-12)
     for t, frame in enumerate(depth, start):
-        values = np.rint(np.clip((frame - lo) * scale, 0.0, 65535.0)).astype(np.uint16)
+        values = np.rint(np.clip((frame - lo) * scale, 0.0, 65534.0) + 1.0)
+        values[np.isnan(frame)] = 0.0
+        values = values.astype(np.uint16)
         _core.write_png16(os.fspath(folder / f"depth_{t:04d}.png"), values)
     return lo, hi
 
 
 def write_ply(path: PathLike, depth: np.ndarray, gray: np.ndarray, relief: float = PLY_RELIEF) -> None:
-    """A binary PLY point cloud of one depth frame (H, W): a point per pixel at
+    """A binary PLY point cloud of one depth frame (H, W): a point per pixel
+    with depth (NaN, off the surface, has none) at
     x = (col + ½)/W, y = −(row + ½)/W (the frame is one unit wide) and
     z = −relief · depth, coloured by the input frame ``gray`` (H, W) uint8.
     Orthographic, like the training data. With the standardised depth of
     :func:`nrdepth.reconstruct`, ``relief`` is the depth's standard deviation
     in frame widths (the network fixes no scale; choose what looks right)."""
     h, w = depth.shape
-    rows, cols = np.mgrid[0:h, 0:w]
-    vertex = np.empty(h * w, dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("red", "u1"), ("green", "u1"), ("blue", "u1")])
-    vertex["x"] = ((cols + 0.5) / w).ravel()
-    vertex["y"] = (-(rows + 0.5) / w).ravel()
-    vertex["z"] = (-relief * depth).ravel()
+    rows, cols = np.nonzero(~np.isnan(depth))
+    vertex = np.empty(len(rows), dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("red", "u1"), ("green", "u1"), ("blue", "u1")])
+    vertex["x"] = (cols + 0.5) / w
+    vertex["y"] = -(rows + 0.5) / w
+    vertex["z"] = -relief * depth[rows, cols]
     for channel in ("red", "green", "blue"):
-        vertex[channel] = gray.ravel()
+        vertex[channel] = gray[rows, cols]
     header = (
         "ply\nformat binary_little_endian 1.0\ncomment nrdepth depth frame, orthographic\n"
-        f"element vertex {h * w}\nproperty float x\nproperty float y\nproperty float z\n"
+        f"element vertex {len(rows)}\nproperty float x\nproperty float y\nproperty float z\n"
         "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
     )
     with open(path, "wb") as f:
@@ -476,7 +491,10 @@ class ReconstructionWriter:
     ``overwrite`` an old result is moved aside, the new one renamed in,
     then the old one deleted: a kill at any point leaves one of the two at
     ``out`` (or aside, put back by the next run). The folder is checked by
-    :func:`check_output_folder` first. Memory does not grow with T."""
+    :func:`check_output_folder` first. Memory does not grow with T. NaN
+    depth (off the surface: :func:`nrdepth.reconstruct`'s ``mask``) is black
+    in the videos, 0 in the PNGs, no point in the PLYs and a hole in the
+    viewer."""
 
     def __init__(self, out: PathLike, shape: Tuple[int, int, int], fps: float, value_range: Optional[Tuple[float, float]] = None,
                  png16: bool = False, ply: bool = False, ply_relief: float = PLY_RELIEF, overwrite: bool = False, viewer: bool = True) -> None:
@@ -618,6 +636,6 @@ def save_reconstruction(
     if frames.dtype != np.uint8 or frames.ndim != 3 or depth.shape != frames.shape:
         raise ValueError(f"depth: expected float (T, H, W) matching uint8 frames {frames.shape}, got {depth.shape}")
     with ReconstructionWriter(out, depth.shape, fps, png16=png16, ply=ply, ply_relief=ply_relief, overwrite=overwrite, viewer=viewer) as writer:
-        writer.set_ranges(depth_range(depth), (float(depth.min()), float(depth.max())))
+        writer.set_ranges(depth_range(depth), (float(np.nanmin(depth)), float(np.nanmax(depth))))
         writer.write(frames, depth)
     return writer.out

@@ -16,7 +16,9 @@ decimated for display (block means) and, for long videos, every k-th frame
 kept so that the page holds at most :data:`SAMPLES` vertex-frames; the page
 says so. The data stay at full resolution in ``depth.npz``. Depth is
 stored as int16 over the video's range and the grey as uint8, base64 in
-the page: a 1920×1080×300 reconstruction is a page of about 17 MB.
+the page: a 1920×1080×300 reconstruction is a page of about 17 MB. NaN
+depth (off the surface: ``reconstruct``'s ``mask``) is a hole in the mesh,
+and the scene's extent stays that of the frame.
 
 :class:`ViewerFrames` gathers the decimated frames a chunk at a time (the
 streaming writer feeds it); :func:`view` writes a page from arrays or a
@@ -40,6 +42,8 @@ SIDE = 128
 """Mesh vertices along the longer side of a frame, at most."""
 SAMPLES = 3_000_000
 """Vertex-frames a page holds at most; longer videos keep every k-th frame."""
+HOLE = -32768
+"""The int16 depth of a vertex off the surface (NaN): the page leaves a hole there."""
 FULL_RESOLUTION = "The depth at full resolution: depth.npz."
 RELIEF = 0.073
 """The surface's depth standard deviation in frame widths at exaggeration 1
@@ -49,11 +53,18 @@ PathLike = Union[str, "os.PathLike[str]"]
 
 
 def _block_mean(frames: np.ndarray, step: int) -> np.ndarray:
-    """(n, H, W) → (n, ⌈H/step⌉, ⌈W/step⌉) block means (edge blocks partial)."""
+    """(n, H, W) → (n, ⌈H/step⌉, ⌈W/step⌉) block means (edge blocks partial)
+    of the values that are not NaN; NaN where a block has none."""
     n, h, w = frames.shape
     hh, ww = -(-h // step) * step, -(-w // step) * step
     padded = np.pad(frames.astype(np.float32), ((0, 0), (0, hh - h), (0, ww - w)), mode="edge")
-    return padded.reshape(n, hh // step, step, ww // step, step).mean(axis=(2, 4))
+    blocks = padded.reshape(n, hh // step, step, ww // step, step)
+    if not np.isnan(padded).any():
+        return blocks.mean(axis=(2, 4))
+    on = ~np.isnan(blocks)
+    count = on.sum(axis=(2, 4))
+    total = np.where(on, blocks, np.float32(0)).sum(axis=(2, 4))
+    return np.where(count > 0, total / np.maximum(count, 1), np.float32(np.nan)).astype(np.float32)
 
 
 class ViewerFrames:
@@ -83,13 +94,16 @@ class ViewerFrames:
                 self.grey.append(np.rint(_block_mean(np.asarray(grey)[picked], self.step)).astype(np.uint8))
 
     def payload(self, name: str) -> dict:
-        """The page's data for this video: int16 depth over its range, uint8 grey, base64."""
+        """The page's data for this video: int16 depth over its range
+        (:data:`HOLE` where it is NaN), uint8 grey, base64."""
         depth = np.concatenate(self.depth)
+        if np.isnan(depth).all():
+            raise ValueError("depth: expected some depth on the surface, got only NaN")
         # Near up: the surface's height is minus the depth, in its standard deviations.
-        height = -(depth - depth.mean(dtype=np.float64)) / (depth.std(dtype=np.float64) or 1.0)
-        lo, hi = float(height.min()), float(height.max())
+        height = -(depth - np.nanmean(depth, dtype=np.float64)) / (np.nanstd(depth, dtype=np.float64) or 1.0)
+        lo, hi = float(np.nanmin(height)), float(np.nanmax(height))
         scale = (hi - lo) / 65534.0 or 1.0
-        quantised = np.rint((height - lo) / scale - 32767.0).astype("<i2")
+        quantised = np.rint(np.nan_to_num((height - lo) / scale - 32767.0, nan=HOLE)).astype("<i2")
         t, h, w = depth.shape
         return {
             "name": name,
@@ -140,12 +154,13 @@ def write_page(path: PathLike, videos: Sequence[Tuple[str, ViewerFrames]], fps: 
         layout[f"scene{i + 1 if i else ''}"] = {
             "aspectmode": "manual",
             "aspectratio": {"x": 1.0, "y": rows / cols, "z": span},
-            "xaxis": {"visible": False}, "yaxis": {"visible": False},
+            # Fixed ranges: a hole at a border (depth off the surface) must not rescale the scene from frame to frame.
+            "xaxis": {"visible": False, "range": [0.0, 1.0]}, "yaxis": {"visible": False, "range": [-rows / cols, 0.0]},
             "zaxis": {"visible": False, "range": [d["zmin"], d["zmax"]]},
             "camera": {"eye": {"x": 0.0, "y": -1.1, "z": 1.2}, "up": {"x": 0, "y": 0, "z": 1}},
         }
     figure.update_layout(title={"text": title, "x": 0.01}, margin={"l": 0, "r": 0, "t": 60, "b": 0}, paper_bgcolor="white", **layout)
-    config = {"fps": fps / keep, "note": " ".join([videos[0][1].note()] + ([note] if note else [])), "videos": data, "relief": RELIEF}
+    config = {"fps": fps / keep, "note": " ".join([videos[0][1].note()] + ([note] if note else [])), "videos": data, "relief": RELIEF, "hole": HOLE}
     script = _SCRIPT.replace("__DATA__", json.dumps(config))
     html = figure.to_html(include_plotlyjs=True, full_html=True, div_id="nrdepth-view", post_script=script,
                           config={"displaylogo": False, "responsive": True}, default_height="88vh")
@@ -165,7 +180,7 @@ def view(
 ) -> Path:
     """Write a 3-D viewer page (module docstring) of a depth video: an
     array (T, H, W) with its uint8 video (T, H, W) (or None: coloured by
-    depth only), or a reconstruction folder of ``nrdepth reconstruct``
+    depth only; NaN off the surface), or a reconstruction folder of ``nrdepth reconstruct``
     (its ``depth.npz`` read a chunk at a time, the grey frames from the
     left half of its ``side_by_side.mp4``). ``path``: the page (default:
     ``viewer.html`` in the folder, or in the working folder for an array).
@@ -173,8 +188,8 @@ def view(
     if isinstance(depth, (str, os.PathLike)):
         return _view_folder(Path(depth), path, title)
     depth = np.asarray(depth)
-    if depth.dtype.kind != "f" or depth.ndim != 3 or min(depth.shape) < 1 or not np.isfinite(depth).all():
-        raise ValueError(f"depth: expected a finite float depth video (T, H, W), got {depth.dtype} {depth.shape}")
+    if depth.dtype.kind != "f" or depth.ndim != 3 or min(depth.shape) < 1 or np.isinf(depth).any() or np.isnan(depth).all():
+        raise ValueError(f"depth: expected a float depth video (T, H, W), finite or NaN off the surface, got {depth.dtype} {depth.shape}")
     if video is not None:
         video = np.asarray(video)
         if video.dtype != np.uint8 or video.shape != depth.shape:
@@ -231,7 +246,10 @@ _SCRIPT = r"""
     const n = v.rows * v.cols, out = new Array(v.rows);
     for (let y = 0; y < v.rows; y++) {
       const row = new Array(v.cols);
-      for (let x = 0; x < v.cols; x++) row[x] = source[t * n + y * v.cols + x] * scale + offset;
+      for (let x = 0; x < v.cols; x++) {
+        const value = source[t * n + y * v.cols + x];
+        row[x] = source === v.Z && value === D.hole ? null : value * scale + offset;  // null: a hole in plotly's surface
+      }
       out[y] = row;
     }
     return out;
