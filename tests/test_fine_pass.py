@@ -187,7 +187,7 @@ def test_a_mask_file_streamed_to_a_folder_matches_the_in_memory_masked_reconstru
     assert "error: --mask: " in capsys.readouterr().err
     np.save(tmp_path / "short.npy", np.where(moving[:20], 255, 0).astype(np.uint8))
     save_png(tmp_path / "small.png", np.zeros((40, 50, 3), np.uint8))
-    np.save(tmp_path / "none.npy", np.zeros((26, 40, 56), np.uint8))
+    np.save(tmp_path / "none.npy", np.zeros((26, 40, 56), bool))
     for bad, says in (("short.npy", "the input's 26 frames"), ("small.png", "input's size"), ("none.npy", "no pixel on the surface")):
         with pytest.raises(ValueError, match=f"^mask: .*{says}"):
             reconstruct_file(tmp_path / "clip.npy", tmp_path / "bad", model, device="cpu", mask=tmp_path / bad)

@@ -146,8 +146,8 @@ class VideoSource:
     time and as often as needed, so that memory does not grow with its
     length: a video file (anything FFmpeg decodes, decoded frame by frame),
     a folder of images (frames in name order) or a ``.npy`` / ``.npz`` array
-    (T, H, W) or (T, H, W, 3), uint8 or float in [0, 1] (a ``.npy`` is
-    memory-mapped). Colour becomes luma (ITU-R BT.601). ``frames`` (a
+    (T, H, W) or (T, H, W, 3), uint8, float in [0, 1] or bool (a ``.npy`` of
+    uint8 or float is memory-mapped). Colour becomes luma (ITU-R BT.601). ``frames`` (a
     slice) and ``roi`` (x, y, width, height) select as :func:`select` does.
     Errors name ``name`` and say what was expected."""
 
@@ -234,8 +234,10 @@ def _load_array(path: Path, name: str) -> np.ndarray:
             if key is None:
                 raise ValueError(f"{name}: {path} should hold one array or one named 'video', found {keys}")
             data = data[key]
+    if data.dtype == bool:
+        data = data.astype(np.uint8) * np.uint8(255)  # a mask: True white
     if data.dtype != np.uint8 and data.dtype.kind != "f":
-        raise TypeError(f"{name}: expected uint8 or float frames, got dtype {data.dtype}")
+        raise TypeError(f"{name}: expected uint8, float or bool frames, got dtype {data.dtype}")
     if data.ndim not in (3, 4) or (data.ndim == 4 and data.shape[-1] not in (3, 4)) or min(data.shape) < 1:
         raise ValueError(f"{name}: expected a video (T, H, W) or (T, H, W, 3), got shape {data.shape}")
     return data
