@@ -12,15 +12,16 @@
 #   bash tools/gpu_run.sh start NAME [nrdepth train options, e.g. --init .whl/model.safetensors]
 # which installs the wheel and starts `nrdepth train /tmp/gpu/NAME ... --device cuda
 # --workers 14` detached (it outlives the call; one Rust thread per worker), and,
-# within 30 s of each call's end so that the machine stays warm,
-#   bash tools/gpu_run.sh collect NAME SECONDS
-# which waits until the run ends or SECONDS pass and puts its resumable state
-# (config, last.pt, metrics, best weights, kept epochs) in $OUT as one tar in
-# 12 MB parts, NAME.tar.aa, .ab, ...; over 8 parts, collect again in a
-# later call after moving some epochs away.
-#   bash tools/gpu_run.sh stop NAME
-# interrupts a run that would outlast the lease (the epoch under way is lost;
-# last.pt holds the one before), so that collect can follow at once.
+# in the same call (a call returns within 10 minutes of its start),
+#   bash tools/gpu_run.sh collect NAME[,NAME...] SECONDS
+# which waits until the runs end or SECONDS pass, stops those still going
+# (`stop NAME`: the epoch under way is lost; last.pt holds the one before),
+# and puts their resumable state (config, last.pt, metrics, kept epochs) in
+# $OUT as one tar in 12 MB parts, NAME.tar.aa, .ab, ... (the first run's
+# NAME); the run tool brings back 8 files at most: keep fewer epochs
+# (--keep-every) rather than more parts. Two runs side by side, 8 minutes:
+#   export DEVICE=cuda WORKERS=7
+#   bash tools/gpu_run.sh start a ...; bash tools/gpu_run.sh start b ...; bash tools/gpu_run.sh collect a,b 480
 # Committed to campaign/NAME, its config.json's "init" is set to the campaign
 # path of the same weights, so that it resumes from campaign/.
 #   bash tools/gpu_run.sh video x
@@ -38,19 +39,26 @@ start)
     echo $! > "/tmp/gpu/$name.pid"
     ;;
 collect)
+    names=${name//,/ }
     deadline=$(( $(date +%s) + $1 ))
-    while kill -0 "$(cat "/tmp/gpu/$name.pid")" 2> /dev/null && [ "$(date +%s)" -lt "$deadline" ]; do
-        sleep 5
+    for run in $names; do
+        while kill -0 "$(cat "/tmp/gpu/$run.pid")" 2> /dev/null && [ "$(date +%s)" -lt "$deadline" ]; do
+            sleep 5
+        done
     done
-    tail -c 600 "/tmp/gpu/$name.log"
-    # The run tool brings back a few files a call, each under ~16 MB: one tar
-    # (with --keep-every's weights, to score along the curve) in 12 MB parts.
-    # Here: cat NAME.tar.* > NAME.tar, check its md5sum, tar xf.
-    (cd /tmp/gpu && ls -d "$name"/config.json "$name"/last.pt "$name"/metrics.csv "$name"/model.json \
-        "$name"/model.safetensors "$name"/epochs 2> /dev/null | tar cf "/tmp/gpu/$name.tar" -T -) || true  # ls: some are absent
+    for run in $names; do
+        bash "$0" stop "$run"  # nothing to do for a run that ended
+        tail -c 600 "/tmp/gpu/$run.log"
+    done
+    # One tar in 12 MB parts (each file back must be under 16 MB). Here:
+    # cat NAME.tar.* > NAME.tar, check its md5sum, tar xf.
+    first=${names%% *}
+    (cd /tmp/gpu && for run in $names; do
+        ls -d "$run"/config.json "$run"/last.pt "$run"/metrics.csv "$run"/model.json "$run"/epochs 2> /dev/null || true  # some are absent
+    done | tar cf "/tmp/gpu/$first.tar" -T -)
     mkdir -p "$OUT"
-    split -b 12m "/tmp/gpu/$name.tar" "$OUT/$name.tar."
-    md5sum "/tmp/gpu/$name.tar"
+    split -b 12m "/tmp/gpu/$first.tar" "$OUT/$first.tar."
+    md5sum "/tmp/gpu/$first.tar"
     ls -l "$OUT"
     ;;
 stop)
@@ -67,7 +75,7 @@ video)
     (cd benchmarks && RAYON_NUM_THREADS=16 python3 bench_video.py --only rate --device "${DEVICE:-cuda}") 2>&1 | tee "$OUT/video.txt"
     ;;
 *)
-    echo "usage: $0 start NAME [train options] | collect NAME SECONDS | stop NAME | video" >&2
+    echo "usage: $0 start NAME [train options] | collect NAME[,NAME...] SECONDS | stop NAME | video" >&2
     exit 2
     ;;
 esac
