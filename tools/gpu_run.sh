@@ -5,9 +5,10 @@
 # $OUT. Here, first:
 #   maturin build --release -o .whl            # abi3 wheel; /.whl/ in .git/info/exclude
 #   cp campaign/RUN/model.safetensors campaign/RUN/model.json .whl/     # the --init weights
+# and, only if the tracked files and .whl come to over 64 MiB (63 MB on 2026-11-27: it fits),
 #   git rm -r -q --cached campaign && echo /campaign/ >> .git/info/exclude
-#                                              # campaign/ is over 64 MiB; undo after with
-#                                              # `git reset -q campaign` and deleting that line
+#                                              # undo after with `git reset -q campaign`
+#                                              # and deleting that line
 # Then `run` (carry .whl) with
 #   bash tools/gpu_run.sh start NAME [nrdepth train options, e.g. --init .whl/model.safetensors]
 # which installs the wheel and starts `nrdepth train /tmp/gpu/NAME ... --device cuda
