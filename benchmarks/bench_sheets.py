@@ -160,7 +160,7 @@ def plot(rows: list, references: dict, path: Path, labels: dict) -> None:
         ax.set_title(title)
         ax.set_xlabel("clips seen after the warm start (thousands)")
         ax.legend(fontsize=8)
-    fig.suptitle("Warm starts from the shipped model, each against a control with the same seed, clips and steps")
+    fig.suptitle("Warm starts (at 0 clips: the model shipped when they started), each against a control with the same seed, clips and steps")
     fig.savefig(path, dpi=90)
 
 

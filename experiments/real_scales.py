@@ -52,7 +52,7 @@ import os
 import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # the benchmarks' data loaders
-from bench_real import CROP, DATA, phisft_at_bin
+from bench_real import crop_at_bin, phisft_at_bin
 
 def patches(video: np.ndarray, truth: np.ndarray) -> tuple:
     """27 clips (uint8; 3 origins spread evenly over each image axis) and
