@@ -135,7 +135,7 @@ PANELS = (
 )
 
 
-def plot(rows: list, references: dict, path: Path, labels: dict) -> None:
+def plot(rows: list, references: dict, path: Path, labels: dict, start: str = "shipped") -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -145,12 +145,14 @@ def plot(rows: list, references: dict, path: Path, labels: dict) -> None:
     fig, axes = plt.subplots(2, (len(panels) + 1) // 2, figsize=(4.4 * ((len(panels) + 1) // 2), 7), constrained_layout=True, squeeze=False)
     for ax in axes.flat[len(panels):]:
         ax.axis("off")
-    runs = sorted({r["run"] for r in rows if r["run"] != "shipped" and r["clips_seen"] > 0})
-    shipped = next(r for r in rows if r["run"] == "shipped")
+    runs = sorted({r["run"] for r in rows if r["run"] != start and r["clips_seen"] > 0})
+    start_row = next((r for r in rows if r["run"] == start), None)
+    if start_row is None:
+        raise SystemExit(f"--start {start}: expected a row of that name in the CSV, the model the runs started from")
     for ax, (key, title, refs) in zip(axes.flat, panels):
         for run in runs:
             points = sorted((r["clips_seen"], r[key]) for r in rows if r["run"] == run and key in r)
-            points = ([(0, shipped[key])] if key in shipped else []) + points
+            points = ([(0, start_row[key])] if key in start_row else []) + points
             if not points:
                 continue
             x, y = zip(*points)
@@ -160,7 +162,7 @@ def plot(rows: list, references: dict, path: Path, labels: dict) -> None:
         ax.set_title(title)
         ax.set_xlabel("clips seen after the warm start (thousands)")
         ax.legend(fontsize=8)
-    fig.suptitle("Warm starts (at 0 clips: the model shipped when they started), each against a control with the same seed, clips and steps")
+    fig.suptitle("Warm starts (at 0 clips: the model they started from), each against a control with the same seed, clips and steps")
     fig.savefig(path, dpi=90)
 
 
@@ -192,6 +194,8 @@ def main() -> None:
     parser.add_argument("--csv", type=Path, default=Path("sheets.csv"))
     parser.add_argument("--plot", type=Path, default=None)
     parser.add_argument("--replot", action="store_true", help="only draw --plot from --csv")
+    parser.add_argument("--start", default="shipped", metavar="RUN",
+                        help="with --replot, the row drawn at 0 clips: the model the runs started from")
     parser.add_argument("--label", action="append", default=[], metavar="RUN=TEXT", help="a run's name in the plot's legend")
     parser.add_argument("--pair", action="append", default=[], metavar="RUN=CONTROL",
                         help="print RUN minus CONTROL paired by epoch, over the epochs both kept (again for several)")
@@ -202,7 +206,7 @@ def main() -> None:
         with open(args.csv) as f:
             rows = [{k: (v if k == "run" else float(v)) for k, v in r.items() if v != ""} for r in csv.DictReader(f)]
         if args.plot:
-            plot(rows, json.loads(refs_path.read_text()), args.plot, labels)
+            plot(rows, json.loads(refs_path.read_text()), args.plot, labels, args.start)
         for pair in args.pair:
             print(paired(rows, *pair.split("=", 1)), end="\n\n")
         return
