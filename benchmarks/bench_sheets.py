@@ -21,7 +21,8 @@ For every model (the shipped one, and ``--run FOLDER`` runs' kept epochs,
   (``bench_real.KINECT_INNER``): the real bending paper on ``gt_mdh.npz``.
 
 A picture (``--plot``) draws each score against the clips a run has seen,
-the references as horizontal lines.
+the references as horizontal lines; at 0 clips, the row named by
+``--start`` (default ``shipped``): the model the runs started from.
 
     python benchmarks/bench_sheets.py --run campaign/sheets41 --run campaign/sheets41_control \\
         --epochs 3,6,9,12,15 --csv docs/sheets41.csv --plot docs/sheets41.png \
