@@ -1,0 +1,100 @@
+"""Which pass carries a model's reading of each real video: ``reconstruct``
+with one model's coarse pass and another's fine pass, on both real videos
+(``bench_real.py``'s regions): ``phisft_R1`` MAE-SN per frame, from the
+first frame and at its border / inside, and ``kinect_paper`` mm on the
+whole sheet and on the crop inside it.
+
+``--mix W,...`` instead reads with the first model's fine pass and a coarse
+pass that averages the first two models' coarse readings, the second's at
+weight W (each 16-frame window's reading standardised first, so W = 0 is
+the first model with its windows standardised).
+
+    python experiments/real_cross.py MODEL MODEL [...]                  # 'default' is the shipped model
+    python experiments/real_cross.py MODEL MODEL --mix 0,0.25,0.5,0.75
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+import numpy as np
+import torch
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # the benchmarks' data loaders
+from bench_real import DATA, KINECT_INNER, KINECT_ROI, kinect_score, kinect_truth, phisft_at_bin, phisft_regions, region_errors  # noqa: E402
+
+import nrdepth  # noqa: E402
+from nrdepth.metrics import mae_sn  # noqa: E402
+from nrdepth.videoio import read_video  # noqa: E402
+
+pipeline = sys.modules["nrdepth.reconstruct"]  # the module: nrdepth.reconstruct is the function
+original_coarse_half = pipeline.coarse_half
+
+
+def standardised(half: np.ndarray) -> np.ndarray:
+    """A coarse reading (T, h, w) with each 16-frame window at mean 0, standard deviation 1."""
+    out = half.astype(np.float64)
+    for start in range(0, len(out), 16):
+        window = out[start : start + 16]
+        window -= window.mean()
+        window /= window.std() or 1.0
+    return out.astype(np.float32)
+
+
+def coarse_reading(coarse_net, other=None, weight: float = 0.0):
+    """A stand-in for ``coarse_half`` that reads with ``coarse_net``, or with
+    ``other`` the standardised average of both nets' readings."""
+    def read(small, net, *args, **kw):
+        mine = original_coarse_half(small, coarse_net, *args, **kw)
+        if other is None:
+            return mine
+        return (1 - weight) * standardised(mine) + weight * standardised(original_coarse_half(small, other, *args, **kw))
+
+    return read
+
+
+def scores(coarse, fine_model, cloth: tuple, paper: tuple) -> str:
+    """One table row: both videos reconstructed with the coarse pass ``coarse``."""
+    pipeline.coarse_half = coarse
+    try:
+        video, truth, regions = cloth
+        depth = nrdepth.reconstruct(video, fine_model)
+        scored, r = np.isfinite(truth), region_errors(depth, truth, regions)
+        row = f"{mae_sn(depth, truth, 'frame', mask=scored):8.4f}{mae_sn(depth, truth, 'first', mask=scored):8.4f}{r['border']:8.4f}{r['inside']:8.4f}"
+        frames, points = paper
+        for x, y, w, h in (KINECT_ROI, KINECT_INNER):
+            row += f"{kinect_score(nrdepth.reconstruct(frames[:, y : y + h, x : x + w], fine_model), points, (x, y, w, h)):8.2f}"
+        return row
+    finally:
+        pipeline.coarse_half = original_coarse_half
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("models", nargs="+", help="model.safetensors or run folder; 'default' for the shipped model")
+    parser.add_argument("--mix", default=None, help="weights of the second model's coarse reading, comma-separated")
+    args = parser.parse_args()
+    if len(args.models) < 2:
+        parser.error("name two or more models")
+    cpu = torch.device("cpu")
+    path = {m: None if m == "default" else m for m in args.models}
+    nets = {m: pipeline.inference_model(path[m], cpu) for m in args.models}
+    video, truth = phisft_at_bin(4)
+    cloth = (video, truth, phisft_regions(video, truth))
+    paper = (read_video(DATA / "kinect_paper").frames, kinect_truth())
+    print(f"{'coarse pass':44s}{'fine pass':34s}{'frame':>8s}{'first':>8s}{'border':>8s}{'inside':>8s}{'whole':>8s}{'inner':>8s}")
+    if args.mix is None:
+        for c in args.models:
+            for f in args.models:
+                print(f"{c[-43:]:44s}{f[-33:]:34s}" + scores(coarse_reading(nets[c]), path[f], cloth, paper), flush=True)
+        return
+    first, second = args.models[:2]
+    for weight in (float(w) for w in args.mix.split(",")):
+        label = f"{first[-20:]} + {weight:g} × {second[-16:]}"
+        print(f"{label:44s}{first[-33:]:34s}" + scores(coarse_reading(nets[first], nets[second], weight), path[first], cloth, paper), flush=True)
+
+
+if __name__ == "__main__":
+    main()
