@@ -129,7 +129,7 @@ def phisft(model, crop: tuple, out: Path) -> None:
     aligned = np.where(mask, gbr_align(depth, truth, "frame", mask=mask), np.nan)
     value_range = depth_range(np.where(mask, truth, np.nanmedian(truth)))
     colour = [colorize_depth(np.nan_to_num(d, nan=value_range[1]), value_range) for d in (truth, aligned)]
-    save_png(out / "phisft_R1.png", picture([gray3(video)] + colour, ["frames", "ground truth", "nrdepth (GBR-aligned)"], ColourBar(*value_range, "Kinect depth (m)")))
+    save_png(out / "phisft_R1.png", picture([gray3(video)] + colour, ["frames", "ground truth", "nrdepth"], ColourBar(*value_range, "Kinect depth (m)")))
     print(f"wrote {out / 'phisft_R1.png'}: frames | ground truth | nrdepth (GBR-aligned per frame; far = blue, no ground truth = far)")
 
 
