@@ -7,7 +7,9 @@ each model; MAE-SN per frame over the sheet, split into its border (within
 3 output pixels of the background) and its inside, and each model paired
 against the first on the same clips (mean difference ± its standard error).
 
-    python experiments/border_light.py MODEL MODEL [...] [--clips 128]     # 'default' is the shipped model
+``--black`` makes every background flat black, as the cloth's matte is.
+
+    python experiments/border_light.py MODEL MODEL [...] [--clips 128] [--black]     # 'default' is the shipped model
 """
 
 from __future__ import annotations
@@ -44,18 +46,20 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("models", nargs="+", help="model.safetensors or run folder; 'default' for the shipped model")
     parser.add_argument("--clips", type=int, default=128)
+    parser.add_argument("--black", action="store_true", help="flat black backgrounds")
     args = parser.parse_args()
     nets = {m: load_model(DEFAULT_MODEL if m == "default" else m, device="cpu") for m in args.models}
     half_width = math.radians(70)
     for side, centre in (("above", 0.0), ("below", math.pi)):
-        config = nrdepth.GeneratorConfig(backdrop_probability=1.0, light_azimuth=(centre - half_width, centre + half_width))
+        black = {"backdrop_flat_probability": 1.0, "backdrop_brightness": (0.0, 0.0)} if args.black else {}
+        config = nrdepth.GeneratorConfig(backdrop_probability=1.0, light_azimuth=(centre - half_width, centre + half_width), **black)
         clips = nrdepth.generate_clips(args.clips, seed=TEST_SEED, config=config)
         pool = lambda a: torch.nn.functional.avg_pool2d(torch.from_numpy(a).float(), 2).numpy()  # noqa: E731
         truth = pool(np.nan_to_num(clips.depth, nan=0.0))
         on = pool(np.isfinite(clips.depth).astype(np.float32)) == 1.0  # output pixels wholly on the sheet
         border = np.stack([[distance_transform_edt(frame) <= BORDER for frame in clip] for clip in on]) & on
         table = {m: scores(net, clips.video, truth, on, border) for m, net in nets.items()}
-        print(f"{args.clips} clips with a border, lit from {side}:        frame  border  inside  sign right   paired with {args.models[0]}: frame, border")
+        print(f"{args.clips} clips with a border{' over black' if args.black else ''}, lit from {side}:        frame  border  inside  sign right   paired with {args.models[0]}: frame, border")
         for m, rows in table.items():
             d = rows - table[args.models[0]]
             se = d.std(axis=0, ddof=1) / math.sqrt(len(d))
