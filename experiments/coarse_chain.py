@@ -12,7 +12,10 @@ optical axis can build up over the video. Scored:
 - ``--videos N`` generated videos of ``--frames`` frames, orthographic and
   through a pinhole (40–80°, whole frames), against their observable
   depth, paired against the plain windows (mean difference ± its standard
-  error);
+  error). The generator spreads a clip's motion over its frames, so a
+  48-frame video moves a third as fast as a 16-frame training clip;
+  ``--paced`` scales its motion (deformation speed, tilt, spin and drift
+  rates) by frames / 16, so that each window moves as a training clip does;
 - whether the network's offset trend could carry the relief's sign: on the
   cloth the trend of its coarse windows, read with the relief's sign, is the
   recession in both orientations. On ``--videos`` × 2 generated videos
@@ -21,12 +24,13 @@ optical axis can build up over the video. Scored:
   sign of the true trend of the mean depth: 1 would make motion along the
   optical axis a sign cue.
 
-    python experiments/coarse_chain.py [--model M] [--videos 32] [--size 256] [--frames 48]
+    python experiments/coarse_chain.py [--model M] [--videos 32] [--size 256] [--frames 48] [--paced]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import os
 import sys
@@ -114,6 +118,7 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=256)
     parser.add_argument("--frames", type=int, default=48)
     parser.add_argument("--overlap", type=int, default=8)
+    parser.add_argument("--paced", action="store_true", help="motion scaled by frames / 16: each window moves as a training clip")
     args = parser.parse_args()
     video, truth = phisft_at_bin(4)
     for label, (v, g) in (("phisft_R1", (video, truth)), ("phisft_R1 turned 180°", (video[:, ::-1, ::-1], truth[:, ::-1, ::-1]))):
@@ -124,13 +129,18 @@ def main() -> None:
             d = reconstruct_with(kind, v, args.model, args.overlap)
             print(f"  {kind:8s}{mae_sn(d, g, 'frame', mask=m):8.4f}{mae_sn(d, g, 'first', mask=m):8.4f}", flush=True)
     cameras = (("orthographic", {}), ("pinhole", {"camera_fov": (math.radians(40), math.radians(80)), "crop_share": (1.0, 1.0)}))
+    surface = nrdepth.GeneratorConfig().surface
+    if args.paced:
+        pace = args.frames / LENGTH
+        surface = dataclasses.replace(surface, **{k: tuple(pace * v for v in getattr(surface, k)) for k in ("speed", "tilt_rate", "spin_rate", "drift_xy", "drift_z")})
     for camera, options in cameras:
-        clips = nrdepth.generate_clips(args.videos, seed=TEST_SEED, config=nrdepth.GeneratorConfig(size=args.size, frames=args.frames, **options))
+        config = nrdepth.GeneratorConfig(size=args.size, frames=args.frames, surface=surface, **options)
+        clips = nrdepth.generate_clips(args.videos, seed=TEST_SEED, config=config)
         truths = [observable_depth(d, p) for d, p in zip(clips.depth, clips.params)]
         scores = {kind: np.array([[mae_sn(reconstruct_with(kind, v, args.model, args.overlap), g, a) for a in ("frame", "first")]
                                   for v, g in zip(clips.video, truths)]) for kind in READINGS}
         plane = np.mean([[flat_baseline(g, a) for a in ("frame", "first")] for g in truths], axis=0)
-        print(f"{args.videos} generated {args.size}²×{args.frames} videos, {camera}: plane {plane[0]:.4f} / {plane[1]:.4f}")
+        print(f"{args.videos} generated {args.size}²×{args.frames} videos{', paced' if args.paced else ''}, {camera}: plane {plane[0]:.4f} / {plane[1]:.4f}")
         for kind in READINGS:
             diff = scores[kind] - scores["windows"]
             se = diff.std(axis=0, ddof=1) / math.sqrt(len(diff))
