@@ -140,7 +140,8 @@ def test_the_offsets_loss_forgives_a_depth_offset_per_frame_but_not_a_tilt():
 
 def test_a_wrong_sign_gets_a_gradient_that_turns_it():
     z = smooth_depth(13).float()
-    pred = (-z).clone().requires_grad_(True)
+    # The relief read inverted, with an error: exactly -z would be the correlation's minimum (rho = -1), where the gradient vanishes.
+    pred = (0.3 * smooth_depth(31).float() - z).requires_grad_(True)
     for loss_fn in (aligned_signed_loss, aligned_clip_signed_loss, aligned_clip_offsets_signed_loss):
         loss = loss_fn(pred, z)
         (grad,) = torch.autograd.grad(loss, pred)
