@@ -149,6 +149,9 @@ def test_a_wrong_sign_gets_a_gradient_that_turns_it():
         stepped = loss_fn(pred.detach() - 1e-2 * grad / grad.norm() * z.norm(), z)
         assert stepped.item() < loss.item()
         assert torch.sum(-grad * z).item() > 0
+    # The sign-free loss, by contrast, settles into the inverted reading: its gradient points toward -z.
+    (free,) = torch.autograd.grad(aligned_loss(pred, z), pred)
+    assert torch.sum(-free * z).item() < 0
 
 
 def test_sign_rates_count_correct_frames_and_flips():
