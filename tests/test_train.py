@@ -84,7 +84,7 @@ def test_a_folder_with_another_config_is_refused(tmp_path):
     "changes, name",
     [({"loss": "l2"}, "loss"), ({"batch_size": 0}, "batch_size"), ({"lr": -1.0}, "lr"), ({"device": "tpu"}, "device"),
      ({"target": "truth"}, "target"), ({"init": "no/such/model.safetensors"}, "init"), ({"real": "no/such/video.npz"}, "real"),
-     ({"keep_every": -1}, "keep_every"), ({"ema": 1.0}, "ema")],
+     ({"keep_every": -1}, "keep_every"), ({"ema": 1.0}, "ema"), ({"anchor": -1.0}, "anchor"), ({"anchor": 1.0}, "anchor")],
 )
 def test_bad_train_config_is_named(changes, name):
     with pytest.raises(ValueError) as info:
@@ -288,6 +288,25 @@ def test_a_warm_start_begins_from_the_given_weights_and_refuses_another_network(
         assert torch.allclose(load_model(tmp_path / "grown")(video), load_model(tmp_path / "first")(video), atol=1e-5)
     with pytest.raises(ValueError, match="^init:.*another network"):  # but not the other way round
         train(tmp_path / "shrunk", TrainConfig(loss="aligned", arch="unet2p1d", init=str(tmp_path / "grown"), **{**TINY, "epochs": 1}), progress=False)
+
+
+def test_the_anchor_pulls_every_step_back_toward_the_warm_start(tmp_path):
+    train(tmp_path / "start", TrainConfig(loss="aligned_both_signed", arch="unet2p1d", **{**TINY, "epochs": 1}), progress=False)
+    one_step = {**TINY, "epochs": 1, "steps_per_epoch": 1, "lr": 1e-2}
+    runs = {}
+    for name, anchor in (("free", 0.0), ("pulled", 25.0)):  # lr · anchor = 0.25
+        config = TrainConfig(loss="aligned_both_signed", arch="unet2p1d", init=str(tmp_path / "start"), anchor=anchor, **one_step)
+        train(tmp_path / name, config, progress=False)
+        runs[name] = torch.load(tmp_path / name / "last.pt", weights_only=False)["model"]
+    start = load_model(tmp_path / "start").state_dict()
+    moved = [k for k, w in start.items() if w.is_floating_point() and not torch.equal(runs["free"][k], w)]
+    assert moved, "the step changed the weights"
+    # The first step's gradient is the same in both runs; the pull then takes a quarter of the way back.
+    for k in moved:
+        expected = start[k] + 0.75 * (runs["free"][k] - start[k])
+        assert torch.allclose(runs["pulled"][k], expected, atol=1e-7, rtol=1e-5), k
+    with pytest.raises(ValueError, match="^anchor:.*needs init"):
+        TrainConfig(anchor=1.0, **TINY)
 
 
 def test_an_amplitude_run_trains_on_window_widths_and_its_warm_start_is_calibrated(tmp_path):

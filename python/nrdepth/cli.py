@@ -97,6 +97,7 @@ def _train(args: argparse.Namespace) -> int:
         seed=args.seed, data=args.data, generator=_generator_config(args),
         validation_clips=args.validation_clips, workers=args.workers, device=args.device, compile=args.compile,
         real=(args.real[0] if len(args.real) == 1 else args.real) if args.real else None, keep_every=args.keep_every, ema=args.ema,
+        anchor=args.anchor,
     )
     summary = train(args.out, config, progress=not args.quiet, max_epochs=args.max_epochs)
     if summary:
@@ -370,6 +371,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "NaN where none (benchmarks/bench_real.py --write-phisft); sparse: video, frames, uv, z (benchmarks/bench_real.py --write-kinect)")
     p.add_argument("--ema", type=float, default=0.0, metavar="DECAY",
                    help="score and save an exponential moving average of the weights with this decay per step, e.g. 0.999 (default: 0, the weights themselves)")
+    p.add_argument("--anchor", type=float, default=0.0, metavar="RATE",
+                   help="with --init: after every step pull the weights back toward the warm start's by lr × RATE of the way "
+                        "(L2-SP, decoupled; e.g. 100 at lr 5e-5 is 0.5 %% a step; default: 0, no pull)")
     p.add_argument("--keep-every", type=int, default=0, metavar="N",
                    help="also keep every N-th epoch's weights as epochs/epoch_E.safetensors (default: 0, none)")
     p.add_argument("--workers", type=int, default=2, help="DataLoader worker processes")

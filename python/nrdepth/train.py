@@ -112,6 +112,13 @@ class TrainConfig:
     write the same under ``real_STEM_``, STEM each file's name. It never
     chooses the best weights (validation does), so the videos stay a fair
     test."""
+    anchor: float = 0.0
+    """Rate of a pull of the weights back toward the warm start's
+    (``init``): after every optimiser step ``w ← w0 + (1 − lr·anchor)(w − w0)``,
+    decoupled from the loss as AdamW's weight decay is, but toward the
+    start instead of zero (L2-SP). A warm start that learns a new kind of
+    clip drifts away from what its start read well the longer it runs; the
+    pull bounds how far. Above 0 it needs ``init``, and ``lr · anchor`` < 1."""
     ema: float = 0.0
     """Decay of an exponential moving average of the weights, updated after
     every step (``w_ema ← ema·w_ema + (1 − ema)·w``); above 0, the average
@@ -165,6 +172,13 @@ class TrainConfig:
         if isinstance(self.amplitude, bool) or not (isinstance(self.amplitude, (int, float, np.floating)) and math.isfinite(self.amplitude) and self.amplitude >= 0):
             raise ValueError(f"amplitude: expected a weight >= 0, got {self.amplitude!r}")
         self.amplitude = float(self.amplitude)
+        if isinstance(self.anchor, bool) or not (isinstance(self.anchor, (int, float, np.floating)) and math.isfinite(self.anchor) and self.anchor >= 0):
+            raise ValueError(f"anchor: expected a rate >= 0 (0: no pull), got {self.anchor!r}")
+        self.anchor = float(self.anchor)
+        if self.anchor > 0 and self.init is None:
+            raise ValueError("anchor: a pull toward the warm start needs init (the weights to pull toward)")
+        if self.lr * self.anchor >= 1:
+            raise ValueError(f"anchor: expected lr · anchor < 1 (a step's pull is that share of the way back), got {self.lr} · {self.anchor}")
         self.seed = _check_seed("seed", self.seed)
         self.workers = _check_int("workers", self.workers)
         if self.workers < 0:
@@ -203,7 +217,7 @@ class TrainConfig:
         campaign steps it down by hand)."""
         free = ("workers", "device", "init", "real", "keep_every") + (("epochs", "lr") if self.schedule == "constant" else ())
         mine = json.loads(json.dumps(self.as_dict()))
-        saved = {"target": "depth", "amplitude": 0.0, "ema": 0.0, **saved}  # runs saved before these options had their defaults
+        saved = {"target": "depth", "amplitude": 0.0, "ema": 0.0, "anchor": 0.0, **saved}  # runs saved before these options had their defaults
         try:  # generator fields added since take their defaults
             saved["generator"] = json.loads(json.dumps(GeneratorConfig.from_dict(saved["generator"]).as_dict()))
         except (KeyError, TypeError, ValueError):
@@ -341,7 +355,7 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
     data = (StoredBatches(config.data, config.seed, config.batch_size, config.target, window_units) if config.data
             else OnlineBatches(config.generator, config.seed, config.batch_size, config.target, window_units))
     video_val, depth_val, widths_val = validation_set(config) if leader else (None, None, None)
-    warm_start = _warm_start(config) if config.init is not None and not (out / "last.pt").exists() else None
+    warm_start = _warm_start(config) if config.init is not None and (config.anchor > 0 or not (out / "last.pt").exists()) else None
     depth_val_half = torch.nn.functional.avg_pool2d(torch.from_numpy(depth_val).float(), 2).numpy() if leader else None
     reals = {}
     if leader and config.real is not None:
@@ -367,6 +381,8 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
     model = build_model(config.arch, **config.model_config()).to(device)
     if warm_start is not None:
         model.load_state_dict(warm_start, strict=False)  # _warm_start checked that theirs ⊆ ours
+    # What the anchor pulls toward (a resume reloads it from init): the warm start's parameters.
+    anchored = [(p, warm_start[name].to(device)) for name, p in model.named_parameters() if name in warm_start] if config.anchor > 0 else []
     # The weights that are scored and saved: the moving average, or the model itself.
     averaged = _frozen_copy(model) if config.ema > 0 else model
     optimiser = torch.optim.Adam(model.parameters(), lr=config.lr)
@@ -427,6 +443,11 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
                 loss = loss + config.amplitude * relief_amplitude_loss(pred.float(), target)
             loss.backward()
             optimiser.step()
+            if anchored:
+                with torch.no_grad():
+                    pull = optimiser.param_groups[0]["lr"] * config.anchor
+                    for p, start in anchored:
+                        p.lerp_(start, pull)
             schedule.step()
             if config.ema > 0:
                 _update_average(averaged, model, config.ema)
