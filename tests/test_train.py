@@ -10,7 +10,7 @@ import pytest
 import torch
 
 import nrdepth
-from nrdepth.train import TrainConfig, load_model, predict_depth, train
+from nrdepth.train import DEFAULT_MODEL, TrainConfig, load_model, predict_depth, train
 
 TINY = dict(
     base=2, batch_size=2, steps_per_epoch=3, epochs=2, lr=3e-3, validation_clips=2, workers=0, device="cpu",
@@ -84,7 +84,8 @@ def test_a_folder_with_another_config_is_refused(tmp_path):
     "changes, name",
     [({"loss": "l2"}, "loss"), ({"batch_size": 0}, "batch_size"), ({"lr": -1.0}, "lr"), ({"device": "tpu"}, "device"),
      ({"target": "truth"}, "target"), ({"init": "no/such/model.safetensors"}, "init"), ({"real": "no/such/video.npz"}, "real"),
-     ({"keep_every": -1}, "keep_every"), ({"ema": 1.0}, "ema"), ({"anchor": -1.0}, "anchor"), ({"anchor": 1.0}, "anchor")],
+     ({"keep_every": -1}, "keep_every"), ({"ema": 1.0}, "ema"), ({"anchor": -1.0}, "anchor"),
+     ({"anchor": 1e3, "init": str(DEFAULT_MODEL)}, "anchor")],  # lr · anchor = 3: past the start
 )
 def test_bad_train_config_is_named(changes, name):
     with pytest.raises(ValueError) as info:
