@@ -19,8 +19,11 @@
 # (`stop NAME`: the epoch under way is lost; last.pt holds the one before),
 # and puts their resumable state (config, last.pt, metrics, kept epochs) in
 # $OUT as one tar in 12 MB parts, NAME.tar.aa, .ab, ... (the first run's
-# NAME); the run tool brings back 8 files at most: keep fewer epochs
-# (--keep-every) rather than more parts. Two runs side by side, 8 minutes:
+# NAME); the run tool brings back 8 files and 64 MiB at most, the parts
+# past that are lost: keep fewer epochs (--keep-every) rather than more
+# parts (two runs of 13 epochs at --keep-every 2 came to 64.4 MiB). The tar
+# holds every run's config and metrics first, then the last.pt files, then
+# the kept epochs, so what is lost is the latest kept epochs. Two runs side by side, 8 minutes:
 #   export DEVICE=cuda WORKERS=7
 #   bash tools/gpu_run.sh start a ...; bash tools/gpu_run.sh start b ...; bash tools/gpu_run.sh collect a,b 480
 # Committed to campaign/NAME, its config.json's "init" is set to the campaign
@@ -54,9 +57,13 @@ collect)
     # One tar in 12 MB parts (each file back must be under 16 MB). Here:
     # cat NAME.tar.* > NAME.tar, check its md5sum, tar xf.
     first=${names%% *}
-    (cd /tmp/gpu && for run in $names; do
-        ls -d "$run"/config.json "$run"/last.pt "$run"/metrics.csv "$run"/model.json "$run"/epochs 2> /dev/null || true  # some are absent
+    (cd /tmp/gpu && for files in "config.json metrics.csv model.json" last.pt "epochs/*"; do
+        for run in $names; do
+            for file in $files; do ls -d "$run"/$file 2> /dev/null || true; done  # some are absent
+        done
     done | tar cf "/tmp/gpu/$first.tar" -T -)
+    size=$(stat -c %s "/tmp/gpu/$first.tar")
+    [ "$size" -le $((64 * 1024 * 1024)) ] || echo "WARNING: the tar is $size bytes, over the 64 MiB that comes back: its tail (the last kept epochs) is lost" >&2
     mkdir -p "$OUT"
     split -b 12m "/tmp/gpu/$first.tar" "$OUT/$first.tar."
     md5sum "/tmp/gpu/$first.tar"
