@@ -11,11 +11,18 @@ the first model with its windows standardised).
 
     python experiments/real_cross.py MODEL MODEL [...]                  # 'default' is the shipped model
     python experiments/real_cross.py MODEL MODEL --mix 0,0.25,0.5,0.75
+    python experiments/real_cross.py MODEL MODEL --mix 0,0.25 --generated 32
+
+``--generated N`` scores the same readings, with ``--mix``, on N generated
+videos of 256²×48 (orthographic, and through a pinhole of 40–80° seen
+whole) against their observable depth: MAE-SN per frame and from the first
+frame, paired against the first model as it is (± the standard error).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 
@@ -26,6 +33,8 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 from bench_real import DATA, KINECT_INNER, KINECT_ROI, kinect_score, kinect_truth, phisft_at_bin, phisft_regions, region_errors  # noqa: E402
 
 import nrdepth  # noqa: E402
+from nrdepth.evaluate import TEST_SEED  # noqa: E402
+from nrdepth.generate import observable_depth  # noqa: E402
 from nrdepth.metrics import mae_sn  # noqa: E402
 from nrdepth.videoio import read_video  # noqa: E402
 
@@ -71,16 +80,47 @@ def scores(coarse, fine_model, cloth: tuple, paper: tuple) -> str:
         pipeline.coarse_half = original_coarse_half
 
 
+def generated_scores(readings: dict, fine_model, videos: int) -> None:
+    """Each coarse reading of ``readings`` (label: stand-in for coarse_half) on
+    generated videos, paired against the plain coarse pass of ``fine_model``."""
+    cameras = (("orthographic", {}), ("pinhole", {"camera_fov": (math.radians(40), math.radians(80)), "crop_share": (1.0, 1.0)}))
+    for camera, options in cameras:
+        clips = nrdepth.generate_clips(videos, seed=TEST_SEED, config=nrdepth.GeneratorConfig(size=256, frames=48, **options))
+        truths = [observable_depth(d, p) for d, p in zip(clips.depth, clips.params)]
+        scores = {}
+        for label, coarse in {"as it is": original_coarse_half, **readings}.items():
+            pipeline.coarse_half = coarse
+            try:
+                scores[label] = np.array([[mae_sn(nrdepth.reconstruct(v, fine_model), g, a) for a in ("frame", "first")]
+                                          for v, g in zip(clips.video, truths)])
+            finally:
+                pipeline.coarse_half = original_coarse_half
+        print(f"{videos} generated 256²×48 videos, {camera}: per frame / from the first frame, paired against the first model as it is")
+        for label, s in scores.items():
+            diff = s - scores["as it is"]
+            se = diff.std(axis=0, ddof=1) / math.sqrt(len(diff))
+            print(f"  {label:44s}{s[:, 0].mean():8.4f}{s[:, 1].mean():8.4f}   {diff[:, 0].mean():+.4f} ± {se[0]:.4f} / {diff[:, 1].mean():+.4f} ± {se[1]:.4f}", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("models", nargs="+", help="model.safetensors or run folder; 'default' for the shipped model")
     parser.add_argument("--mix", default=None, help="weights of the second model's coarse reading, comma-separated")
+    parser.add_argument("--generated", type=int, default=0, metavar="N", help="with --mix: score on N generated videos instead of the real ones")
     args = parser.parse_args()
     if len(args.models) < 2:
         parser.error("name two or more models")
     cpu = torch.device("cpu")
     path = {m: None if m == "default" else m for m in args.models}
     nets = {m: pipeline.inference_model(path[m], cpu) for m in args.models}
+    if args.generated:
+        if args.mix is None:
+            parser.error("--generated needs --mix")
+        first, second = args.models[:2]
+        readings = {f"{first[-20:]} + {w:g} × {second[-16:]}": coarse_reading(nets[first], nets[second], w)
+                    for w in (float(w) for w in args.mix.split(","))}
+        generated_scores(readings, path[first], args.generated)
+        return
     video, truth = phisft_at_bin(4)
     cloth = (video, truth, phisft_regions(video, truth))
     paper = (read_video(DATA / "kinect_paper").frames, kinect_truth())
