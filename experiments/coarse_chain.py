@@ -49,6 +49,8 @@ from nrdepth.model.io import predict_depth  # noqa: E402
 pipeline = sys.modules["nrdepth.reconstruct"]  # the module: nrdepth.reconstruct is the function
 windows_half = pipeline.coarse_half
 SIDE, LENGTH = 32, 16  # a coarse reading's side and a window's frames
+# The generated videos' two cameras: orthographic, and a pinhole of 40–80° whose whole frame is the video (real_cross.py's too).
+CAMERAS = (("orthographic", {}), ("pinhole", {"camera_fov": (math.radians(40), math.radians(80)), "crop_share": (1.0, 1.0)}))
 
 
 def chained_half(small, net, batch_size, device, readings=2, overlap=8, fit="offset"):
@@ -128,12 +130,11 @@ def main() -> None:
         for kind in READINGS:
             d = reconstruct_with(kind, v, args.model, args.overlap)
             print(f"  {kind:8s}{mae_sn(d, g, 'frame', mask=m):8.4f}{mae_sn(d, g, 'first', mask=m):8.4f}", flush=True)
-    cameras = (("orthographic", {}), ("pinhole", {"camera_fov": (math.radians(40), math.radians(80)), "crop_share": (1.0, 1.0)}))
     surface = nrdepth.GeneratorConfig().surface
     if args.paced:
         pace = args.frames / LENGTH
         surface = dataclasses.replace(surface, **{k: tuple(pace * v for v in getattr(surface, k)) for k in ("speed", "tilt_rate", "spin_rate", "drift_xy", "drift_z")})
-    for camera, options in cameras:
+    for camera, options in CAMERAS:
         config = nrdepth.GeneratorConfig(size=args.size, frames=args.frames, surface=surface, **options)
         clips = nrdepth.generate_clips(args.videos, seed=TEST_SEED, config=config)
         truths = [observable_depth(d, p) for d, p in zip(clips.depth, clips.params)]

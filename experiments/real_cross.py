@@ -31,6 +31,7 @@ import torch
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # the benchmarks' data loaders
 from bench_real import DATA, KINECT_INNER, KINECT_ROI, kinect_score, kinect_truth, phisft_at_bin, phisft_regions, region_errors  # noqa: E402
+from coarse_chain import CAMERAS  # noqa: E402  (a sibling script: experiments/ is on the path when one runs)
 
 import nrdepth  # noqa: E402
 from nrdepth.evaluate import TEST_SEED  # noqa: E402
@@ -83,8 +84,7 @@ def scores(coarse, fine_model, cloth: tuple, paper: tuple) -> str:
 def generated_scores(readings: dict, fine_model, videos: int) -> None:
     """Each coarse reading of ``readings`` (label: stand-in for coarse_half) on
     generated videos, paired against the plain coarse pass of ``fine_model``."""
-    cameras = (("orthographic", {}), ("pinhole", {"camera_fov": (math.radians(40), math.radians(80)), "crop_share": (1.0, 1.0)}))
-    for camera, options in cameras:
+    for camera, options in CAMERAS:
         clips = nrdepth.generate_clips(videos, seed=TEST_SEED, config=nrdepth.GeneratorConfig(size=256, frames=48, **options))
         truths = [observable_depth(d, p) for d, p in zip(clips.depth, clips.params)]
         scores = {}

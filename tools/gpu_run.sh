@@ -21,7 +21,7 @@
 # $OUT as one tar in 12 MB parts, NAME.tar.aa, .ab, ... (the first run's
 # NAME); the run tool brings back 8 files and 64 MiB at most, the parts
 # past that are lost: keep fewer epochs (--keep-every) rather than more
-# parts (two runs of 13 epochs at --keep-every 2 came to 64.4 MiB). The tar
+# parts (two runs of 13 and 14 epochs at --keep-every 2 came to 64.4 MiB). The tar
 # holds every run's config and metrics first, then the last.pt files, then
 # the kept epochs, so what is lost is the latest kept epochs. Two runs side by side, 8 minutes:
 #   export DEVICE=cuda WORKERS=7
