@@ -137,7 +137,7 @@ PHISFT_BORDER = 10
 """``phisft_R1``'s border region: the cloth's pixels within this many pixels
 (on the 4×4-binned grid) of the black background. In :data:`CROP` they are
 the hem and the left edge, a quarter of the scored pixels, and they carry
-most of what separates checkpoints on this video (docs/learning.md)."""
+most of what separates checkpoints on this video (docs/campaign.md)."""
 
 
 def phisft_regions(gray: np.ndarray, truth: np.ndarray) -> dict:

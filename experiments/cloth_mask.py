@@ -1,7 +1,7 @@
 """Does the background corrupt the stitcher's alignments on ``phisft_R1``?
 Its crop (``bench_real.CROP``) shows the cloth's hem over the data set's
 black matte, and what separates checkpoints per frame is the cloth's border
-(docs/learning.md). ``reconstruct(mask=...)`` leaves pixels off the surface
+(docs/campaign.md). ``reconstruct(mask=...)`` leaves pixels off the surface
 out of every alignment; here the mask is the cloth as the frames show it
 (gray > 0, no ground truth used). Both readings are scored on the same
 pixels: MAE-SN per frame and from the first frame, and the per-frame error
