@@ -308,6 +308,13 @@ def test_the_anchor_pulls_every_step_back_toward_the_warm_start(tmp_path):
         assert torch.allclose(runs["pulled"][k], expected, atol=1e-7, rtol=1e-5), k
     with pytest.raises(ValueError, match="^anchor:.*needs init"):
         TrainConfig(anchor=1.0, **TINY)
+    # A run stopped after its first epoch pulls toward the same start when it resumes: the same bytes.
+    config = TrainConfig(loss="aligned_both_signed", arch="unet2p1d", init=str(tmp_path / "start"), anchor=25.0, **{**TINY, "lr": 1e-2})
+    train(tmp_path / "straight", config, progress=False)
+    train(tmp_path / "resumed", config, progress=False, max_epochs=1)
+    train(tmp_path / "resumed", config, progress=False)
+    a, b = (torch.load(tmp_path / d / "last.pt", weights_only=False)["model"] for d in ("straight", "resumed"))
+    assert all(torch.equal(a[k], b[k]) for k in a)
 
 
 def test_an_amplitude_run_trains_on_window_widths_and_its_warm_start_is_calibrated(tmp_path):
