@@ -45,24 +45,18 @@ pipeline = sys.modules["nrdepth.reconstruct"]  # the module: nrdepth.reconstruct
 original_coarse_half, original_field_windows = pipeline.coarse_half, pipeline.field_windows
 
 
-def standardised(half: np.ndarray) -> np.ndarray:
-    """A coarse reading (T, h, w) with each 16-frame window at mean 0, standard deviation 1."""
-    out = half.astype(np.float64)
-    for start in range(0, len(out), 16):
-        window = out[start : start + 16]
-        window -= window.mean()
-        window /= window.std() or 1.0
-    return out.astype(np.float32)
-
-
 def coarse_reading(coarse_net, other=None, weight: float = 0.0):
     """A stand-in for ``coarse_half`` that reads with ``coarse_net``, or with
-    ``other`` the standardised average of both nets' readings."""
+    ``other`` as its coarse companion at ``weight`` (both readings'
+    windows standardised, as ``coarse_half`` blends a companion)."""
     def read(small, net, *args, **kw):
-        mine = original_coarse_half(small, coarse_net, *args, **kw)
         if other is None:
-            return mine
-        return (1 - weight) * standardised(mine) + weight * standardised(original_coarse_half(small, other, *args, **kw))
+            return original_coarse_half(small, coarse_net, *args, **kw)
+        own, coarse_net.coarse_companion = getattr(coarse_net, "coarse_companion", None), (other, weight)
+        try:
+            return original_coarse_half(small, coarse_net, *args, **kw)
+        finally:
+            coarse_net.coarse_companion = own
 
     return read
 

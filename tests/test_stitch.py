@@ -1,6 +1,9 @@
 """COLA stitching: windows sum to one; GBR-distorted true patches stitch back
 to the truth; any size works; reconstruct runs end to end."""
 
+import json
+import re
+
 import numpy as np
 import pytest
 import torch
@@ -342,3 +345,77 @@ def test_relief_scale_undoes_a_shrunk_relief_whatever_each_frames_plane():
     shrunk = np.stack([0.4 * f + a * x + b * y + c for f, (a, b, c) in zip(reference, np.random.default_rng(0).normal(size=(4, 3)))])
     assert _relief_scale(shrunk, reference) == pytest.approx(2.5, rel=1e-9)
     assert _relief_scale(np.stack([x + y] * 4).astype(float), reference) == 1.0  # planes: no relief to scale
+
+
+def _companion_pair(tmp_path, share, seeds=(0, 1)):
+    """A model folder whose model.json names a coarse companion at ``share``;
+    the two networks, built from ``seeds``."""
+    nets = []
+    for name, seed in zip(("model", "coarse"), seeds):
+        torch.manual_seed(seed)
+        nets.append(nrdepth.model.build_model("unet2p1d").eval())
+        nrdepth.model.save_model(nets[-1], tmp_path / f"{name}.safetensors")
+    meta = json.loads((tmp_path / "model.json").read_text())
+    meta["coarse_companion"] = {"model": "coarse.safetensors", "share": share}
+    (tmp_path / "model.json").write_text(json.dumps(meta))
+    return tmp_path / "model.safetensors", nets
+
+
+def _by_windows(depth, window=16):
+    """Brute force: each window of ``window`` frames at mean 0, standard deviation 1."""
+    return np.concatenate([(w - w.mean()) / w.std() for w in np.split(depth.astype(np.float64), range(window, len(depth), window))])
+
+
+def test_a_coarse_companion_blends_the_two_standardised_readings_at_its_share(tmp_path):
+    """The coarse pass of a model with a companion is (1 − share)·a + share·b
+    of the two networks' readings, each 16-frame window standardised
+    (brute force on a 40-frame video: windows of 16, 16 and 8 frames); and a
+    companion equal to the model gives its own reading standardised."""
+    from nrdepth.reconstruct import coarse_half, inference_model
+
+    path, (a, b) = _companion_pair(tmp_path, 0.25)
+    dev = torch.device("cpu")
+    net = inference_model(path, dev)
+    assert net.coarse_companion[1] == 0.25 and not any("coarse_companion" in k for k in net.state_dict())
+    small = np.random.default_rng(2).random((40, 64, 64)).astype(np.float32)
+    blended = coarse_half(small, net, 8, dev)
+    expected = 0.75 * _by_windows(coarse_half(small, a, 8, dev)) + 0.25 * _by_windows(coarse_half(small, b, 8, dev))
+    np.testing.assert_allclose(blended, expected, rtol=0, atol=1e-5)
+    (tmp_path / "same").mkdir()
+    same, _ = _companion_pair(tmp_path / "same", 0.6, seeds=(0, 0))
+    np.testing.assert_allclose(coarse_half(small, inference_model(same, dev), 8, dev), _by_windows(coarse_half(small, a, 8, dev)), rtol=0, atol=1e-5)
+
+
+def test_reconstruct_reads_a_companion_from_the_file_and_from_a_module_alike(tmp_path):
+    """``reconstruct`` given the model's path uses its companion (the depth
+    differs from the model's alone) and gives the same depth as the module
+    loaded by :func:`load_model`."""
+    path, (a, _) = _companion_pair(tmp_path, 0.5)
+    video = (np.random.default_rng(3).random((20, 72, 80)) * 255).astype(np.uint8)
+    from_file = nrdepth.reconstruct(video, path, device="cpu")
+    from_module = nrdepth.reconstruct(video, nrdepth.model.load_model(path), device="cpu")
+    alone = nrdepth.reconstruct(video, a, device="cpu")
+    np.testing.assert_allclose(from_file, from_module, rtol=0, atol=1e-5)
+    assert np.abs(from_file - alone).mean() > 1e-3
+
+
+@pytest.mark.parametrize("spec, message", [
+    ({"model": "coarse.safetensors", "share": 0}, "'coarse_companion' expected"),
+    ({"model": "coarse.safetensors", "share": 1.5}, "'coarse_companion' expected"),
+    ({"model": "coarse.safetensors", "share": True}, "'coarse_companion' expected"),
+    ({"model": "../coarse.safetensors", "share": 0.5}, "'coarse_companion' expected"),
+    ({"share": 0.5}, "'coarse_companion' expected"),
+    ("coarse.safetensors", "'coarse_companion' expected"),
+    ({"model": "absent.safetensors", "share": 0.5}, "absent.safetensors: not found"),
+    ({"model": "model.safetensors", "share": 0.5}, "cannot have a companion of its own"),
+    ({"model": "coarse.safetensors", "share": 0.5, "depth_units": "window"}, "cannot have a coarse companion"),
+])
+def test_a_bad_coarse_companion_names_the_file_and_what_is_wrong(tmp_path, spec, message):
+    path, _ = _companion_pair(tmp_path, 0.5)
+    meta = json.loads(path.with_suffix(".json").read_text())
+    if isinstance(spec, dict) and "depth_units" in spec:  # a model that learnt the relief's scale
+        meta["depth_units"] = spec.pop("depth_units")
+    meta["coarse_companion"] = spec
+    path.with_suffix(".json").write_text(json.dumps(meta))
+    with pytest.raises(ValueError, match=re.escape(message)):
+        nrdepth.model.load_model(path)

@@ -111,7 +111,16 @@ def inference_model(model: Union[None, str, "os.PathLike[str]"], device: "torch.
 
     from .model.io import load_model
 
-    return load_model(model, device=str(device)).to(memory_format=torch.channels_last_3d)
+    net = load_model(model, device=str(device))
+    for each in _networks(net):
+        each.to(memory_format=torch.channels_last_3d)
+    return net
+
+
+def _networks(net: "torch.nn.Module") -> list:  # noqa: F821
+    """``net`` and its coarse companion's network, if it has one."""
+    companion = getattr(net, "coarse_companion", None)
+    return [net] if companion is None else [net, companion[0]]
 
 
 def coarse_depth(video: np.ndarray, net: "torch.nn.Module", batch_size: int, device: "torch.device", readings: int = 2) -> np.ndarray:  # noqa: F821
@@ -131,7 +140,34 @@ def coarse_depth(video: np.ndarray, net: "torch.nn.Module", batch_size: int, dev
 def coarse_half(small: np.ndarray, net: "torch.nn.Module", batch_size: int, device: "torch.device", readings: int = 2) -> np.ndarray:  # noqa: F821
     """The network's depth (T, 32, 32) of a video already at the patch side
     (T, 64, 64) float in [0, 1], in 16-frame windows, the last one mirrored
-    (:func:`coarse_depth` before its resize back)."""
+    (:func:`coarse_depth` before its resize back).
+
+    A network with a coarse companion (``model.json``'s ``coarse_companion``,
+    :func:`~nrdepth.model.load_model`) gives ``(1 − share)·a + share·b``
+    instead, where ``a`` and ``b`` are its and its companion's depths, each
+    16-frame window standardised (mean 0, standard deviation 1): so that
+    neither network's scale weighs more than its share."""
+    companion = getattr(net, "coarse_companion", None)
+    if companion is None:
+        return _coarse_reading(small, net, batch_size, device, readings)
+    other, share = companion
+    mine = _standardised_windows(_coarse_reading(small, net, batch_size, device, readings))
+    theirs = _standardised_windows(_coarse_reading(small, other, batch_size, device, readings))
+    return ((1 - share) * mine + share * theirs).astype(np.float32)
+
+
+def _standardised_windows(depth: np.ndarray) -> np.ndarray:
+    """Depth (T, h, w) with each 16-frame window at mean 0, standard deviation 1 (float64)."""
+    out = depth.astype(np.float64)
+    for start in range(0, len(out), PATCH[0]):
+        window = out[start : start + PATCH[0]]
+        window -= window.mean()
+        window /= window.std() or 1.0
+    return out
+
+
+def _coarse_reading(small: np.ndarray, net: "torch.nn.Module", batch_size: int, device: "torch.device", readings: int) -> np.ndarray:  # noqa: F821
+    """One network's depth of :func:`coarse_half`."""
     from .model.io import predict_depth
 
     lt, ls, _ = PATCH
@@ -555,7 +591,12 @@ def _load_net(model: Any, units: str, dev: Any) -> Any:
         from .model.io import SCALED_MODEL
 
         model = SCALED_MODEL
-    net = model.to(dev).eval() if isinstance(model, torch.nn.Module) else inference_model(model, dev)
+    if isinstance(model, torch.nn.Module):
+        net = model
+        for each in _networks(net):
+            each.to(dev).eval()
+    else:
+        net = inference_model(model, dev)
     if units == "pixels" and getattr(net, "depth_units", None) != "window":
         raise ValueError("units: 'pixels' needs a model that learnt the relief's scale (model.json's depth_units 'window', "
                          "nrdepth train --amplitude); this one gives depth up to scale: use units='standard'")

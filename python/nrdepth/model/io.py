@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Any, Callable, Dict, Optional, Union
+from typing import Any, Callable, Dict, Optional, Tuple, Union
 
 import numpy as np
 import torch
@@ -98,13 +98,19 @@ def load_model(path: Optional[Union[str, os.PathLike]] = None, device: str = "cp
     a run folder holding them, or, with ``path=None``, the default model that
     ships in the package (:data:`DEFAULT_MODEL`). The model's
     ``depth_units`` is ``model.json``'s: ``"window"`` where its output is depth
-    in widths of the view window, else None (depth up to scale). Errors name
-    the file and what is wrong with it (``ValueError``)."""
-    from safetensors.torch import load_file
-
+    in widths of the view window, else None (depth up to scale). Its
+    ``coarse_companion`` is None, or (network, share) where ``model.json``
+    names a second network for ``reconstruct``'s coarse pass (the shipped
+    model's, docs/reconstruction.md). Errors name the file and what is
+    wrong with it (``ValueError``)."""
     if path is not None and not isinstance(path, (str, os.PathLike)):
         raise TypeError(f"model: expected a path to model.safetensors or its folder, got {type(path).__name__}")
-    path = DEFAULT_MODEL if path is None else Path(path)
+    return _load_model(DEFAULT_MODEL if path is None else Path(path), device, companion_allowed=True)
+
+
+def _load_model(path: Path, device: str, companion_allowed: bool) -> nn.Module:
+    from safetensors.torch import load_file
+
     if path.is_dir():
         path = path / "model.safetensors"
     meta_path = path.with_suffix(".json")
@@ -135,7 +141,30 @@ def load_model(path: Optional[Union[str, os.PathLike]] = None, device: str = "cp
     # What the output's scale means: "window" (depth in view-window widths,
     # a model trained with a relief-amplitude term) or None (no scale).
     model.depth_units = meta.get("depth_units")
+    # A tuple, not a submodule: the companion stays out of this model's state_dict and parameters.
+    model.coarse_companion = None
+    if meta.get("coarse_companion") is not None:
+        if not companion_allowed:
+            raise ValueError(f"{meta_path}: a coarse companion cannot have a companion of its own")
+        model.coarse_companion = _load_companion(meta, path, meta_path, device)
     return model.to(resolve_device(device)).eval()
+
+
+def _load_companion(meta: Dict[str, Any], path: Path, meta_path: Path, device: str) -> Tuple[nn.Module, float]:
+    """(network, share) of ``model.json``'s ``"coarse_companion"``: ``{"model":
+    a model file in the same folder, "share": its weight in (0, 1]}``, a
+    second network that ``reconstruct``'s coarse pass reads beside this one
+    (:func:`nrdepth.reconstruct.coarse_half`)."""
+    spec = meta["coarse_companion"]
+    model, share = (spec.get("model"), spec.get("share")) if isinstance(spec, dict) else (None, None)
+    if not isinstance(model, str) or Path(model).name != model or isinstance(share, bool) or not isinstance(share, (int, float)) or not 0 < share <= 1:
+        raise ValueError(f"{meta_path}: 'coarse_companion' expected {{\"model\": a file name beside it, \"share\": a number in (0, 1]}}, got {spec!r}")
+    if meta.get("depth_units") is not None:
+        raise ValueError(f"{meta_path}: a model with depth_units {meta['depth_units']!r} cannot have a coarse companion (the blend standardises the coarse pass, which sets the relief's scale)")
+    companion = _load_model(path.parent / model, device, companion_allowed=False)
+    if companion.depth_units is not None:
+        raise ValueError(f"{path.parent / model}: a coarse companion gives depth up to scale (no depth_units), got {companion.depth_units!r}")
+    return companion, float(share)
 
 
 READINGS = (1, 2, 4)
