@@ -11,7 +11,7 @@ the first model with its windows standardised).
 
     python experiments/real_cross.py MODEL MODEL [...]                  # 'default' is the shipped model
     python experiments/real_cross.py MODEL MODEL --mix 0,0.25,0.5,0.75
-    python experiments/real_cross.py MODEL MODEL --mix 0,0.25 --generated 32
+    python experiments/real_cross.py MODEL MODEL --mix 0,0.25 --generated 32 [--camera pinhole]
 
 ``--generated N`` scores the same readings, with ``--mix``, on N generated
 videos of 256²×48 (orthographic, and through a pinhole of 40–80° seen
@@ -91,11 +91,12 @@ def fine_pass_once():
     return windows
 
 
-def generated_scores(readings: dict, fine_model, videos: int) -> None:
+def generated_scores(readings: dict, fine_model, videos: int, cameras: tuple) -> None:
     """Each coarse reading of ``readings`` (label: stand-in for coarse_half) on
-    generated videos, paired against the plain coarse pass of ``fine_model``."""
+    generated videos through each of ``cameras`` (``CAMERAS``' names),
+    paired against the plain coarse pass of ``fine_model``."""
     readings = {"as it is": original_coarse_half, **readings}
-    for camera, options in CAMERAS:
+    for camera, options in (c for c in CAMERAS if c[0] in cameras):
         clips = nrdepth.generate_clips(videos, seed=TEST_SEED, config=nrdepth.GeneratorConfig(size=256, frames=48, **options))
         scores = {label: [] for label in readings}
         for video, depth, params in zip(clips.video, clips.depth, clips.params):
@@ -121,6 +122,7 @@ def main() -> None:
     parser.add_argument("models", nargs="+", help="model.safetensors or run folder; 'default' for the shipped model")
     parser.add_argument("--mix", default=None, help="weights of the second model's coarse reading, comma-separated")
     parser.add_argument("--generated", type=int, default=0, metavar="N", help="with --mix: score on N generated videos instead of the real ones")
+    parser.add_argument("--camera", choices=[name for name, _ in CAMERAS], action="append", help="with --generated: this camera only (default: each)")
     args = parser.parse_args()
     if len(args.models) < 2:
         parser.error("name two or more models")
@@ -133,7 +135,7 @@ def main() -> None:
         first, second = args.models[:2]
         readings = {f"{first[-20:]} + {w:g} × {second[-16:]}": coarse_reading(nets[first], nets[second], w)
                     for w in (float(w) for w in args.mix.split(","))}
-        generated_scores(readings, path[first], args.generated)
+        generated_scores(readings, path[first], args.generated, tuple(args.camera or (name for name, _ in CAMERAS)))
         return
     video, truth = phisft_at_bin(4)
     cloth = (video, truth, phisft_regions(video, truth))
