@@ -187,6 +187,12 @@ def test_shipped_models_load_and_are_documented(path):
     assert {"held_out", "training", "loss"} <= set(meta)
     assert path.stat().st_size < 20 * 2**20
     assert model.depth_units == ("window" if path == nrdepth.model.SCALED_MODEL else None)
+    if path == DEFAULT_MODEL:  # its coarse companion, a second network of the same architecture, documented the same way
+        companion, share = model.coarse_companion
+        companion_meta = json.loads((path.parent / meta["coarse_companion"]["model"]).with_suffix(".json").read_text())
+        assert 0 < share < 1 and companion.config == companion_meta["config"] and {"held_out", "training", "loss"} <= set(companion_meta)
+    else:
+        assert model.coarse_companion is None
 
 
 def test_shipped_model_beats_the_flat_baseline_on_a_generated_256_video():
