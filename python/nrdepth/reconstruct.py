@@ -643,7 +643,8 @@ def reconstruct(
     (T, H, W, 3) (uint8, or float in [0, 1]; colour becomes luma, ITU-R
     BT.601, as ``nrdepth reconstruct`` does) with a trained model: a module, a
     ``model.safetensors`` path or run folder, or ``None`` for the default
-    model shipped in the package.
+    model shipped in the package (whose coarse pass also reads its coarse
+    companion, :func:`coarse_half`).
 
     - ``frames`` (a slice) and ``roi`` (x, y, width, height in pixels)
       select the part of the video to reconstruct.
