@@ -7,9 +7,12 @@ whole sheet and on the crop inside it.
 ``--mix W,...`` instead reads with the first model's fine pass and a coarse
 pass that averages the first two models' coarse readings, the second's at
 weight W (each 16-frame window's reading standardised first, so W = 0 is
-the first model with its windows standardised).
+the first model with its windows standardised). Each model is read
+without a coarse companion ('default' is the shipped network alone;
+``default python/nrdepth/weights/default_coarse.safetensors --mix 0.25``
+is the shipped model).
 
-    python experiments/real_cross.py MODEL MODEL [...]                  # 'default' is the shipped model
+    python experiments/real_cross.py MODEL MODEL [...]                  # 'default': the shipped network
     python experiments/real_cross.py MODEL MODEL --mix 0,0.25,0.5,0.75
     python experiments/real_cross.py MODEL MODEL --mix 0,0.25 --generated 32 [--camera pinhole]
 
@@ -94,8 +97,7 @@ def fine_pass_once():
 def generated_scores(readings: dict, fine_model, videos: int, cameras: tuple) -> None:
     """Each coarse reading of ``readings`` (label: stand-in for coarse_half) on
     generated videos through each of ``cameras`` (``CAMERAS``' names),
-    paired against the plain coarse pass of ``fine_model``."""
-    readings = {"as it is": original_coarse_half, **readings}
+    paired against the reading labelled "as it is"."""
     for camera, options in (c for c in CAMERAS if c[0] in cameras):
         clips = nrdepth.generate_clips(videos, seed=TEST_SEED, config=nrdepth.GeneratorConfig(size=256, frames=48, **options))
         scores = {label: [] for label in readings}
@@ -119,7 +121,7 @@ def generated_scores(readings: dict, fine_model, videos: int, cameras: tuple) ->
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("models", nargs="+", help="model.safetensors or run folder; 'default' for the shipped model")
+    parser.add_argument("models", nargs="+", help="model.safetensors or run folder; 'default' for the shipped network (its coarse pass without the companion)")
     parser.add_argument("--mix", default=None, help="weights of the second model's coarse reading, comma-separated")
     parser.add_argument("--generated", type=int, default=0, metavar="N", help="with --mix: score on N generated videos instead of the real ones")
     parser.add_argument("--camera", choices=[name for name, _ in CAMERAS], action="append", help="with --generated: this camera only (default: each)")
@@ -129,12 +131,15 @@ def main() -> None:
     cpu = torch.device("cpu")
     path = {m: None if m == "default" else m for m in args.models}
     nets = {m: pipeline.inference_model(path[m], cpu) for m in args.models}
+    for net in nets.values():  # each network's own coarse pass: --mix names the companion
+        net.coarse_companion = None
     if args.generated:
         if args.mix is None:
             parser.error("--generated needs --mix")
         first, second = args.models[:2]
-        readings = {f"{first[-20:]} + {w:g} × {second[-16:]}": coarse_reading(nets[first], nets[second], w)
-                    for w in (float(w) for w in args.mix.split(","))}
+        readings = {"as it is": coarse_reading(nets[first])}
+        readings.update((f"{first[-20:]} + {w:g} × {second[-16:]}", coarse_reading(nets[first], nets[second], w))
+                        for w in (float(w) for w in args.mix.split(",")))
         generated_scores(readings, path[first], args.generated, tuple(args.camera or (name for name, _ in CAMERAS)))
         return
     video, truth = phisft_at_bin(4)
