@@ -409,9 +409,14 @@ def test_reconstruct_reads_a_companion_from_the_file_and_from_a_module_alike(tmp
     ({"model": "absent.safetensors", "share": 0.5}, "absent.safetensors: not found"),
     ({"model": "model.safetensors", "share": 0.5}, "cannot have a companion of its own"),
     ({"model": "coarse.safetensors", "share": 0.5, "depth_units": "window"}, "cannot have a coarse companion"),
+    ({"model": "coarse.safetensors", "share": 0.5, "companion_units": "window"}, "a coarse companion gives depth up to scale"),
 ])
 def test_a_bad_coarse_companion_names_the_file_and_what_is_wrong(tmp_path, spec, message):
     path, _ = _companion_pair(tmp_path, 0.5)
+    if isinstance(spec, dict) and "companion_units" in spec:  # the companion itself learnt the relief's scale
+        companion = json.loads((tmp_path / "coarse.json").read_text())
+        companion["depth_units"] = spec.pop("companion_units")
+        (tmp_path / "coarse.json").write_text(json.dumps(companion))
     meta = json.loads(path.with_suffix(".json").read_text())
     if isinstance(spec, dict) and "depth_units" in spec:  # a model that learnt the relief's scale
         meta["depth_units"] = spec.pop("depth_units")
