@@ -15,11 +15,17 @@ is the shipped model).
     python experiments/real_cross.py MODEL MODEL [...]                  # 'default': the shipped network
     python experiments/real_cross.py MODEL MODEL --mix 0,0.25,0.5,0.75
     python experiments/real_cross.py MODEL MODEL --mix 0,0.25 --generated 32 [--camera pinhole]
+    python experiments/real_cross.py default CANDIDATE --mix 0.25,0.5 --reference python/nrdepth/weights/default_coarse.safetensors:0.25
+
+``--reference COMPANION:W`` adds the reading with COMPANION at weight W in
+place of the second model (``python/nrdepth/weights/default_coarse.safetensors:0.25``:
+the shipped model), to compare a candidate companion with the shipped one.
 
 ``--generated N`` scores the same readings, with ``--mix``, on N generated
 videos of 256²×48 (orthographic, and through a pinhole of 40–80° seen
 whole) against their observable depth: MAE-SN per frame and from the first
-frame, paired against the first model as it is (± the standard error).
+frame, paired against the first model as it is, or against the reference
+if one is named (± the standard error).
 A video's readings share one fine pass, which does not depend on the
 coarse one (the same bytes as separate runs; three readings in 19 s, not 42).
 """
@@ -94,10 +100,10 @@ def fine_pass_once():
     return windows
 
 
-def generated_scores(readings: dict, fine_model, videos: int, cameras: tuple) -> None:
+def generated_scores(readings: dict, fine_model, videos: int, cameras: tuple, against: str) -> None:
     """Each coarse reading of ``readings`` (label: stand-in for coarse_half) on
     generated videos through each of ``cameras`` (``CAMERAS``' names),
-    paired against the reading labelled "as it is"."""
+    paired against the reading labelled ``against``."""
     for camera, options in (c for c in CAMERAS if c[0] in cameras):
         clips = nrdepth.generate_clips(videos, seed=TEST_SEED, config=nrdepth.GeneratorConfig(size=256, frames=48, **options))
         scores = {label: [] for label in readings}
@@ -112,9 +118,9 @@ def generated_scores(readings: dict, fine_model, videos: int, cameras: tuple) ->
             finally:
                 pipeline.coarse_half, pipeline.field_windows = original_coarse_half, original_field_windows
         scores = {label: np.array(s) for label, s in scores.items()}
-        print(f"{videos} generated 256²×48 videos, {camera}: per frame / from the first frame, paired against the first model as it is")
+        print(f"{videos} generated 256²×48 videos, {camera}: per frame / from the first frame, paired against {against}")
         for label, s in scores.items():
-            diff = s - scores["as it is"]
+            diff = s - scores[against]
             se = diff.std(axis=0, ddof=1) / math.sqrt(len(diff))
             print(f"  {label:44s}{s[:, 0].mean():8.4f}{s[:, 1].mean():8.4f}   {diff[:, 0].mean():+.4f} ± {se[0]:.4f} / {diff[:, 1].mean():+.4f} ± {se[1]:.4f}", flush=True)
 
@@ -124,6 +130,7 @@ def main() -> None:
     parser.add_argument("models", nargs="+", help="model.safetensors or run folder; 'default' for the shipped network (its coarse pass without the companion)")
     parser.add_argument("--mix", default=None, help="weights of the second model's coarse reading, comma-separated")
     parser.add_argument("--generated", type=int, default=0, metavar="N", help="with --mix: score on N generated videos instead of the real ones")
+    parser.add_argument("--reference", default=None, metavar="COMPANION:W", help="with --mix: also read the first model with COMPANION at weight W, and pair the generated scores against it")
     parser.add_argument("--camera", choices=[name for name, _ in CAMERAS], action="append", help="with --generated: this camera only (default: each)")
     args = parser.parse_args()
     if len(args.models) < 2:
@@ -133,14 +140,26 @@ def main() -> None:
     nets = {m: pipeline.inference_model(path[m], cpu) for m in args.models}
     for net in nets.values():  # each network's own coarse pass: --mix names the companion
         net.coarse_companion = None
+    first, second = args.models[:2]
+    mixes = {}  # label: the first model's coarse pass with a companion
+    if args.reference is not None:
+        if args.mix is None:
+            parser.error("--reference needs --mix")
+        companion, _, weight = args.reference.rpartition(":")
+        if not companion or not os.path.exists(companion):
+            parser.error(f"--reference: expected COMPANION:W with an existing COMPANION file, got {args.reference!r}")
+        reference = pipeline.inference_model(companion, cpu)
+        reference.coarse_companion = None
+        mixes[f"reference: {float(weight):g} × {companion[-22:]}"] = coarse_reading(nets[first], reference, float(weight))
+    if args.mix is not None:
+        mixes.update((f"{first[-20:]} + {w:g} × {second[-16:]}", coarse_reading(nets[first], nets[second], w))
+                     for w in (float(w) for w in args.mix.split(",")))
     if args.generated:
         if args.mix is None:
             parser.error("--generated needs --mix")
-        first, second = args.models[:2]
-        readings = {"as it is": coarse_reading(nets[first])}
-        readings.update((f"{first[-20:]} + {w:g} × {second[-16:]}", coarse_reading(nets[first], nets[second], w))
-                        for w in (float(w) for w in args.mix.split(",")))
-        generated_scores(readings, path[first], args.generated, tuple(args.camera or (name for name, _ in CAMERAS)))
+        readings = {"as it is": coarse_reading(nets[first]), **mixes}
+        against = next(iter(mixes)) if args.reference is not None else "as it is"
+        generated_scores(readings, path[first], args.generated, tuple(args.camera or (name for name, _ in CAMERAS)), against)
         return
     video, truth = phisft_at_bin(4)
     cloth = (video, truth, phisft_regions(video, truth))
@@ -151,10 +170,8 @@ def main() -> None:
             for f in args.models:
                 print(f"{c[-43:]:44s}{f[-33:]:34s}" + scores(coarse_reading(nets[c]), path[f], cloth, paper), flush=True)
         return
-    first, second = args.models[:2]
-    for weight in (float(w) for w in args.mix.split(",")):
-        label = f"{first[-20:]} + {weight:g} × {second[-16:]}"
-        print(f"{label:44s}{first[-33:]:34s}" + scores(coarse_reading(nets[first], nets[second], weight), path[first], cloth, paper), flush=True)
+    for label, coarse in mixes.items():
+        print(f"{label[-43:]:44s}{first[-33:]:34s}" + scores(coarse, path[first], cloth, paper), flush=True)
 
 
 if __name__ == "__main__":
