@@ -136,7 +136,10 @@ PANELS = (
 )
 
 
-def plot(rows: list, references: dict, path: Path, labels: dict, start: str = "shipped") -> None:
+TITLE = "Warm starts (at 0 clips: the model they started from), each against a control with the same seed, clips and steps"
+
+
+def plot(rows: list, references: dict, path: Path, labels: dict, start: str = "shipped", suptitle: str = TITLE) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -163,7 +166,7 @@ def plot(rows: list, references: dict, path: Path, labels: dict, start: str = "s
         ax.set_title(title)
         ax.set_xlabel("clips seen after the warm start (thousands)")
         ax.legend(fontsize=8)
-    fig.suptitle("Warm starts (at 0 clips: the model they started from), each against a control with the same seed, clips and steps")
+    fig.suptitle(suptitle)
     fig.savefig(path, dpi=90)
 
 
@@ -197,6 +200,7 @@ def main() -> None:
     parser.add_argument("--replot", action="store_true", help="only draw --plot from --csv")
     parser.add_argument("--start", default="shipped", metavar="RUN",
                         help="with --replot, the row drawn at 0 clips: the model the runs started from")
+    parser.add_argument("--title", default=TITLE, help="with --replot, the plot's title")
     parser.add_argument("--label", action="append", default=[], metavar="RUN=TEXT", help="a run's name in the plot's legend")
     parser.add_argument("--pair", action="append", default=[], metavar="RUN=CONTROL",
                         help="print RUN minus CONTROL paired by epoch, over the epochs both kept (again for several)")
@@ -207,7 +211,7 @@ def main() -> None:
         with open(args.csv) as f:
             rows = [{k: (v if k == "run" else float(v)) for k, v in r.items() if v != ""} for r in csv.DictReader(f)]
         if args.plot:
-            plot(rows, json.loads(refs_path.read_text()), args.plot, labels, args.start)
+            plot(rows, json.loads(refs_path.read_text()), args.plot, labels, args.start, args.title)
         for pair in args.pair:
             print(paired(rows, *pair.split("=", 1)), end="\n\n")
         return
