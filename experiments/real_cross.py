@@ -146,11 +146,15 @@ def main() -> None:
         if args.mix is None:
             parser.error("--reference needs --mix")
         companion, _, weight = args.reference.rpartition(":")
-        if not companion or not os.path.exists(companion):
-            parser.error(f"--reference: expected COMPANION:W with an existing COMPANION file, got {args.reference!r}")
+        try:
+            weight = float(weight)
+        except ValueError:
+            weight = math.nan
+        if not os.path.isfile(companion) or not 0 < weight <= 1:
+            parser.error(f"--reference: expected COMPANION:W, an existing file and a weight in (0, 1], got {args.reference!r}")
         reference = pipeline.inference_model(companion, cpu)
         reference.coarse_companion = None
-        mixes[f"reference: {float(weight):g} × {companion[-22:]}"] = coarse_reading(nets[first], reference, float(weight))
+        mixes[f"reference: {weight:g} × {companion[-22:]}"] = coarse_reading(nets[first], reference, weight)
     if args.mix is not None:
         mixes.update((f"{first[-20:]} + {w:g} × {second[-16:]}", coarse_reading(nets[first], nets[second], w))
                      for w in (float(w) for w in args.mix.split(",")))
