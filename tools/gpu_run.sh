@@ -6,7 +6,8 @@
 #   maturin build --release -o .whl            # abi3 wheel; /.whl/ in .git/info/exclude
 #   cp campaign/RUN/model.safetensors campaign/RUN/model.json .whl/     # the --init weights
 #   (the shipped model's model.json names its coarse companion: copy default_coarse.safetensors and .json beside them)
-# and, only if the tracked files and .whl come to over 64 MiB (63 MB on 2026-11-27: it fits),
+# and, if the tracked files, untracked ones git does not ignore, and .whl come to over 64 MiB
+# (2026-11-28: the tracked files alone 101 MB, 21 MB without campaign/),
 #   git rm -r -q --cached campaign && echo /campaign/ >> .git/info/exclude
 #                                              # undo after with `git reset -q campaign`
 #                                              # and deleting that line
