@@ -1,0 +1,134 @@
+"""Can a video pick its own share of the coarse companion? The share trades
+the real cloth for the real paper (docs/reconstruction.md), so a cue that
+reads, per video and without ground truth, which share suits it could
+leave the trade. The cue tried here: how well the coarse reading at each
+share agrees with the fine pass's own reading at the scale of a block (a
+quarter of the frame's shorter side): per frame and block, the correlation
+of the two after each has its least-squares plane removed (the GBR leaves
+planes free), averaged. The pick is the share with the highest agreement.
+
+Scored: both real videos (``bench_real.py``'s regions) at each share and
+at the pick, and ``--videos N`` generated 256²×48 videos (orthographic and
+through a pinhole), MAE-SN per frame at each share and at each video's
+pick, paired against the shipped quarter.
+
+    python experiments/share_pick.py [--videos 32] [--shares 0,0.25,0.5,0.75,1]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+
+import numpy as np
+import torch
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))
+from bench_real import DATA, KINECT_INNER, KINECT_ROI, kinect_score, kinect_truth, phisft_at_bin  # noqa: E402
+from coarse_chain import CAMERAS  # noqa: E402
+from real_cross import coarse_reading, fine_pass_once, original_coarse_half, original_field_windows, pipeline  # noqa: E402
+
+import nrdepth  # noqa: E402
+from nrdepth.evaluate import TEST_SEED  # noqa: E402
+from nrdepth.generate import observable_depth  # noqa: E402
+from nrdepth.metrics import mae_sn  # noqa: E402
+from nrdepth.videoio import read_video  # noqa: E402
+
+
+def detrended(block: np.ndarray, design: np.ndarray) -> np.ndarray:
+    """``block`` (n, h, w) with each frame's least-squares plane removed, flattened (n, h·w)."""
+    flat = block.reshape(len(block), -1).astype(np.float64)
+    coef, *_ = np.linalg.lstsq(design, flat.T, rcond=None)
+    return flat - (design @ coef).T
+
+
+def agreement(fine: np.ndarray, coarse: np.ndarray) -> float:
+    """Mean over frames and blocks of the correlation of ``fine`` and ``coarse``
+    (T, H, W), each block's plane removed."""
+    t, h, w = fine.shape
+    side = max(8, min(h, w) // 4)
+    yy, xx = np.mgrid[:side, :side]
+    design = np.stack([xx.ravel(), yy.ravel(), np.ones(side * side)], axis=1).astype(np.float64)
+    scores = []
+    for y in range(0, h - side + 1, side):
+        for x in range(0, w - side + 1, side):
+            a = detrended(fine[:, y : y + side, x : x + side], design)
+            b = detrended(coarse[:, y : y + side, x : x + side], design)
+            denominator = np.sqrt((a * a).sum(1) * (b * b).sum(1))
+            scores.append(np.where(denominator > 0, (a * b).sum(1) / np.maximum(denominator, 1e-30), 0.0))
+    return float(np.mean(scores))
+
+
+def readings(video: np.ndarray, net, companion, shares: tuple):
+    """The depth ``reconstruct`` gives at each share (one fine pass), and each
+    share's agreement of its coarse reading with the fine field."""
+    dev = torch.device("cpu")
+    stand_ins = {s: coarse_reading(net, companion, s) for s in shares}  # 0: the network's own windows, standardised
+    depths, agree = {}, {}
+    pipeline.field_windows = fine_pass_once()
+    try:
+        for s, coarse in stand_ins.items():
+            pipeline.coarse_half = coarse
+            depths[s] = nrdepth.reconstruct(video, net)
+    finally:
+        pipeline.coarse_half, pipeline.field_windows = original_coarse_half, original_field_windows
+    frames = pipeline._as_unit_float(video)
+    fine = np.concatenate([d for _, d in pipeline.field_frames(frames, net, dev)])  # the fine field at the video's size
+    small = pipeline._resize(frames, pipeline.PATCH[1:])
+    for s, coarse in stand_ins.items():
+        half = coarse(small, net, 8, dev)
+        agree[s] = agreement(fine, pipeline._resize(half.astype(np.float32), video.shape[1:]))
+    return depths, agree
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--videos", type=int, default=32, help="generated videos per camera (0: the real videos only)")
+    parser.add_argument("--shares", default="0,0.25,0.5,0.75,1")
+    args = parser.parse_args()
+    shares = tuple(float(s) for s in args.shares.split(","))
+    cpu = torch.device("cpu")
+    net = pipeline.inference_model(None, cpu)
+    companion, shipped = net.coarse_companion
+    net.coarse_companion = None
+    if shipped not in shares:
+        parser.error(f"--shares: expected the shipped share {shipped:g} among them, got {args.shares!r}")
+    cloth, truth = phisft_at_bin(4)
+    depths, agree = readings(cloth, net, companion, shares)
+    scored = np.isfinite(truth)
+    print("phisft_R1: share, agreement, per frame, from the first frame")
+    for s in shares:
+        print(f"  {s:5.2f}{agree[s]:8.4f}{mae_sn(depths[s], truth, 'frame', mask=scored):8.4f}{mae_sn(depths[s], truth, 'first', mask=scored):8.4f}")
+    print(f"  pick: {max(shares, key=agree.get):g}", flush=True)
+    frames, points = read_video(DATA / "kinect_paper").frames, kinect_truth()
+    for name, (x, y, w, h) in (("whole sheet", KINECT_ROI), ("crop inside", KINECT_INNER)):
+        depths, agree = readings(frames[:, y : y + h, x : x + w], net, companion, shares)
+        print(f"kinect_paper, {name}: share, agreement, mm")
+        for s in shares:
+            print(f"  {s:5.2f}{agree[s]:8.4f}{kinect_score(depths[s], points, (x, y, w, h)):8.2f}")
+        print(f"  pick: {max(shares, key=agree.get):g}", flush=True)
+    for camera, options in CAMERAS if args.videos else ():
+        clips = nrdepth.generate_clips(args.videos, seed=TEST_SEED, config=nrdepth.GeneratorConfig(size=256, frames=48, **options))
+        errors, picks = [], []
+        for video, depth, params in zip(clips.video, clips.depth, clips.params):
+            truth = observable_depth(depth, params)
+            depths, agree = readings(video, net, companion, shares)
+            errors.append([mae_sn(depths[s], truth, "frame") for s in shares])
+            picks.append(shares.index(max(shares, key=agree.get)))
+        errors = np.array(errors)
+        picked = errors[np.arange(len(errors)), picks]
+        base = errors[:, shares.index(shipped)]
+        best = errors.min(axis=1)
+        se = lambda d: d.std(ddof=1) / math.sqrt(len(d))  # noqa: E731
+        print(f"{args.videos} generated 256²×48 videos, {camera}: per frame at each share, paired against {shipped:g}")
+        for i, s in enumerate(shares):
+            print(f"  {s:5.2f}{errors[:, i].mean():8.4f}   {(errors[:, i] - base).mean():+.4f} ± {se(errors[:, i] - base):.4f}")
+        print(f"  pick {picked.mean():8.4f}   {(picked - base).mean():+.4f} ± {se(picked - base):.4f}   (picks: "
+              + ", ".join(f"{s:g} ×{picks.count(i)}" for i, s in enumerate(shares)) + ")")
+        print(f"  best share per video (oracle) {best.mean():.4f}   {(best - base).mean():+.4f}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
