@@ -55,7 +55,7 @@ def main() -> None:
     references = json.loads(args.csvs[0].with_suffix(".references.json").read_text())
     fig, axes = plt.subplots(1, 2, figsize=(13, 5.5))
     colours = plt.get_cmap("tab10")
-    for i, (ax, (xkey, ykey, xtarget, ytarget, yref, xlabel, ylabel)) in enumerate(zip(axes, PANELS)):
+    for i, (ax, (_, _, xtarget, ytarget, yref, xlabel, ylabel)) in enumerate(zip(axes, PANELS)):
         for j, (family, points) in enumerate(sorted(families.items(), key=lambda kv: kv[0] == "start")):
             xs, ys = [p[2 * i] for p in points], [p[2 * i + 1] for p in points]
             if family == "start":

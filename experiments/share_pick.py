@@ -12,7 +12,7 @@ at the pick, and ``--videos N`` generated 256²×48 videos (orthographic and
 through a pinhole), MAE-SN per frame at each share and at each video's
 pick, paired against the shipped quarter.
 
-    python experiments/share_pick.py [--videos 32] [--shares 0,0.25,0.5,0.75,1]
+    python experiments/share_pick.py [--videos 32] [--camera orthographic] [--shares 0,0.25,0.5,0.75,1]
 """
 
 from __future__ import annotations
@@ -87,6 +87,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--videos", type=int, default=32, help="generated videos per camera (0: the real videos only)")
     parser.add_argument("--shares", default="0,0.25,0.5,0.75,1")
+    parser.add_argument("--camera", choices=[name for name, _ in CAMERAS], action="append", help="with --videos: this camera only (default: each)")
     args = parser.parse_args()
     shares = tuple(float(s) for s in args.shares.split(","))
     cpu = torch.device("cpu")
@@ -109,7 +110,7 @@ def main() -> None:
         for s in shares:
             print(f"  {s:5.2f}{agree[s]:8.4f}{kinect_score(depths[s], points, (x, y, w, h)):8.2f}")
         print(f"  pick: {max(shares, key=agree.get):g}", flush=True)
-    for camera, options in CAMERAS if args.videos else ():
+    for camera, options in (c for c in CAMERAS if args.videos and c[0] in (args.camera or (name for name, _ in CAMERAS))):
         clips = nrdepth.generate_clips(args.videos, seed=TEST_SEED, config=nrdepth.GeneratorConfig(size=256, frames=48, **options))
         errors, picks = [], []
         for video, depth, params in zip(clips.video, clips.depth, clips.params):
