@@ -3,7 +3,7 @@ the real cloth for the real paper (docs/reconstruction.md), so a cue that
 reads, per video and without ground truth, which share suits it could
 leave the trade. The cue tried here: how well the coarse reading at each
 share agrees with the fine pass's own reading at the scale of a block (a
-quarter of the frame's shorter side): per frame and block, the correlation
+quarter of the working frame's shorter side): per frame and block, the correlation
 of the two after each has its least-squares plane removed (the GBR leaves
 planes free), averaged. The pick is the share with the highest agreement.
 
@@ -62,24 +62,38 @@ def agreement(fine: np.ndarray, coarse: np.ndarray) -> float:
 
 
 def readings(video: np.ndarray, net, companion, shares: tuple):
-    """The depth ``reconstruct`` gives at each share (one fine pass), and each
-    share's agreement of its coarse reading with the fine field."""
-    dev = torch.device("cpu")
-    stand_ins = {s: coarse_reading(net, companion, s) for s in shares}  # 0: the network's own windows, standardised
-    depths, agree = {}, {}
-    pipeline.field_windows = fine_pass_once()
+    """The depth ``reconstruct`` gives at each share, and each share's
+    agreement of its coarse reading with the fine field: both as
+    ``reconstruct`` computes them (one fine pass, at the working size),
+    kept as they pass by."""
+    windows, field, halves = fine_pass_once(), [], {}
+
+    def keeping_field(layout, frames, progress=None):
+        def spans():
+            for t0, depth in frames:
+                field.append(depth)
+                yield t0, depth
+        return windows(layout, spans(), progress)
+
+    def keeping_half(share):
+        coarse = coarse_reading(net, companion, share)  # 0: the network's own windows, standardised
+
+        def read(*args, **kw):
+            halves[share] = coarse(*args, **kw)
+            return halves[share]
+        return read
+
+    depths = {}
+    pipeline.field_windows = keeping_field
     try:
-        for s, coarse in stand_ins.items():
-            pipeline.coarse_half = coarse
+        for s in shares:
+            pipeline.coarse_half = keeping_half(s)
             depths[s] = nrdepth.reconstruct(video, net)
     finally:
         pipeline.coarse_half, pipeline.field_windows = original_coarse_half, original_field_windows
-    frames = pipeline._as_unit_float(video)
-    fine = np.concatenate([d for _, d in pipeline.field_frames(frames, net, dev)])  # the fine field at the video's size
-    small = pipeline._resize(frames, pipeline.PATCH[1:])
-    for s, coarse in stand_ins.items():
-        half = coarse(small, net, 8, dev)
-        agree[s] = agreement(fine, pipeline._resize(half.astype(np.float32), video.shape[1:]))
+    fine = np.concatenate(field)
+    assert len(fine) == len(video), "the fine pass's spans cover every frame"
+    agree = {s: agreement(fine, pipeline._resize(halves[s].astype(np.float32), fine.shape[1:])) for s in shares}
     return depths, agree
 
 
