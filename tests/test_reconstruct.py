@@ -142,6 +142,8 @@ def test_cli_reconstructs_an_image_folder(tmp_path, tiny_model):
         ("frames", ["--device", "cpu", "--frames", "20:30"], "--frames: selects no frame"),
         ("device", ["--device", "tpu"], "device: expected auto, cpu, cuda or cuda:N"),
         ("units", ["--device", "cpu", "--units", "pixels"], "--units: 'pixels' needs a model that learnt the relief's scale"),
+        ("focal", ["--device", "cpu", "--focal", "0"], "--focal: expected the camera's focal length in pixels"),
+        ("focal units", ["--device", "cpu", "--focal", "50", "--temporal-align"], "--focal: the isometric shape comes with units='standard' and temporal off only"),
     ],
 )
 def test_cli_bad_input_is_named_and_writes_nothing(tmp_path, tiny_model, capsys, case, args, message):
@@ -154,6 +156,8 @@ def test_cli_bad_input_is_named_and_writes_nothing(tmp_path, tiny_model, capsys,
         "frames": tmp_path / "good.npy",
         "device": tmp_path / "good.npy",
         "units": tmp_path / "good.npy",
+        "focal": tmp_path / "good.npy",
+        "focal units": tmp_path / "good.npy",
     }[case]
     (tmp_path / "bad.mp4").write_bytes(b"\x00\x00\x00\x18ftypmp42" + bytes(range(256)) * 8)
     (tmp_path / "empty.avi").write_bytes(b"")
@@ -229,6 +233,7 @@ def test_cli_default_output_folder_is_named_after_the_input(tmp_path, tiny_model
     (["--alignment", "coarse", "--window", "triangle"], {"alignment": "coarse", "window": "triangle"}),  # the paper's stitch
     (["--window", "triangle"], {"window": "triangle"}),
     (["--temporal-weight", "0"], {"temporal_weight": 0.0}),
+    (["--focal", "60", "--isometric-scale", "0.1"], {"focal": 60.0, "isometric_scale": 0.1}),  # the sheet's shape from inextensibility
 ])
 def test_cli_stitching_options_reach_reconstruct(tmp_path, tiny_model, flags, options):
     frames = moving_texture(t=12, h=40, w=72)  # the field pass's windows of 3 frames agree too well for the temporal tie to act

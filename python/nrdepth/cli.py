@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Optional, Sequence
 
 from . import __version__
-from .reconstruct import FINE_PASSES, MAX_SIDE
+from .reconstruct import FINE_PASSES, ISOMETRIC_SCALE, MAX_SIDE
 from .stitch import ALIGNMENTS, COARSE_WEIGHT, TEMPORAL_WEIGHT, WINDOWS
 
 
@@ -163,6 +163,21 @@ def _roi(text: str) -> tuple:
     return x, y, w, h
 
 
+def _pair(what: str, counts: tuple):
+    """A parser of one or two comma-separated numbers (``counts``), named ``what`` in its complaint."""
+
+    def parse(text: str):
+        try:
+            values = tuple(float(v) for v in text.split(","))
+        except ValueError:
+            values = ()
+        if len(values) not in counts:
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+        return values[0] if len(values) == 1 else values
+
+    return parse
+
+
 def _frames(text: str) -> slice:
     try:
         parts = [int(v) if v else None for v in text.split(":")]
@@ -212,11 +227,11 @@ def _reconstruct(args: argparse.Namespace) -> int:
                          roi=args.roi, frames=args.frames, units=args.units, alignment=args.alignment, coarse_weight=args.coarse_weight,
                          window=args.window, temporal_weight=args.temporal_weight, fine=args.fine, max_side=args.max_side or None,
                          flip=args.flip, png16=args.png16, ply=args.ply, ply_relief=args.ply_relief, overwrite=args.overwrite,
-                         viewer=not args.no_viewer, mask=args.mask)
+                         viewer=not args.no_viewer, mask=args.mask, focal=args.focal, centre=args.centre, isometric_scale=args.isometric_scale)
     except ValueError as e:
         # The API names its arguments; the command line names its flags.
         name = str(e).split(":", 1)[0]
-        if name in ("out", "roi", "frames", "max_side", "mask"):
+        if name in ("out", "roi", "frames", "max_side", "mask", "focal", "centre", "isometric_scale"):
             raise ValueError(f"--{name.replace('_', '-')}{str(e)[len(name):]}") from None
         raise
     finally:
@@ -424,6 +439,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the surface's pixels: an image (every frame) or a video, image folder or .npy of the input's frames, white (128 or more of 255) "
                    "on the surface. Off it the depth is NaN (black in the videos, 0 in the PNGs, no PLY point, a hole in the viewer) and takes no part "
                    "in the alignments: for a background that moves on its own")
+    p.add_argument("--focal", type=_pair("F or FX,FY in pixels", (1, 2)), default=None,
+                   help="for a sheet (paper, cloth) filmed by a perspective camera: its focal length in pixels of the input's frames. The shape above "
+                   "--isometric-scale then comes from inextensibility (points followed by optical flow over the first frame's --mask, or the whole "
+                   "frame; nrdepth.isometric), the relief below it from the network; it also settles the relief's sign. Holds the video in memory "
+                   "at the working size; a minute or two for a few hundred frames")
+    p.add_argument("--centre", type=_pair("CX,CY in pixels", (2,)), default=None, help="with --focal: the principal point in the input's frames (default: their centre)")
+    p.add_argument("--isometric-scale", type=float, default=ISOMETRIC_SCALE,
+                   help=f"with --focal: the length below which the network's relief is kept, as a fraction of the frame's shorter side (default {ISOMETRIC_SCALE}; 0: the isometric depth alone)")
     p.add_argument("--png16", action="store_true", help="also write 16-bit PNG depth frames (0: no depth; 1 … 65535 span depth.npz's png16_range)")
     p.add_argument("--ply", action="store_true", help="also write a PLY point cloud per frame")
     p.add_argument("--ply-relief", type=float, default=None,
@@ -492,7 +515,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     args = parser.parse_args(_join_dash_values(sys.argv[1:] if argv is None else list(argv)))
     try:
         return args.run(args)
-    except (ValueError, TypeError, OSError) as e:
+    except (ValueError, TypeError, OSError, ImportError) as e:  # ImportError: an optional dependency, named with its pip extra
         print(f"nrdepth {args.command}: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

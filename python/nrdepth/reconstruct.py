@@ -400,6 +400,37 @@ def _network_size(shape: Tuple[int, int, int], net: "torch.nn.Module") -> Tuple[
     return (-(-shape[0] // tm) * tm, -(-shape[1] // 8) * 8, -(-shape[2] // 8) * 8)
 
 
+ISOMETRIC_SCALE = 0.05
+"""With a camera's ``focal`` length, the isometric depth's shape is kept above
+this scale (a Gaussian's standard deviation, as a fraction of the frame's
+shorter side) and the network's below it: about the spacing of the 400
+points whose depths :mod:`nrdepth.isometric` solves for."""
+
+
+def _sheet_camera(focal: Any, centre: Any, scale: float, frame: Tuple[int, int], roi: Any, units: str, temporal: bool) -> Optional[tuple]:
+    """``focal`` (pixels: one number or (f_x, f_y)) and ``centre`` (the
+    principal point in the video's frame; default its centre), checked and
+    moved into the frame of ``roi``; None without ``focal``."""
+    if focal is None:
+        return None
+    from .isometric import _cv2
+
+    _cv2()  # the optional dependencies, before any work
+    fx, fy = (focal, focal) if np.ndim(focal) == 0 else tuple(focal)
+    if not all(isinstance(f, (int, float, np.integer, np.floating)) and np.isfinite(f) and f > 0 for f in (fx, fy)):
+        raise ValueError(f"focal: expected the camera's focal length in pixels, one positive number or (f_x, f_y), got {focal!r}")
+    h, w = frame
+    cx, cy = ((w - 1) / 2, (h - 1) / 2) if centre is None else tuple(centre)
+    if not all(isinstance(c, (int, float, np.integer, np.floating)) and np.isfinite(c) for c in (cx, cy)):
+        raise ValueError(f"centre: expected the principal point (c_x, c_y) in pixels of the video's frame, got {centre!r}")
+    if not (np.isfinite(scale) and scale >= 0):
+        raise ValueError(f"isometric_scale: expected a fraction of the frame's shorter side >= 0, got {scale!r}")
+    if units != "standard" or temporal:
+        raise ValueError("focal: the isometric shape comes with units='standard' and temporal off only")
+    x, y = (0, 0) if roi is None else roi[:2]
+    return (float(fx), float(fy)), (float(cx) - x, float(cy) - y), float(scale)
+
+
 CHUNK = 16
 """Frames a chunk as the pipeline reads, converts and writes them."""
 
@@ -512,6 +543,26 @@ class _Pipeline:
             total, squares, n = total + float(frames[on].sum()), squares + float(np.square(frames[on]).sum()), n + int(on.sum())
         mean = total / n
         return pivot + mean, 1.0 / (math.sqrt(max(squares / n - mean * mean, 0.0)) or 1.0)
+
+    def isometric(self, raw: np.ndarray, camera: tuple) -> np.ndarray:
+        """The stitched depth ``raw`` (T, h, w) at the working resolution with
+        its shape above ``camera``'s scale taken from the sheet's isometric
+        depth (:func:`nrdepth.isometric.isometric_depth` of the working
+        video, its points over the first frame's mask; :func:`~nrdepth.isometric.fuse`)."""
+        from .isometric import fuse, isometric_depth
+
+        (fx, fy), (cx, cy), scale = camera
+        (H, W), (h, w) = self.full, self.work
+        video = np.concatenate(list(self.working()))
+        if video.dtype != np.uint8:
+            video = np.rint(np.clip(video, 0.0, 1.0) * 255).astype(np.uint8)
+        # The intrinsics of the working frames: area-averaged resizes keep pixel centres' relative places.
+        focal = (fx * w / W, fy * h / H)
+        centre = ((cx + 0.5) * w / W - 0.5, (cy + 0.5) * h / H - 0.5)
+        points = None if self.mask_work is None else self.mask_work[0]
+        on = np.isfinite(raw)
+        fused = fuse(np.where(on, raw, 0.0), isometric_depth(video, focal, centre, mask=points), scale * min(h, w), mask=on)
+        return np.where(on, fused, np.nan).astype(np.float32)
 
     def final(self, raw: np.ndarray, start: int, stop: int, offset: float, scale: float) -> np.ndarray:
         """Frames ``start .. stop`` of the final depth, float32 at the video's resolution (:meth:`finalise`)."""
@@ -638,6 +689,9 @@ def reconstruct(
     max_side: Optional[int] = MAX_SIDE,
     tile: Optional[Tuple[int, int, int]] = None,
     mask: Optional[np.ndarray] = None,
+    focal: Union[None, float, Tuple[float, float]] = None,
+    centre: Optional[Tuple[float, float]] = None,
+    isometric_scale: float = ISOMETRIC_SCALE,
 ) -> np.ndarray:
     """Depth video float32 (T, H, W) of a video (T, H, W) or colour video
     (T, H, W, 3) (uint8, or float in [0, 1]; colour becomes luma, ITU-R
@@ -676,6 +730,16 @@ def reconstruct(
       moves on its own (hands, other objects). A still background helps
       the alignment: on ``phisft_R1``'s black matte, masking costs 0.007 to
       0.017 per frame (docs/stitching.md).
+    - ``focal``: for a sheet (paper, cloth) filmed by a perspective camera
+      of this focal length in pixels (one number or (f_x, f_y); ``centre``:
+      the principal point in the video's frame, by default its centre), the
+      depth's shape above ``isometric_scale`` (:data:`ISOMETRIC_SCALE`) comes
+      from inextensibility (:mod:`nrdepth.isometric`: points followed by
+      optical flow over ``mask``'s first frame, or the whole frame, their
+      depths by the maximum-depth heuristic), the relief below it from the
+      network. It reads the paper's bend and the sign of the relief, whatever
+      the light (docs/reconstruction.md). The whole video is held at the
+      working resolution; a minute or two for a few hundred frames.
 
     Depth is defined up to one GBR per frame (one for the video with
     ``temporal``) and returned with zero mean over the video, in ``units``:
@@ -697,6 +761,7 @@ def reconstruct(
 
     gray = to_gray(video, "video")
     mask = _check_mask(mask, gray.shape, frames, roi, alignment, temporal, units)
+    camera = _sheet_camera(focal, centre, isometric_scale, gray.shape[1:3], roi, units, temporal)
     video = select(gray, frames, roi)
     _check_options(batch_size, progress, units, fine, max_side, tile, alignment, coarse_weight, window, temporal_weight)
     dev = resolve_device(device)
@@ -704,6 +769,8 @@ def reconstruct(
     chunks = lambda: (video[a : a + CHUNK] for a in range(0, len(video), CHUNK))  # noqa: E731
     pipeline = _Pipeline(video.shape[1:], chunks, net, dev, int(batch_size), fine, alignment, coarse_weight, window, temporal_weight, max_side, tile, mask)
     raw = np.concatenate(list(pipeline.stitched(progress)))
+    if camera is not None:
+        raw = pipeline.isometric(raw, camera)
     return pipeline.final(raw, 0, len(raw), *pipeline.finalise(raw, temporal, units))
 
 
@@ -732,6 +799,9 @@ def reconstruct_file(
     overwrite: bool = False,
     viewer: bool = True,
     mask: Union[None, np.ndarray, str, "os.PathLike[str]"] = None,
+    focal: Union[None, float, Tuple[float, float]] = None,
+    centre: Optional[Tuple[float, float]] = None,
+    isometric_scale: float = ISOMETRIC_SCALE,
 ) -> "Path":  # noqa: F821
     """:func:`reconstruct` a video file, image folder or array file
     (:class:`~nrdepth.videoio.VideoSource`) into the folder ``out``
@@ -753,7 +823,8 @@ def reconstruct_file(
     of the input's frame size; pixels of 128 or more (of 255) are on the
     surface. A mask of every frame is held in memory (a byte a pixel of
     the selected frames). Off it the depth is NaN: black in the videos, 0
-    in the PNGs, no point in the PLYs, a hole in the viewer. The other
+    in the PNGs, no point in the PLYs, a hole in the viewer. With ``focal``
+    the whole video is held at the working resolution. The other
     arguments as :func:`reconstruct`. Returns ``out``."""
     from .model.io import resolve_device
     from .videoio import PLY_RELIEF, ReconstructionWriter, check_output_folder, open_video
@@ -764,6 +835,7 @@ def reconstruct_file(
     out = check_output_folder(out, overwrite, inputs=(input,))
     source = open_video(input, "input", frames, roi)
     mask = _file_mask(mask, source, frames, roi, alignment, temporal, units)
+    camera = _sheet_camera(focal, centre, isometric_scale, source.raw_size, roi, units, temporal)
     pipeline = _Pipeline(source.frame_size, lambda: source.chunks(CHUNK), net, dev, int(batch_size), fine, alignment, coarse_weight, window, temporal_weight, max_side, tile, mask)
     t = pipeline.shape[0]
     if ply_relief is None:
@@ -772,6 +844,8 @@ def reconstruct_file(
         raw = _DiskFrames(writer.scratch("stitched.f32"), pipeline.shape[1:])
         for chunk in pipeline.stitched(progress):
             raw.append(chunk)
+        if camera is not None:
+            raw[:] = pipeline.isometric(raw[:], camera)
         offset, scale = pipeline.finalise(raw, temporal, units)
         scale = -scale if flip else scale
         # The ranges from the working resolution (bilinear resizing makes no new extremes), a chunk at a time.

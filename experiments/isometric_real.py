@@ -1,0 +1,187 @@
+"""Both real videos' shape from inextensibility (``nrdepth.isometric``),
+alone and fused with the shipped model's depth, beside the network and the
+shape-blind references.
+
+- ``kinect_paper``: the 640×480 frames and the Kinect's intrinsics
+  (``gt_mdh.npz``'s K); points over the print in the first frame (the crop
+  inside, as CSF2's tracks in ``bench_real.py``); scored on the whole sheet
+  and the crop inside (mm after each frame's GBR; the network reads each
+  region as its own video, as ``bench_sheets.py`` does).
+- ``phisft_R1``: the 108×108 crop of the 4×4-binned frames that the
+  network reads, the full frames' intrinsics binned; points over the cloth
+  in the first frame (gray > 10, 2 pixels in from the matte); MAE-SN per
+  frame and from the first frame.
+
+``--scales``: :func:`nrdepth.isometric.fuse`'s length scale, as a fraction
+of the region's shorter side (0: the isometric depth alone). ``--grid``
+reads the paper again at each number of points and neighbours given, and
+with a focal length off by each factor given (no network): how much the
+figure depends on them.
+
+    python experiments/isometric_real.py [--csv docs/isometric_real.csv] [--plot docs/isometric_real.png]
+    python experiments/isometric_real.py --grid --points 200,400,800 --neighbours 8,12,20
+    python experiments/isometric_real.py --grid --focal-factors 0.5,0.7,1.4,2
+
+Needs ``pip install 'nrdepth[isometric]'``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from bench_real import CENTRE, CROP, DATA, FOCAL, KINECT_INNER, KINECT_ROI, kinect_references, kinect_score, kinect_truth  # noqa: E402
+
+import nrdepth  # noqa: E402
+from nrdepth import isometric  # noqa: E402
+from nrdepth.metrics import dense_baselines, mae_sn, sign_rates  # noqa: E402
+from nrdepth.videoio import read_video  # noqa: E402
+
+FIGURES = ("kinect_mm", "kinect_inner_mm", "phisft_frame", "phisft_first")
+
+
+def kinect_inputs() -> tuple:
+    frames = read_video(DATA / "kinect_paper").frames
+    K = np.load(DATA / "kinect_paper" / "gt_mdh.npz")["K"].astype(np.float64)
+    x, y, w, h = KINECT_INNER
+    print_area = np.zeros(frames.shape[1:], bool)
+    print_area[y : y + h, x : x + w] = True
+    return frames, (K[0, 0], K[1, 1]), (K[0, 2], K[1, 2]), print_area
+
+
+def phisft_inputs() -> tuple:
+    from scipy.ndimage import binary_erosion
+
+    data = np.load(DATA / "phisft_R1" / "derived_q4.npz")
+    top, bottom, left, right = CROP
+    video, truth = data["gray"][:, top:bottom, left:right], data["depth"][:, top:bottom, left:right]
+    focal = (FOCAL[0] / 4, FOCAL[1] / 4)
+    centre = ((CENTRE[0] + 0.5) / 4 - 0.5 - left, (CENTRE[1] + 0.5) / 4 - 0.5 - top)  # the full frames' centre on the binned crop
+    return video, truth, focal, centre, binary_erosion(video[0] > 10, iterations=2)
+
+
+def cached_network(name: str, video: np.ndarray, cache: Path) -> np.ndarray:
+    path = cache / f"{name}.npy"
+    if not path.exists():
+        cache.mkdir(parents=True, exist_ok=True)
+        np.save(path, nrdepth.reconstruct(video).astype(np.float32))
+    return np.load(path).astype(np.float64)
+
+
+def read_all(args) -> list:
+    """Rows: one per reading, each figure of both videos."""
+    frames, focal, centre, print_area = kinect_inputs()
+    truth = kinect_truth()
+    start = time.perf_counter()
+    paper = isometric.isometric_depth(frames, focal, centre, mask=print_area, points=args.points[0], neighbours=args.neighbours[0])
+    print(f"kinect_paper: isometric depth in {time.perf_counter() - start:.0f} s")
+    video, cloth_truth, cloth_focal, cloth_centre, cloth_area = phisft_inputs()
+    start = time.perf_counter()
+    cloth = isometric.isometric_depth(video, cloth_focal, cloth_centre, mask=cloth_area, points=args.points[0], neighbours=args.neighbours[0])
+    print(f"phisft_R1: isometric depth in {time.perf_counter() - start:.0f} s")
+    scored = np.isfinite(cloth_truth)
+    networks = {region: cached_network(f"kinect_{region[0]}_{region[1]}", frames[:, region[1] : region[1] + region[3], region[0] : region[0] + region[2]], args.cache)
+                for region in (KINECT_ROI, KINECT_INNER)}
+    cloth_network = cached_network("phisft", video, args.cache)
+    rows = []
+    for scale in [None] + args.scales:
+        row = {"reading": "network" if scale is None else ("isometric" if scale == 0 else f"fused at {scale:g}"), "scale": "" if scale is None else scale}
+        for key, region in (("kinect_mm", KINECT_ROI), ("kinect_inner_mm", KINECT_INNER)):
+            x, y, w, h = region
+            net = networks[region]
+            depth = net if scale is None else isometric.fuse(net, paper[:, y : y + h, x : x + w], scale * min(w, h))
+            row[key] = kinect_score(depth, truth, region)
+            row[key.replace("_mm", "_sign")] = kinect_score(depth, truth, region, signs=True)
+        depth = cloth_network if scale is None else isometric.fuse(cloth_network, cloth, scale * min(video.shape[1:]), mask=video > 10)
+        row["phisft_frame"] = mae_sn(depth, cloth_truth, "frame", mask=scored)
+        row["phisft_first"] = mae_sn(depth, cloth_truth, "first", mask=scored)
+        row["phisft_sign"] = sign_rates(depth, cloth_truth, mask=scored)["sign_correct"]
+        rows.append(row)
+        print(f"{row['reading']:>16s}: kinect_paper {row['kinect_mm']:.2f} / {row['kinect_inner_mm']:.2f} mm (sign {row['kinect_sign']:.2f}), "
+              f"phisft_R1 {row['phisft_frame']:.4f} / {row['phisft_first']:.4f} (sign {row['phisft_sign']:.2f})")
+    whole, inner = kinect_references(truth, KINECT_ROI), kinect_references(truth, KINECT_INNER)
+    base = dense_baselines(cloth_truth, mask=scored)
+    from nrdepth.metrics import flat_baseline
+
+    for name in ("plane", "bowl", "quadratic"):
+        rows.append({"reading": name, "scale": "", "kinect_mm": whole[name], "kinect_inner_mm": inner[name],
+                     "phisft_frame": base[name], "phisft_first": flat_baseline(cloth_truth, "first", mask=scored) if name == "plane" else ""})
+        print(f"{name:>16s}: kinect_paper {whole[name]:.2f} / {inner[name]:.2f} mm, phisft_R1 {base[name]:.4f} per frame")
+    return rows
+
+
+def grid(args) -> None:
+    frames, focal, centre, print_area = kinect_inputs()
+    truth = kinect_truth()
+    from nrdepth.tracks import densify
+
+    for points in args.points:
+        xy = isometric.track_grid(frames, print_area, points)
+        for neighbours in args.neighbours:
+            for factor in args.focal_factors:
+                start = time.perf_counter()
+                depth = densify(xy, isometric.mdh_depths(xy, np.multiply(focal, factor), centre, neighbours=neighbours), frames.shape)
+                scores = [kinect_score(depth[:, y : y + h, x : x + w], truth, (x, y, w, h)) for x, y, w, h in (KINECT_ROI, KINECT_INNER)]
+                print(f"{xy.shape[1]} points, {neighbours} neighbours, focal × {factor:g}: kinect_paper {scores[0]:.2f} / {scores[1]:.2f} mm "
+                      f"({time.perf_counter() - start:.0f} s)", flush=True)
+
+
+def plot(rows: list, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    curve = [r for r in rows if r["scale"] != ""]
+    scales = [float(r["scale"]) for r in curve]
+    network = next(r for r in rows if r["reading"] == "network")
+    refs = {r["reading"]: r for r in rows if r["reading"] in ("plane", "bowl")}
+    fig, axes = plt.subplots(1, 4, figsize=(16, 3.6))
+    titles = {"kinect_mm": "kinect_paper, whole sheet (mm)", "kinect_inner_mm": "kinect_paper, crop inside (mm)",
+              "phisft_frame": "phisft_R1, MAE-SN per frame", "phisft_first": "phisft_R1, from the first frame"}
+    for ax, key in zip(axes, FIGURES):
+        ax.plot(scales, [r[key] for r in curve], "o-", label="isometric fused with the network")
+        ax.axhline(network[key], color="k", label="network (shipped)")
+        for name, style in (("plane", ":"), ("bowl", "--")):
+            if refs[name][key] != "":
+                ax.axhline(float(refs[name][key]), color="gray", linestyle=style, label=name)
+        ax.set_title(titles[key], fontsize=9)
+        ax.set_xlabel("fusion scale (fraction of the shorter side; 0 = isometric alone)", fontsize=7)
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    print(f"wrote {path}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    numbers = lambda kind: (lambda text: [kind(v) for v in text.split(",")])  # noqa: E731
+    parser.add_argument("--points", type=numbers(int), default=[400], help="points tracked (the first is used without --grid)")
+    parser.add_argument("--neighbours", type=numbers(int), default=[20], help="neighbours tied to each point (the first is used without --grid)")
+    parser.add_argument("--scales", type=numbers(float), default=[0, 0.05, 0.1, 0.2, 0.3, 0.5])
+    parser.add_argument("--focal-factors", type=numbers(float), default=[1.0], help="with --grid: the focal length used, times the true one")
+    parser.add_argument("--grid", action="store_true", help="only the paper, at each --points, --neighbours and --focal-factors")
+    parser.add_argument("--cache", type=Path, default=Path("eval_isometric"), help="the network's readings are kept here")
+    parser.add_argument("--csv", type=Path)
+    parser.add_argument("--plot", type=Path)
+    args = parser.parse_args()
+    if args.grid:
+        return grid(args)
+    rows = read_all(args)
+    if args.csv:
+        with open(args.csv, "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=list(rows[0]), extrasaction="ignore", lineterminator="\n")
+            writer.writeheader()
+            writer.writerows({k: (f"{v:.4f}" if isinstance(v, float) else v) for k, v in r.items()} for r in rows)
+    if args.plot:
+        plot(rows, args.plot)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,81 @@
+"""What limits the maximum-depth heuristic on ``kinect_paper``: the prior or
+the tracks? The truth's own 301 points (``gt_mdh.npz``), their depths by
+``nrdepth.isometric.mdh_depths`` (every frame solved together, 10
+neighbours), scored as ``bench_real.py`` scores a depth (mm after each
+frame's GBR) at the truth's points:
+
+- at the truth's image positions (the Kinect's points projected: no
+  tracking error), in its 23 frames;
+- at positions followed from frame 8 by Lucas–Kanade (``track_video``'s
+  settings) and by Farneback flow (``nrdepth.isometric``'s), over frames
+  8–112, where Lucas–Kanade keeps them all (it loses them after 120);
+  with each tracker's median distance from the truth's positions.
+
+    python experiments/isometric_tracks.py
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from bench_real import DATA, kinect_truth  # noqa: E402
+
+from nrdepth.isometric import mdh_depths  # noqa: E402
+from nrdepth.videoio import read_video  # noqa: E402
+
+NEIGHBOURS = 10
+
+
+def score(depths: np.ndarray, uv: np.ndarray, z: np.ndarray) -> float:
+    """Mean over frames of the mean absolute error after a·u + b·v + λ·depth + t."""
+    errors = []
+    for d, p, target in zip(depths, uv, z):
+        a = np.column_stack([p, d, np.ones(len(d))])
+        errors.append(np.abs(a @ np.linalg.lstsq(a, target, rcond=None)[0] - target).mean())
+    return float(np.mean(errors))
+
+
+def follow(frames: np.ndarray, start: np.ndarray, first: int, last: int, tracker: str) -> dict:
+    """Positions {frame: (n, 2)} of points at ``start`` in frame ``first``, followed to ``last``."""
+    import cv2
+    from scipy.ndimage import map_coordinates
+
+    positions, where = {first: start.astype(np.float64)}, start.astype(np.float64)
+    lk = dict(winSize=(21, 21), maxLevel=3, criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 0.01))
+    for t in range(first + 1, last + 1):
+        if tracker == "Lucas–Kanade":
+            ahead, _, _ = cv2.calcOpticalFlowPyrLK(frames[t - 1], frames[t], where.astype(np.float32).reshape(-1, 1, 2), None, **lk)
+            where = ahead.reshape(-1, 2).astype(np.float64)
+        else:
+            flow = cv2.calcOpticalFlowFarneback(frames[t - 1], frames[t], None, 0.5, 5, 21, 5, 7, 1.5, 0)
+            where = where + np.stack([map_coordinates(flow[..., c], [where[:, 1], where[:, 0]], order=1, mode="nearest") for c in (0, 1)], axis=1)
+        positions[t] = where
+    return positions
+
+
+def main() -> None:
+    truth = kinect_truth()
+    K = np.load(DATA / "kinect_paper" / "gt_mdh.npz")["K"].astype(np.float64)
+    focal, centre = (K[0, 0], K[1, 1]), (K[0, 2], K[1, 2])
+    uv = truth["uv"].transpose(0, 2, 1)  # (23, 301, 2)
+    frames_with_truth = list(truth["frames"])
+    print(f"the truth's image positions, {len(uv)} frames: {score(mdh_depths(uv, focal, centre, neighbours=NEIGHBOURS, keyframes=len(uv)), uv, truth['z']):.2f} mm")
+    video = read_video(DATA / "kinect_paper").frames
+    span = [i for i, f in enumerate(frames_with_truth) if f <= 112]
+    for tracker in ("Lucas–Kanade", "Farneback"):
+        positions = follow(video, uv[0], frames_with_truth[0], frames_with_truth[span[-1]], tracker)
+        tracked = np.stack([positions[frames_with_truth[i]] for i in span])
+        drift = np.median(np.linalg.norm(tracked - uv[span], axis=2), axis=1)
+        depths = mdh_depths(tracked, focal, centre, neighbours=NEIGHBOURS, keyframes=len(span))
+        print(f"{tracker}, frames {frames_with_truth[span[0]]}–{frames_with_truth[span[-1]]} ({len(span)} with truth): "
+              f"{score(depths, uv[span], truth['z'][span]):.2f} mm (the truth's positions: "
+              f"{score(mdh_depths(uv[span], focal, centre, neighbours=NEIGHBOURS, keyframes=len(span)), uv[span], truth['z'][span]):.2f}); "
+              f"median drift from the truth's positions {drift.mean():.2f} px over the frames, {drift[-1]:.2f} at the last")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,259 @@
+"""The large-scale shape of an inextensible sheet (paper, cloth) from its
+video, and its fusion with the network's depth.
+
+A network reads a frame's relief but little of its large-scale bend
+(docs/campaign.md); a sheet that bends without stretching gives that bend
+away through perspective. Three steps:
+
+- :func:`track_grid`: points spread evenly over ``mask`` in the first frame,
+  moved from each frame to the next by OpenCV's Farneback dense optical flow
+  (sampled bilinearly at each point). No point is dropped: a point that a
+  sparse tracker would lose in a fast or blurred frame is carried by the
+  flow of its neighbourhood.
+- :func:`mdh_depths`: the depth of every point in every frame by the
+  maximum-depth heuristic of inextensible NRSfM (Chhatkuli, Pizarro,
+  Collins and Bartoli, TPAMI 2018): maximise the sum of the depths subject
+  to ``‖Z_i r_i − Z_j r_j‖ ≤ D_ij`` in every frame for each pair of
+  neighbours (``r``: the point's ray, ``(x − c_x)/f_x, (y − c_y)/f_y, 1``),
+  with the pairs' template distances ``D_ij`` shared by all frames and
+  ``Σ D_ij`` fixed to the number of pairs (the video fixes no scale). The
+  sheet is pulled as far from the camera as its inextensible threads allow,
+  which makes them taut: the true shape when the video shows it bent in
+  enough ways. A second-order cone program, solved by Clarabel over
+  ``keyframes`` frames spread over the video; every other frame is then
+  solved alone with those ``D_ij`` fixed.
+- :func:`isometric_depth` runs both and spreads the depths over each frame
+  (linear over the points' Delaunay triangles, nearest outside their hull);
+  :func:`fuse` keeps the network's relief and takes the shape above a
+  length scale from the isometric depth.
+
+Frames and units: pixel coordinates (column x, row y, pixel centres at
+integers); depth is distance along the optical axis, growing away from the
+camera, in units of the mean template distance between neighbouring points
+(the scale is free: a video fixes none). Needs a perspective camera of known
+intrinsics, and the optional dependencies: ``pip install 'nrdepth[isometric]'``.
+"""
+
+from __future__ import annotations
+
+from typing import Optional, Tuple
+
+import numpy as np
+
+__all__ = ["track_grid", "neighbour_pairs", "mdh_depths", "isometric_depth", "fuse"]
+
+
+def _cv2():
+    """OpenCV, after checking that both optional dependencies are there."""
+    try:
+        import clarabel  # noqa: F401
+        import cv2
+    except ImportError as error:  # optional dependencies: say how to get them
+        raise ImportError("nrdepth.isometric needs OpenCV and Clarabel: pip install 'nrdepth[isometric]'") from error
+    return cv2
+
+
+def _check_video(video: np.ndarray) -> np.ndarray:
+    video = np.asarray(video)
+    if video.ndim != 3 or video.dtype != np.uint8 or video.shape[0] < 2 or min(video.shape[1:]) < 8:
+        raise ValueError(f"video: expected a (T, H, W) uint8 grayscale video with T >= 2 and frames of at least 8×8, "
+                         f"got {video.dtype} {video.shape}")
+    return video
+
+
+def _check_mask(mask: Optional[np.ndarray], shape: Tuple[int, int]) -> np.ndarray:
+    if mask is None:
+        return np.ones(shape, bool)
+    mask = np.asarray(mask)
+    if mask.dtype != np.bool_ or mask.shape != shape:
+        raise ValueError(f"mask: expected a bool array of a frame's shape {shape}, got {mask.dtype} {mask.shape}")
+    return mask
+
+
+def track_grid(video: np.ndarray, mask: Optional[np.ndarray] = None, points: int = 400) -> np.ndarray:
+    """Tracks (T, n, 2) (column, row) of about ``points`` points on a square
+    grid over ``mask`` (H, W) of the first frame (default: the whole frame),
+    moved through ``video`` (T, H, W) uint8 by Farneback optical flow from
+    each frame to the next (5 pyramid levels, 21-pixel windows)."""
+    from scipy.ndimage import map_coordinates
+
+    cv2 = _cv2()
+    video = _check_video(video)
+    mask = _check_mask(mask, video.shape[1:])
+    if not (isinstance(points, (int, np.integer)) and points >= 4):
+        raise ValueError(f"points: expected an int >= 4, got {points!r}")
+    spacing = max(1.0, float(np.sqrt(mask.sum() / points)))
+    rows, cols = np.mgrid[spacing / 2 : video.shape[1] : spacing, spacing / 2 : video.shape[2] : spacing]
+    grid = np.column_stack([cols.ravel(), rows.ravel()])
+    grid = grid[mask[rows.astype(int).ravel(), cols.astype(int).ravel()]]
+    if len(grid) < 4:
+        raise ValueError(f"mask: expected room for at least 4 points at {points} points over its area, got {len(grid)}")
+    xy = np.empty((len(video), len(grid), 2))
+    xy[0] = grid
+    for t in range(1, len(video)):
+        flow = cv2.calcOpticalFlowFarneback(video[t - 1], video[t], None, 0.5, 5, 21, 5, 7, 1.5, 0)
+        step = [map_coordinates(flow[..., c], [xy[t - 1, :, 1], xy[t - 1, :, 0]], order=1, mode="nearest") for c in (0, 1)]
+        xy[t] = xy[t - 1] + np.stack(step, axis=1)
+    return xy
+
+
+def neighbour_pairs(xy: np.ndarray, neighbours: int = 20) -> np.ndarray:
+    """The pairs (E, 2), i < j, of each point (n, 2) with its ``neighbours``
+    nearest, sorted."""
+    from scipy.spatial import cKDTree
+
+    xy = np.asarray(xy, np.float64)
+    if xy.ndim != 2 or xy.shape[1] != 2 or len(xy) < 2:
+        raise ValueError(f"xy: expected points (n, 2) with n >= 2, got shape {xy.shape}")
+    if not (isinstance(neighbours, (int, np.integer)) and neighbours >= 1):
+        raise ValueError(f"neighbours: expected an int >= 1, got {neighbours!r}")
+    _, nearest = cKDTree(xy).query(xy, min(neighbours, len(xy) - 1) + 1)
+    i = np.repeat(np.arange(len(xy)), nearest.shape[1] - 1)
+    j = nearest[:, 1:].ravel()
+    pairs = np.unique(np.sort(np.column_stack([i, j]), axis=1), axis=0)
+    return pairs[pairs[:, 0] != pairs[:, 1]]
+
+
+def _socp(rays: np.ndarray, pairs: np.ndarray, distances: Optional[np.ndarray]) -> Tuple[np.ndarray, np.ndarray]:
+    """Depths (M, n) maximising their sum under the pairs' cones, and the
+    template distances (E,): variables (their sum the number of pairs)
+    unless given."""
+    import clarabel
+    from scipy import sparse
+
+    M, n, _ = rays.shape
+    E = len(pairs)
+    depths = M * n
+    free = distances is None
+    variables = depths + (E if free else 0)
+    cones = M * E
+    t = np.repeat(np.arange(M), E)
+    e = np.tile(np.arange(E), M)
+    i, j = pairs[e, 0], pairs[e, 1]
+    offset = depths + (1 if free else 0)
+    first = offset + 4 * np.arange(cones)  # each cone's first row: its norm bound
+    b = np.zeros(offset + 4 * cones)
+    rows, columns, values = [np.arange(depths)], [np.arange(depths)], [-np.ones(depths)]  # depths >= 0
+    if free:
+        rows += [np.full(E, depths), first]  # Σ D <= E, and each cone's bound is its pair's D
+        columns += [depths + np.arange(E), depths + e]
+        values += [np.ones(E), -np.ones(cones)]
+        b[depths] = E
+    else:
+        b[first] = distances[e]
+    for axis in range(3):  # the cone's vector: Z_i r_i − Z_j r_j
+        rows += [first + 1 + axis, first + 1 + axis]
+        columns += [t * n + i, t * n + j]
+        values += [-rays[t, i, axis], rays[t, j, axis]]
+    A = sparse.csc_matrix((np.concatenate(values), (np.concatenate(rows), np.concatenate(columns))), shape=(len(b), variables))
+    q = np.zeros(variables)
+    q[:depths] = -1.0
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    solution = clarabel.DefaultSolver(sparse.csc_matrix((variables, variables)), q, A, b,
+                                      [clarabel.NonnegativeConeT(offset)] + [clarabel.SecondOrderConeT(4)] * cones, settings).solve()
+    if str(solution.status) not in ("Solved", "AlmostSolved"):
+        raise RuntimeError(f"the MDH cone program was not solved: {solution.status}")
+    x = np.asarray(solution.x)
+    return x[:depths].reshape(M, n), (x[depths:] if free else distances)
+
+
+def _rays(xy: np.ndarray, focal, centre) -> np.ndarray:
+    fx, fy = (float(focal), float(focal)) if np.ndim(focal) == 0 else (float(focal[0]), float(focal[1]))
+    cx, cy = float(centre[0]), float(centre[1])
+    if not (fx > 0 and fy > 0 and np.isfinite([fx, fy, cx, cy]).all()):
+        raise ValueError(f"focal, centre: expected positive focal lengths in pixels and a finite centre, got {focal!r}, {centre!r}")
+    return np.stack([(xy[..., 0] - cx) / fx, (xy[..., 1] - cy) / fy, np.ones(xy.shape[:2])], axis=-1)
+
+
+def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None, neighbours: int = 20,
+               keyframes: int = 24) -> np.ndarray:
+    """Depths (T, n) of tracked points ``xy`` (T, n, 2) by the maximum-depth
+    heuristic (module docstring). ``focal``: the focal length in pixels, one
+    number or (f_x, f_y); ``centre``: the principal point (c_x, c_y);
+    ``pairs`` (E, 2): the neighbours tied by inextensibility (default: each
+    point's ``neighbours`` nearest in the first frame). The template
+    distances come from ``keyframes`` frames spread evenly over the video,
+    solved together; every other frame is then solved with them fixed."""
+    xy = np.asarray(xy, np.float64)
+    if xy.ndim != 3 or xy.shape[2] != 2 or xy.shape[0] < 2 or xy.shape[1] < 3 or not np.isfinite(xy).all():
+        raise ValueError(f"xy: expected finite tracks (T, n, 2) with T >= 2 and n >= 3, got shape {xy.shape}")
+    if not (isinstance(keyframes, (int, np.integer)) and keyframes >= 2):
+        raise ValueError(f"keyframes: expected an int >= 2, got {keyframes!r}")
+    pairs = neighbour_pairs(xy[0], neighbours) if pairs is None else np.asarray(pairs)
+    if pairs.ndim != 2 or pairs.shape[1] != 2 or len(pairs) < 1 or pairs.min() < 0 or pairs.max() >= xy.shape[1]:
+        raise ValueError(f"pairs: expected (E, 2) indices of the {xy.shape[1]} points, got shape {pairs.shape}")
+    rays = _rays(xy, focal, centre)
+    T = len(xy)
+    keys = np.unique(np.rint(np.linspace(0, T - 1, min(keyframes, T))).astype(int))
+    depths = np.empty(xy.shape[:2])
+    depths[keys], distances = _socp(rays[keys], pairs, None)
+    rest = np.setdiff1d(np.arange(T), keys)
+    for chunk in np.array_split(rest, max(1, -(-len(rest) // len(keys)))):
+        if len(chunk):  # with the distances fixed the frames are independent: solved in chunks of a keyframe set's size
+            depths[chunk], _ = _socp(rays[chunk], pairs, distances)
+    return depths
+
+
+def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.ndarray] = None, points: int = 400,
+                    neighbours: int = 20, keyframes: int = 24) -> np.ndarray:
+    """Dense depth (T, H, W) float64 of an inextensible sheet filmed by
+    ``video`` (T, H, W) uint8 through a perspective camera of focal length
+    ``focal`` pixels (one number or (f_x, f_y)) and principal point
+    ``centre`` (default: the frame's centre): :func:`track_grid` over
+    ``mask`` (the sheet in the first frame; default: the whole frame),
+    :func:`mdh_depths`, then linear over the points' Delaunay triangles,
+    nearest outside their hull. Units: the mean distance between
+    neighbouring points is about 1."""
+    from .tracks import densify
+
+    video = _check_video(video)
+    if centre is None:
+        centre = ((video.shape[2] - 1) / 2, (video.shape[1] - 1) / 2)
+    _rays(np.zeros((1, 1, 2)), focal, centre)  # check the intrinsics before tracking
+    xy = track_grid(video, mask, points)
+    return densify(xy, mdh_depths(xy, focal, centre, neighbours=neighbours, keyframes=keyframes), video.shape)
+
+
+def fuse(depth: np.ndarray, isometric: np.ndarray, scale: float, mask: Optional[np.ndarray] = None) -> np.ndarray:
+    """The network's ``depth`` (T, H, W) with its shape above ``scale``
+    (the standard deviation of a Gaussian, in pixels) taken from
+    ``isometric`` (T, H, W, :func:`isometric_depth`): each frame of
+    ``depth`` is fitted to ``isometric`` by a GBR (``α x + β y + λ d + τ``,
+    over ``mask`` (T, H, W), default every pixel), and their difference,
+    smoothed by the Gaussian over ``mask``, is added. In ``isometric``'s
+    units; ``scale`` 0 gives ``isometric`` back."""
+    from .metrics import gbr_align
+
+    depth, isometric = np.asarray(depth, np.float64), np.asarray(isometric, np.float64)
+    if depth.ndim != 3 or depth.shape != isometric.shape:
+        raise ValueError(f"depth, isometric: expected two depth videos (T, H, W) of one shape, got {depth.shape} and {isometric.shape}")
+    if not (np.isfinite(scale) and scale >= 0):
+        raise ValueError(f"scale: expected a length in pixels >= 0, got {scale!r}")
+    mask = np.ones(depth.shape, bool) if mask is None else np.asarray(mask)
+    if mask.dtype != np.bool_ or mask.shape != depth.shape:
+        raise ValueError(f"mask: expected a bool array of the videos' shape {depth.shape}, got {mask.dtype} {mask.shape}")
+    if scale == 0:
+        return isometric.copy()
+    aligned = gbr_align(depth, isometric, "frame", mask=mask)
+    out = np.empty_like(depth)
+    for t in range(len(depth)):
+        weight = _blur(mask[t].astype(np.float64), scale)
+        difference = _blur(np.where(mask[t], isometric[t] - aligned[t], 0.0), scale)
+        out[t] = aligned[t] + difference / np.maximum(weight, 1e-6)  # normalised: the mask's outside takes no part
+    return out
+
+
+def _blur(image: np.ndarray, sigma: float) -> np.ndarray:
+    """A Gaussian blur of standard deviation ``sigma`` pixels with zeros
+    outside the image, by FFT over the image padded by 4σ (at most its own
+    size): the cost does not grow with σ."""
+    from scipy import fft
+    from scipy.ndimage import fourier_gaussian
+
+    h, w = image.shape
+    pad_h, pad_w = (min(int(np.ceil(4 * sigma)), n) for n in (h, w))
+    padded = np.zeros((fft.next_fast_len(h + 2 * pad_h, real=True), fft.next_fast_len(w + 2 * pad_w, real=True)))
+    padded[pad_h : pad_h + h, pad_w : pad_w + w] = image
+    blurred = fft.irfft2(fourier_gaussian(fft.rfft2(padded), sigma, n=padded.shape[1]), s=padded.shape)
+    return blurred[pad_h : pad_h + h, pad_w : pad_w + w]

@@ -1,0 +1,132 @@
+"""nrdepth.isometric: the flow tracker follows a known motion, MDH recovers
+an exactly inextensible sheet under perspective, its two stages agree, its
+answer is reproducible, the fusion is GBR-invariant, and bad input names
+its argument."""
+
+import numpy as np
+import pytest
+
+pytest.importorskip("cv2")
+pytest.importorskip("clarabel")
+
+from nrdepth import isometric  # noqa: E402
+from nrdepth.isometric import _rays, _socp  # noqa: E402
+
+FOCAL = 500.0
+
+
+def rolled_sheet(frames: int = 8, side: int = 9):
+    """Image positions (T, n, 2) and depths (T, n) of a grid on a sheet 2 × 1.6
+    rolled about its vertical axis, the curvature growing frame by frame
+    (arc-length parametrised: no stretch), turning and drifting, 4 units in
+    front of a pinhole of focal length FOCAL with its centre at pixel (0, 0)."""
+    s, v = (a.ravel() for a in np.meshgrid(np.linspace(-1, 1, side), np.linspace(-0.8, 0.8, side)))
+    xy, depth = [], []
+    for t in range(frames):
+        k = 0.2 + 0.8 * t / (frames - 1)
+        x, z = np.sin(k * s) / k, (1 - np.cos(k * s)) / k
+        a = 0.3 * np.sin(t)
+        x, z = np.cos(a) * x + np.sin(a) * z, -np.sin(a) * x + np.cos(a) * z
+        points = np.stack([x, v + 0.05 * t, z + 4.0], axis=1)
+        xy.append(FOCAL * points[:, :2] / points[:, 2:])
+        depth.append(points[:, 2])
+    return np.array(xy), np.array(depth)
+
+
+def relief_error(depth: np.ndarray, truth: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """Per frame: the error after the GBR fit (a·x + b·y + λ·depth + t) over that of the best plane."""
+    out = []
+    for d, z, p in zip(depth, truth, xy):
+        plane = np.column_stack([p, np.ones(len(z))])
+        fitted = np.column_stack([plane, d])
+        errors = [np.abs(a @ np.linalg.lstsq(a, z, rcond=None)[0] - z).mean() for a in (fitted, plane)]
+        out.append(errors[0] / errors[1])
+    return np.array(out)
+
+
+def test_mdh_reads_a_rolled_sheet():
+    xy, truth = rolled_sheet()
+    depth = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4)
+    ratio = relief_error(depth, truth, xy)
+    assert (depth > 0).all()
+    assert ratio.mean() < 0.5 and ratio[-3:].max() < 0.3, ratio  # the plane is 1; the most bent frames read best
+    # the depth grows away from the camera: λ > 0 in the bent half (the first frames are nearly flat)
+    for d, z, p in zip(depth[4:], truth[4:], xy[4:]):
+        assert np.linalg.lstsq(np.column_stack([p, np.ones(len(z)), d]), z, rcond=None)[0][3] > 0
+
+
+def test_mdh_fixed_distances_give_back_the_joint_solution():
+    xy, _ = rolled_sheet(frames=6, side=7)
+    pairs = isometric.neighbour_pairs(xy[0], 6)
+    rays = _rays(xy, FOCAL, (0.0, 0.0))
+    joint, distances = _socp(rays, pairs, None)
+    assert np.isclose(distances.sum(), len(pairs), rtol=1e-6)
+    for t in (0, 3, 5):  # given the template distances, the frames are independent
+        alone, _ = _socp(rays[t : t + 1], pairs, distances)
+        np.testing.assert_allclose(alone[0], joint[t], rtol=1e-4)
+
+
+def test_mdh_is_reproducible():
+    xy, _ = rolled_sheet(frames=6, side=7)
+    first = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=6, keyframes=3)
+    assert first.tobytes() == isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=6, keyframes=3).tobytes()
+
+
+def test_track_grid_follows_a_shift():
+    rng = np.random.default_rng(3)
+    from scipy.ndimage import gaussian_filter
+
+    texture = gaussian_filter(rng.random((160, 160)), 2.0)
+    texture = np.rint(255 * (texture - texture.min()) / np.ptp(texture)).astype(np.uint8)
+    video = np.stack([texture[20 - t : 120 - t, 20 - 2 * t : 120 - 2 * t] for t in range(5)])  # content moves +2 x, +1 y a frame
+    mask = np.zeros(video.shape[1:], bool)
+    mask[30:70, 30:70] = True
+    xy = isometric.track_grid(video, mask, points=25)
+    assert 16 <= xy.shape[1] <= 36
+    assert mask[xy[0, :, 1].astype(int), xy[0, :, 0].astype(int)].all()
+    np.testing.assert_allclose(xy[-1] - xy[0], np.broadcast_to([8.0, 4.0], xy[0].shape), atol=0.15)
+
+
+def test_fuse_is_gbr_invariant_and_spans_its_inputs():
+    rng = np.random.default_rng(0)
+    depth, iso = rng.normal(size=(2, 3, 24, 32))
+    rows, cols = np.mgrid[0:24, 0:32]
+    warped = 0.7 * cols - 0.2 * rows - 3.0 * depth + 5.0  # a GBR of the network's depth, with the sign turned
+    np.testing.assert_allclose(isometric.fuse(warped, iso, 4.0), isometric.fuse(depth, iso, 4.0), atol=1e-9)
+    np.testing.assert_array_equal(isometric.fuse(depth, iso, 0.0), iso)
+    from nrdepth.metrics import gbr_align
+
+    aligned = gbr_align(depth, iso, "frame")
+    np.testing.assert_allclose(isometric.fuse(depth, iso, 1e4), aligned, atol=1e-6)
+    # against scipy's direct Gaussian, the mask's outside left out (normalised convolution)
+    from scipy.ndimage import gaussian_filter
+
+    mask = np.ones(depth.shape, bool)
+    mask[:, :6, :10] = False
+    aligned = gbr_align(depth, iso, "frame", mask=mask)
+    smooth = lambda a: gaussian_filter(a, 2.0, mode="constant", truncate=8.0)  # noqa: E731
+    brute = [a + smooth(np.where(m, i - a, 0.0)) / smooth(m.astype(float)) for a, i, m in zip(aligned, iso, mask)]
+    np.testing.assert_allclose(isometric.fuse(depth, iso, 2.0, mask=mask), brute, atol=1e-6)  # the FFT pads by 4σ
+
+
+def test_bad_input_names_the_argument():
+    xy, _ = rolled_sheet(frames=4, side=5)
+    video = np.zeros((3, 32, 32), np.uint8)
+    with pytest.raises(ValueError, match="focal"):
+        isometric.mdh_depths(xy, -1.0, (0.0, 0.0))
+    with pytest.raises(ValueError, match="xy"):
+        isometric.mdh_depths(xy[..., 0], FOCAL, (0.0, 0.0))
+    with pytest.raises(ValueError, match="pairs"):
+        isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), pairs=np.array([[0, 99]]))
+    with pytest.raises(ValueError, match="keyframes"):
+        isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), keyframes=1)
+    with pytest.raises(ValueError, match="video"):
+        isometric.isometric_depth(video.astype(np.float32), FOCAL)
+    with pytest.raises(ValueError, match="mask"):
+        isometric.isometric_depth(video, FOCAL, mask=np.ones((5, 5), bool))
+    with pytest.raises(ValueError, match="focal"):
+        isometric.isometric_depth(video, 0.0)
+    with pytest.raises(ValueError, match="scale"):
+        isometric.fuse(np.zeros((1, 8, 8)), np.zeros((1, 8, 8)), -1.0)
+    with pytest.raises(ValueError, match="depth, isometric"):
+        isometric.fuse(np.zeros((1, 8, 8)), np.zeros((1, 8, 9)), 1.0)
