@@ -7,9 +7,12 @@ shape-blind references.
   inside, as CSF2's tracks in ``bench_real.py``); scored on the whole sheet
   and the crop inside (mm after each frame's GBR; the network reads each
   region as its own video, as ``bench_sheets.py`` does).
-- ``phisft_R1``: the 108×108 crop of the 4×4-binned frames that the
-  network reads, the full frames' intrinsics binned; points over the cloth
-  in the first frame (gray > 10, 2 pixels in from the matte); MAE-SN per
+- ``phisft_R1``: the network reads the 108×108 crop of the 4×4-binned
+  frames, as ``bench_real.py`` does; the points are followed on the full
+  1920×1080 frames (as ``reconstruct(focal=...)`` follows them on the
+  selected frames whole), over the cloth inside the crop in the first
+  frame (gray > 10, 8 pixels in from the matte), with the full frames'
+  intrinsics, and their depths spread over the binned crop; MAE-SN per
   frame and from the first frame.
 
 ``--scales``: :func:`nrdepth.isometric.fuse`'s length scale, as a fraction
@@ -55,15 +58,23 @@ def kinect_inputs() -> tuple:
     return frames, (K[0, 0], K[1, 1]), (K[0, 2], K[1, 2]), print_area
 
 
-def phisft_inputs() -> tuple:
+def phisft_inputs(points: int, neighbours: int) -> tuple:
+    """The binned crop the network reads, its truth, and the cloth's isometric depth on that crop."""
     from scipy.ndimage import binary_erosion
+
+    from nrdepth.tracks import densify
 
     data = np.load(DATA / "phisft_R1" / "derived_q4.npz")
     top, bottom, left, right = CROP
     video, truth = data["gray"][:, top:bottom, left:right], data["depth"][:, top:bottom, left:right]
-    focal = (FOCAL[0] / 4, FOCAL[1] / 4)
-    centre = ((CENTRE[0] + 0.5) / 4 - 0.5 - left, (CENTRE[1] + 0.5) / 4 - 0.5 - top)  # the full frames' centre on the binned crop
-    return video, truth, focal, centre, binary_erosion(video[0] > 10, iterations=2)
+    full = read_video(DATA / "phisft_R1" / "rgbs").frames
+    cloth = binary_erosion(full[0] > 10, iterations=8)
+    inside = np.zeros_like(cloth)
+    inside[4 * top : 4 * bottom, 4 * left : 4 * right] = True
+    xy = isometric.track_grid(full, cloth & inside, points)
+    depths = isometric.mdh_depths(xy, FOCAL, CENTRE, neighbours=neighbours)
+    binned = (xy + 0.5) / 4 - 0.5 - np.array([left, top])  # full-frame pixels to the binned crop's
+    return video, truth, densify(binned, depths, video.shape)
 
 
 def cached_network(name: str, video: np.ndarray, cache: Path) -> np.ndarray:
@@ -81,9 +92,8 @@ def read_all(args) -> list:
     start = time.perf_counter()
     paper = isometric.isometric_depth(frames, focal, centre, mask=print_area, points=args.points[0], neighbours=args.neighbours[0])
     print(f"kinect_paper: isometric depth in {time.perf_counter() - start:.0f} s")
-    video, cloth_truth, cloth_focal, cloth_centre, cloth_area = phisft_inputs()
     start = time.perf_counter()
-    cloth = isometric.isometric_depth(video, cloth_focal, cloth_centre, mask=cloth_area, points=args.points[0], neighbours=args.neighbours[0])
+    video, cloth_truth, cloth = phisft_inputs(args.points[0], args.neighbours[0])
     print(f"phisft_R1: isometric depth in {time.perf_counter() - start:.0f} s")
     scored = np.isfinite(cloth_truth)
     networks = {region: cached_network(f"kinect_{region[0]}_{region[1]}", frames[:, region[1] : region[1] + region[3], region[0] : region[0] + region[2]], args.cache)

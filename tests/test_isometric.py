@@ -87,6 +87,22 @@ def test_track_grid_follows_a_shift():
     np.testing.assert_allclose(xy[-1] - xy[0], np.broadcast_to([8.0, 4.0], xy[0].shape), atol=0.15)
 
 
+def test_track_grid_is_the_same_at_any_thread_count():
+    import cv2
+
+    rng = np.random.default_rng(5)
+    video = np.stack([np.roll(rng.integers(0, 256, (48, 64), dtype=np.uint8), t, axis=1) for t in range(3)])
+    threads = cv2.getNumThreads()
+    try:
+        cv2.setNumThreads(1)
+        one = isometric.track_grid(video, points=30)
+        cv2.setNumThreads(4)
+        four = isometric.track_grid(video, points=30)
+    finally:
+        cv2.setNumThreads(threads)
+    assert one.tobytes() == four.tobytes()
+
+
 def test_fuse_is_gbr_invariant_and_spans_its_inputs():
     rng = np.random.default_rng(0)
     depth, iso = rng.normal(size=(2, 3, 24, 32))

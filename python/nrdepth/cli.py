@@ -227,11 +227,12 @@ def _reconstruct(args: argparse.Namespace) -> int:
                          roi=args.roi, frames=args.frames, units=args.units, alignment=args.alignment, coarse_weight=args.coarse_weight,
                          window=args.window, temporal_weight=args.temporal_weight, fine=args.fine, max_side=args.max_side or None,
                          flip=args.flip, png16=args.png16, ply=args.ply, ply_relief=args.ply_relief, overwrite=args.overwrite,
-                         viewer=not args.no_viewer, mask=args.mask, focal=args.focal, centre=args.centre, isometric_scale=args.isometric_scale)
+                         viewer=not args.no_viewer, mask=args.mask, focal=args.focal, centre=args.centre, sheet=args.sheet,
+                         isometric_scale=args.isometric_scale)
     except ValueError as e:
         # The API names its arguments; the command line names its flags.
         name = str(e).split(":", 1)[0]
-        if name in ("out", "roi", "frames", "max_side", "mask", "focal", "centre", "isometric_scale"):
+        if name in ("out", "roi", "frames", "max_side", "mask", "focal", "centre", "sheet", "isometric_scale"):
             raise ValueError(f"--{name.replace('_', '-')}{str(e)[len(name):]}") from None
         raise
     finally:
@@ -441,10 +442,13 @@ def build_parser() -> argparse.ArgumentParser:
                    "in the alignments: for a background that moves on its own")
     p.add_argument("--focal", type=_pair("F or FX,FY in pixels", (1, 2)), default=None,
                    help="for a sheet (paper, cloth) filmed by a perspective camera: its focal length in pixels of the input's frames. The shape above "
-                   "--isometric-scale then comes from inextensibility (points followed by optical flow over the first frame's --mask, or the whole "
-                   "frame; nrdepth.isometric), the relief below it from the network; it also settles the relief's sign. Holds the video in memory "
-                   "at the working size; a minute or two for a few hundred frames")
+                   "--isometric-scale then comes from inextensibility (points followed by optical flow over --sheet; nrdepth.isometric), the relief "
+                   "below it from the network; it also settles the relief's sign. Holds the selected frames in memory; a minute or two for a few "
+                   "hundred frames")
     p.add_argument("--centre", type=_pair("CX,CY in pixels", (2,)), default=None, help="with --focal: the principal point in the input's frames (default: their centre)")
+    p.add_argument("--sheet", type=_roi, default=None,
+                   help="with --focal: a box X,Y,W,H of the first selected frame, in the input's pixels, on the sheet only (not the background or "
+                   "the hands), where the points are spread (default: --roi, or the whole frame)")
     p.add_argument("--isometric-scale", type=float, default=ISOMETRIC_SCALE,
                    help=f"with --focal: the length below which the network's relief is kept, as a fraction of the frame's shorter side (default {ISOMETRIC_SCALE}; 0: the isometric depth alone)")
     p.add_argument("--png16", action="store_true", help="also write 16-bit PNG depth frames (0: no depth; 1 … 65535 span depth.npz's png16_range)")

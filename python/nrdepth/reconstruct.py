@@ -407,10 +407,12 @@ shorter side) and the network's below it: about the spacing of the 400
 points whose depths :mod:`nrdepth.isometric` solves for."""
 
 
-def _sheet_camera(focal: Any, centre: Any, scale: float, frame: Tuple[int, int], roi: Any, units: str, temporal: bool) -> Optional[tuple]:
-    """``focal`` (pixels: one number or (f_x, f_y)) and ``centre`` (the
-    principal point in the video's frame; default its centre), checked and
-    moved into the frame of ``roi``; None without ``focal``."""
+def _sheet_camera(focal: Any, centre: Any, scale: float, sheet: Any, frame: Tuple[int, int], roi: Any, units: str, temporal: bool) -> Optional[dict]:
+    """``focal`` (pixels: one number or (f_x, f_y)), ``centre`` (the
+    principal point; default the frame's centre) and ``sheet`` (where the
+    points go in the first frame: bool (H, W), or a box (x, y, w, h);
+    default the ``roi``, or the whole frame), all in the video's frame
+    ``frame`` (H, W), checked; None without ``focal``."""
     if focal is None:
         return None
     from .isometric import _cv2
@@ -419,16 +421,30 @@ def _sheet_camera(focal: Any, centre: Any, scale: float, frame: Tuple[int, int],
     fx, fy = (focal, focal) if np.ndim(focal) == 0 else tuple(focal)
     if not all(isinstance(f, (int, float, np.integer, np.floating)) and np.isfinite(f) and f > 0 for f in (fx, fy)):
         raise ValueError(f"focal: expected the camera's focal length in pixels, one positive number or (f_x, f_y), got {focal!r}")
-    h, w = frame
-    cx, cy = ((w - 1) / 2, (h - 1) / 2) if centre is None else tuple(centre)
+    H, W = frame
+    cx, cy = ((W - 1) / 2, (H - 1) / 2) if centre is None else tuple(centre)
     if not all(isinstance(c, (int, float, np.integer, np.floating)) and np.isfinite(c) for c in (cx, cy)):
         raise ValueError(f"centre: expected the principal point (c_x, c_y) in pixels of the video's frame, got {centre!r}")
     if not (np.isfinite(scale) and scale >= 0):
         raise ValueError(f"isometric_scale: expected a fraction of the frame's shorter side >= 0, got {scale!r}")
     if units != "standard" or temporal:
         raise ValueError("focal: the isometric shape comes with units='standard' and temporal off only")
-    x, y = (0, 0) if roi is None else roi[:2]
-    return (float(fx), float(fy)), (float(cx) - x, float(cy) - y), float(scale)
+    roi = (0, 0, W, H) if roi is None else tuple(roi)
+    if sheet is None or (np.ndim(sheet) == 1 and len(sheet) == 4):
+        x, y, w, h = roi if sheet is None else (int(v) for v in sheet)
+        if not (0 <= x and 0 <= y and w > 0 and h > 0 and x + w <= W and y + h <= H):
+            raise ValueError(f"sheet: expected a box x, y, width, height inside the {W}×{H} frame, got {sheet!r}")
+        points = np.zeros(frame, bool)
+        points[y : y + h, x : x + w] = True
+    else:
+        points = np.asarray(sheet)
+        if points.dtype != np.bool_ or points.shape != tuple(frame):
+            raise ValueError(f"sheet: expected a box (x, y, w, h) or a bool array of the video's frame {tuple(frame)}, got {points.dtype} {points.shape}")
+    return {"focal": (float(fx), float(fy)), "centre": (float(cx), float(cy)), "scale": float(scale), "sheet": points, "roi": roi}
+
+
+def _as_uint8(frames: np.ndarray) -> np.ndarray:
+    return frames if frames.dtype == np.uint8 else np.rint(np.clip(frames, 0.0, 1.0) * 255).astype(np.uint8)
 
 
 CHUNK = 16
@@ -544,24 +560,24 @@ class _Pipeline:
         mean = total / n
         return pivot + mean, 1.0 / (math.sqrt(max(squares / n - mean * mean, 0.0)) or 1.0)
 
-    def isometric(self, raw: np.ndarray, camera: tuple) -> np.ndarray:
+    def isometric(self, raw: np.ndarray, camera: dict, video: np.ndarray) -> np.ndarray:
         """The stitched depth ``raw`` (T, h, w) at the working resolution with
-        its shape above ``camera``'s scale taken from the sheet's isometric
-        depth (:func:`nrdepth.isometric.isometric_depth` of the working
-        video, its points over the first frame's mask; :func:`~nrdepth.isometric.fuse`)."""
-        from .isometric import fuse, isometric_depth
+        its shape above ``camera``'s scale from the sheet's inextensibility:
+        points over ``camera["sheet"]`` followed through ``video`` (T, H, W),
+        the selected frames whole (not cut to the region: the points near
+        its edge stay in view), their depths with the camera's intrinsics,
+        spread over the region's working frame (:mod:`nrdepth.isometric`)."""
+        from .isometric import fuse, mdh_depths, track_grid
+        from .tracks import densify
 
-        (fx, fy), (cx, cy), scale = camera
-        (H, W), (h, w) = self.full, self.work
-        video = np.concatenate(list(self.working()))
-        if video.dtype != np.uint8:
-            video = np.rint(np.clip(video, 0.0, 1.0) * 255).astype(np.uint8)
-        # The intrinsics of the working frames: area-averaged resizes keep pixel centres' relative places.
-        focal = (fx * w / W, fy * h / H)
-        centre = ((cx + 0.5) * w / W - 0.5, (cy + 0.5) * h / H - 0.5)
-        points = None if self.mask_work is None else self.mask_work[0]
+        xy = track_grid(_as_uint8(video), camera["sheet"])
+        depths = mdh_depths(xy, camera["focal"], camera["centre"])
+        x, y, w_region, h_region = camera["roi"]
+        (h, w) = self.work
+        # Into the region's working frame: area-averaged resizes keep pixel centres' relative places.
+        working = (xy - np.array([x, y]) + 0.5) * np.array([w / w_region, h / h_region]) - 0.5
         on = np.isfinite(raw)
-        fused = fuse(np.where(on, raw, 0.0), isometric_depth(video, focal, centre, mask=points), scale * min(h, w), mask=on)
+        fused = fuse(np.where(on, raw, 0.0), densify(working, depths, raw.shape), camera["scale"] * min(h, w), mask=on)
         return np.where(on, fused, np.nan).astype(np.float32)
 
     def final(self, raw: np.ndarray, start: int, stop: int, offset: float, scale: float) -> np.ndarray:
@@ -691,6 +707,7 @@ def reconstruct(
     mask: Optional[np.ndarray] = None,
     focal: Union[None, float, Tuple[float, float]] = None,
     centre: Optional[Tuple[float, float]] = None,
+    sheet: Union[None, np.ndarray, Tuple[int, int, int, int]] = None,
     isometric_scale: float = ISOMETRIC_SCALE,
 ) -> np.ndarray:
     """Depth video float32 (T, H, W) of a video (T, H, W) or colour video
@@ -732,14 +749,17 @@ def reconstruct(
       0.017 per frame (docs/stitching.md).
     - ``focal``: for a sheet (paper, cloth) filmed by a perspective camera
       of this focal length in pixels (one number or (f_x, f_y); ``centre``:
-      the principal point in the video's frame, by default its centre), the
-      depth's shape above ``isometric_scale`` (:data:`ISOMETRIC_SCALE`) comes
-      from inextensibility (:mod:`nrdepth.isometric`: points followed by
-      optical flow over ``mask``'s first frame, or the whole frame, their
-      depths by the maximum-depth heuristic), the relief below it from the
-      network. It reads the paper's bend and the sign of the relief, whatever
-      the light (docs/reconstruction.md). The whole video is held at the
-      working resolution; a minute or two for a few hundred frames.
+      the principal point, by default the frame's centre), the depth's shape
+      above ``isometric_scale`` (:data:`ISOMETRIC_SCALE`) comes from
+      inextensibility (:mod:`nrdepth.isometric`: points followed by optical
+      flow, their depths by the maximum-depth heuristic), the relief below
+      it from the network. ``sheet``: where the points go in the first
+      selected frame, a bool (H, W) or a box (x, y, w, h), on the sheet only
+      (a point on the background breaks the sheet's constraints; default:
+      ``roi``, or the whole frame). All in pixels of the video's frame,
+      before ``roi``. It reads the paper's bend and the relief's sign,
+      whatever the light (docs/reconstruction.md). The selected frames are
+      held whole; a minute or two for a few hundred frames.
 
     Depth is defined up to one GBR per frame (one for the video with
     ``temporal``) and returned with zero mean over the video, in ``units``:
@@ -761,7 +781,7 @@ def reconstruct(
 
     gray = to_gray(video, "video")
     mask = _check_mask(mask, gray.shape, frames, roi, alignment, temporal, units)
-    camera = _sheet_camera(focal, centre, isometric_scale, gray.shape[1:3], roi, units, temporal)
+    camera = _sheet_camera(focal, centre, isometric_scale, sheet, gray.shape[1:3], roi, units, temporal)
     video = select(gray, frames, roi)
     _check_options(batch_size, progress, units, fine, max_side, tile, alignment, coarse_weight, window, temporal_weight)
     dev = resolve_device(device)
@@ -770,7 +790,7 @@ def reconstruct(
     pipeline = _Pipeline(video.shape[1:], chunks, net, dev, int(batch_size), fine, alignment, coarse_weight, window, temporal_weight, max_side, tile, mask)
     raw = np.concatenate(list(pipeline.stitched(progress)))
     if camera is not None:
-        raw = pipeline.isometric(raw, camera)
+        raw = pipeline.isometric(raw, camera, select(gray, frames, None))
     return pipeline.final(raw, 0, len(raw), *pipeline.finalise(raw, temporal, units))
 
 
@@ -801,6 +821,7 @@ def reconstruct_file(
     mask: Union[None, np.ndarray, str, "os.PathLike[str]"] = None,
     focal: Union[None, float, Tuple[float, float]] = None,
     centre: Optional[Tuple[float, float]] = None,
+    sheet: Union[None, np.ndarray, Tuple[int, int, int, int]] = None,
     isometric_scale: float = ISOMETRIC_SCALE,
 ) -> "Path":  # noqa: F821
     """:func:`reconstruct` a video file, image folder or array file
@@ -824,7 +845,7 @@ def reconstruct_file(
     surface. A mask of every frame is held in memory (a byte a pixel of
     the selected frames). Off it the depth is NaN: black in the videos, 0
     in the PNGs, no point in the PLYs, a hole in the viewer. With ``focal``
-    the whole video is held at the working resolution. The other
+    the selected frames are held whole, a byte a pixel. The other
     arguments as :func:`reconstruct`. Returns ``out``."""
     from .model.io import resolve_device
     from .videoio import PLY_RELIEF, ReconstructionWriter, check_output_folder, open_video
@@ -835,7 +856,7 @@ def reconstruct_file(
     out = check_output_folder(out, overwrite, inputs=(input,))
     source = open_video(input, "input", frames, roi)
     mask = _file_mask(mask, source, frames, roi, alignment, temporal, units)
-    camera = _sheet_camera(focal, centre, isometric_scale, source.raw_size, roi, units, temporal)
+    camera = _sheet_camera(focal, centre, isometric_scale, sheet, source.raw_size, roi, units, temporal)
     pipeline = _Pipeline(source.frame_size, lambda: source.chunks(CHUNK), net, dev, int(batch_size), fine, alignment, coarse_weight, window, temporal_weight, max_side, tile, mask)
     t = pipeline.shape[0]
     if ply_relief is None:
@@ -845,7 +866,8 @@ def reconstruct_file(
         for chunk in pipeline.stitched(progress):
             raw.append(chunk)
         if camera is not None:
-            raw[:] = pipeline.isometric(raw[:], camera)
+            whole = np.concatenate(list(open_video(input, "input", frames, None).chunks(CHUNK)))
+            raw[:] = pipeline.isometric(raw[:], camera, whole)
         offset, scale = pipeline.finalise(raw, temporal, units)
         scale = -scale if flip else scale
         # The ranges from the working resolution (bilinear resizing makes no new extremes), a chunk at a time.
