@@ -443,8 +443,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--focal", type=_pair("F or FX,FY in pixels", (1, 2)), default=None,
                    help="for a sheet (paper, cloth) filmed by a perspective camera: its focal length in pixels of the input's frames. The shape above "
                    "--isometric-scale then comes from inextensibility (points followed by optical flow over --sheet; nrdepth.isometric), the relief "
-                   "below it from the network; it also settles the relief's sign. Holds the selected frames in memory; a minute or two for a few "
-                   "hundred frames")
+                   "below it from the network, and on a long video that bends the sheet many ways the relief's sign too (a short clip reads as a dome). "
+                   "Holds the selected frames in memory; minutes for a few hundred frames")
     p.add_argument("--centre", type=_pair("CX,CY in pixels", (2,)), default=None, help="with --focal: the principal point in the input's frames (default: their centre)")
     p.add_argument("--sheet", type=_roi, default=None,
                    help="with --focal: a box X,Y,W,H of the first selected frame, in the input's pixels, on the sheet only (not the background or "

@@ -400,11 +400,13 @@ def _network_size(shape: Tuple[int, int, int], net: "torch.nn.Module") -> Tuple[
     return (-(-shape[0] // tm) * tm, -(-shape[1] // 8) * 8, -(-shape[2] // 8) * 8)
 
 
-ISOMETRIC_SCALE = 0.05
+ISOMETRIC_SCALE = 0.3
 """With a camera's ``focal`` length, the isometric depth's shape is kept above
 this scale (a Gaussian's standard deviation, as a fraction of the frame's
-shorter side) and the network's below it: about the spacing of the 400
-points whose depths :mod:`nrdepth.isometric` solves for."""
+shorter side) and the network's below it. Picked by a rule fixed
+beforehand: of 0, 0.05, 0.1, 0.2 and 0.3, the best per frame on 64
+generated sheets (docs/campaign.md); a long video of a sheet bent many ways,
+like ``kinect_paper``, reads better at 0.1 (docs/reconstruction.md)."""
 
 
 def _sheet_camera(focal: Any, centre: Any, scale: float, sheet: Any, frame: Tuple[int, int], roi: Any, units: str, temporal: bool) -> Optional[dict]:
@@ -757,9 +759,10 @@ def reconstruct(
       selected frame, a bool (H, W) or a box (x, y, w, h), on the sheet only
       (a point on the background breaks the sheet's constraints; default:
       ``roi``, or the whole frame). All in pixels of the video's frame,
-      before ``roi``. It reads the paper's bend and the relief's sign,
-      whatever the light (docs/reconstruction.md). The selected frames are
-      held whole; a minute or two for a few hundred frames.
+      before ``roi``. On a long video that bends the sheet many ways it
+      reads the sheet's bend and the relief's sign whatever the light; a
+      short or barely bending clip reads as a dome (docs/reconstruction.md).
+      The selected frames are held whole; minutes for a few hundred frames.
 
     Depth is defined up to one GBR per frame (one for the video with
     ``temporal``) and returned with zero mean over the video, in ``units``:
