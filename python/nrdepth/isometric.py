@@ -19,7 +19,8 @@ away through perspective. Three steps:
   ``Σ D_ij`` fixed to the number of pairs (the video fixes no scale). The
   sheet is pulled as far from the camera as its inextensible threads allow,
   which makes them taut: the true shape when the video shows it bent in
-  enough ways. A second-order cone program, solved by Clarabel over
+  enough ways (a short or barely bending clip leaves the distances loose
+  and reads as a taut dome). A second-order cone program, solved by Clarabel over
   ``keyframes`` frames spread over the video; every other frame is then
   solved alone with those ``D_ij`` fixed.
 - :func:`isometric_depth` runs both and spreads the depths over each frame
