@@ -22,7 +22,7 @@ away through perspective. Three steps:
   enough ways (a short or barely bending clip leaves the distances loose
   and reads as a taut dome). A second-order cone program, solved by Clarabel over
   ``keyframes`` frames spread over the video; every other frame is then
-  solved alone with those ``D_ij`` fixed.
+  solved alone with those ``D_ij`` fixed, in parallel threads.
 - :func:`isometric_depth` runs both and spreads the depths over each frame
   (linear over the points' Delaunay triangles, nearest outside their hull);
   :func:`fuse` keeps the network's relief and takes the shape above a
@@ -37,6 +37,8 @@ intrinsics, and the optional dependencies: ``pip install 'nrdepth[isometric]'``.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from typing import Optional, Tuple
 
 import numpy as np
@@ -190,9 +192,11 @@ def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None
     depths = np.empty(xy.shape[:2])
     depths[keys], distances = _socp(rays[keys], pairs, None)
     rest = np.setdiff1d(np.arange(T), keys)
-    for chunk in np.array_split(rest, max(1, -(-len(rest) // len(keys)))):
-        if len(chunk):  # with the distances fixed the frames are independent: solved in chunks of a keyframe set's size
-            depths[chunk], _ = _socp(rays[chunk], pairs, distances)
+    # With the distances fixed the frames are independent: one small program each (ten times faster than
+    # several frames in one), in threads (Clarabel releases the GIL; each frame's answer is the same in any thread).
+    with ThreadPoolExecutor(max_workers=max(1, min(len(rest), os.cpu_count() or 1))) as pool:
+        for t, solved in zip(rest, pool.map(lambda t: _socp(rays[t : t + 1], pairs, distances)[0][0], rest)):
+            depths[t] = solved
     return depths
 
 
