@@ -446,6 +446,7 @@ def _sheet_camera(focal: Any, centre: Any, scale: float, sheet: Any, frame: Tupl
 
 
 def _as_uint8(frames: np.ndarray) -> np.ndarray:
+    """Gray frames as uint8 (floats in [0, 1] rounded), as the optical flow takes them."""
     return frames if frames.dtype == np.uint8 else np.rint(np.clip(frames, 0.0, 1.0) * 255).astype(np.uint8)
 
 
