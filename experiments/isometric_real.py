@@ -43,7 +43,7 @@ from bench_real import CENTRE, CROP, DATA, FOCAL, KINECT_INNER, KINECT_ROI, kine
 
 import nrdepth  # noqa: E402
 from nrdepth import isometric  # noqa: E402
-from nrdepth.metrics import dense_baselines, mae_sn, sign_rates  # noqa: E402
+from nrdepth.metrics import dense_baselines, flat_baseline, mae_sn, sign_rates  # noqa: E402
 from nrdepth.videoio import read_video  # noqa: E402
 
 FIGURES = ("kinect_mm", "kinect_inner_mm", "phisft_frame", "phisft_first")
@@ -117,8 +117,6 @@ def read_all(args) -> list:
               f"phisft_R1 {row['phisft_frame']:.4f} / {row['phisft_first']:.4f} (sign {row['phisft_sign']:.2f})")
     whole, inner = kinect_references(truth, KINECT_ROI), kinect_references(truth, KINECT_INNER)
     base = dense_baselines(cloth_truth, mask=scored)
-    from nrdepth.metrics import flat_baseline
-
     for name in ("plane", "bowl", "quadratic"):
         rows.append({"reading": name, "scale": "", "kinect_mm": whole[name], "kinect_inner_mm": inner[name],
                      "phisft_frame": base[name], "phisft_first": flat_baseline(cloth_truth, "first", mask=scored) if name == "plane" else ""})

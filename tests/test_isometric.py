@@ -132,6 +132,12 @@ def test_bad_input_names_the_argument():
     video = np.zeros((3, 32, 32), np.uint8)
     with pytest.raises(ValueError, match="focal"):
         isometric.mdh_depths(xy, -1.0, (0.0, 0.0))
+    with pytest.raises(ValueError, match="focal"):
+        isometric.mdh_depths(xy, (FOCAL, FOCAL, FOCAL), (0.0, 0.0))
+    with pytest.raises(ValueError, match="centre"):
+        isometric.mdh_depths(xy, FOCAL, (0.0,))
+    with pytest.raises(ValueError, match="centre"):
+        isometric.mdh_depths(xy, FOCAL, "middle")
     with pytest.raises(ValueError, match="xy"):
         isometric.mdh_depths(xy[..., 0], FOCAL, (0.0, 0.0))
     with pytest.raises(ValueError, match="pairs"):

@@ -161,11 +161,28 @@ def _socp(rays: np.ndarray, pairs: np.ndarray, distances: Optional[np.ndarray]) 
     return x[:depths].reshape(M, n), (x[depths:] if free else distances)
 
 
+def _camera(focal, centre) -> Tuple[Tuple[float, float], Tuple[float, float]]:
+    """``focal`` (one number or (f_x, f_y), pixels, positive) and ``centre``
+    ((c_x, c_y), pixels), checked: ((f_x, f_y), (c_x, c_y))."""
+    try:
+        f = np.broadcast_to(np.asarray(focal, np.float64), (2,)) if np.ndim(focal) == 0 else np.asarray(focal, np.float64)
+        ok = f.shape == (2,) and bool(np.all(np.isfinite(f)) and np.all(f > 0))
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise ValueError(f"focal: expected the camera's focal length in pixels, one positive number or (f_x, f_y), got {focal!r}")
+    try:
+        c = np.asarray(centre, np.float64)
+        ok = c.shape == (2,) and bool(np.all(np.isfinite(c)))
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise ValueError(f"centre: expected the principal point (c_x, c_y) in pixels, got {centre!r}")
+    return (float(f[0]), float(f[1])), (float(c[0]), float(c[1]))
+
+
 def _rays(xy: np.ndarray, focal, centre) -> np.ndarray:
-    fx, fy = (float(focal), float(focal)) if np.ndim(focal) == 0 else (float(focal[0]), float(focal[1]))
-    cx, cy = float(centre[0]), float(centre[1])
-    if not (fx > 0 and fy > 0 and np.isfinite([fx, fy, cx, cy]).all()):
-        raise ValueError(f"focal, centre: expected positive focal lengths in pixels and a finite centre, got {focal!r}, {centre!r}")
+    (fx, fy), (cx, cy) = _camera(focal, centre)
     return np.stack([(xy[..., 0] - cx) / fx, (xy[..., 1] - cy) / fy, np.ones(xy.shape[:2])], axis=-1)
 
 
@@ -215,7 +232,7 @@ def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.nda
     video = _check_video(video)
     if centre is None:
         centre = ((video.shape[2] - 1) / 2, (video.shape[1] - 1) / 2)
-    _rays(np.zeros((1, 1, 2)), focal, centre)  # check the intrinsics before tracking
+    _camera(focal, centre)  # before tracking
     xy = track_grid(video, mask, points)
     return densify(xy, mdh_depths(xy, focal, centre, neighbours=neighbours, keyframes=keyframes), video.shape)
 

@@ -416,17 +416,14 @@ def _sheet_camera(focal: Any, centre: Any, scale: float, sheet: Any, frame: Tupl
     default the ``roi``, or the whole frame), all in the video's frame
     ``frame`` (H, W), checked; None without ``focal``."""
     if focal is None:
+        if centre is not None or sheet is not None:
+            raise ValueError("focal: centre and sheet place the isometric shape's points; they need the camera's focal length")
         return None
-    from .isometric import _cv2
+    from .isometric import _camera, _cv2
 
     _cv2()  # the optional dependencies, before any work
-    fx, fy = (focal, focal) if np.ndim(focal) == 0 else tuple(focal)
-    if not all(isinstance(f, (int, float, np.integer, np.floating)) and np.isfinite(f) and f > 0 for f in (fx, fy)):
-        raise ValueError(f"focal: expected the camera's focal length in pixels, one positive number or (f_x, f_y), got {focal!r}")
     H, W = frame
-    cx, cy = ((W - 1) / 2, (H - 1) / 2) if centre is None else tuple(centre)
-    if not all(isinstance(c, (int, float, np.integer, np.floating)) and np.isfinite(c) for c in (cx, cy)):
-        raise ValueError(f"centre: expected the principal point (c_x, c_y) in pixels of the video's frame, got {centre!r}")
+    focal, centre = _camera(focal, ((W - 1) / 2, (H - 1) / 2) if centre is None else centre)
     if not (np.isfinite(scale) and scale >= 0):
         raise ValueError(f"isometric_scale: expected a fraction of the frame's shorter side >= 0, got {scale!r}")
     if units != "standard" or temporal:
@@ -440,9 +437,10 @@ def _sheet_camera(focal: Any, centre: Any, scale: float, sheet: Any, frame: Tupl
         points[y : y + h, x : x + w] = True
     else:
         points = np.asarray(sheet)
-        if points.dtype != np.bool_ or points.shape != tuple(frame):
-            raise ValueError(f"sheet: expected a box (x, y, w, h) or a bool array of the video's frame {tuple(frame)}, got {points.dtype} {points.shape}")
-    return {"focal": (float(fx), float(fy)), "centre": (float(cx), float(cy)), "scale": float(scale), "sheet": points, "roi": roi}
+        if points.dtype != np.bool_ or points.shape != tuple(frame) or points.sum() < 16:
+            raise ValueError(f"sheet: expected a box (x, y, w, h) or a bool array of the video's frame {tuple(frame)} with at least 16 pixels on "
+                             f"the sheet, got {points.dtype} {points.shape}")
+    return {"focal": focal, "centre": centre, "scale": float(scale), "sheet": points, "roi": roi}
 
 
 def _as_uint8(frames: np.ndarray) -> np.ndarray:
