@@ -9,7 +9,12 @@ from above (the default lights). Per frame MAE-SN and the share of frames
 whose relief sign is right, paired over the same videos, beside the
 shape-blind references.
 
-    python experiments/isometric_generated.py [--videos 32] [--scales 0,0.05,0.1,0.2,0.3]
+``--pairs`` (the points tied by inextensibility, ``neighbours:far:reach``,
+:func:`nrdepth.isometric.neighbour_pairs`) and ``--relief`` (``fuse``'s
+one λ for the video, or one per frame): a reading for each combination
+given, each paired against the network and against the first combination.
+
+    python experiments/isometric_generated.py [--videos 32] [--scales 0,0.05,0.1,0.2,0.3] [--pairs 20:0:0,10:10:80] [--relief video,frame]
 """
 
 from __future__ import annotations
@@ -45,8 +50,14 @@ def main() -> None:
     parser.add_argument("--videos", type=int, default=32)
     parser.add_argument("--scales", type=lambda text: [float(v) for v in text.split(",")], default=[0, 0.05, 0.1, 0.2, 0.3],
                         help="fusion scales, fractions of the frame's side (0: the isometric depth alone)")
+    parser.add_argument("--pairs", type=lambda text: [tuple(int(v) for v in item.split(":")) for item in text.split(",")], default=[(20, 0, 0)],
+                        help="neighbours:far:reach of each reading (isometric.neighbour_pairs)")
+    parser.add_argument("--relief", type=lambda text: text.split(","), default=["video"], help="fuse's relief: video, frame or both")
     args = parser.parse_args()
-    names = ["network"] + [f"fused at {s:g}" for s in args.scales]
+    combinations = [(pairs, relief) for pairs in args.pairs for relief in args.relief]
+    label = lambda pairs, relief: "" if len(combinations) == 1 else " ({}:{}:{}, {})".format(*pairs, relief)  # noqa: E731
+    fused = [(pairs, relief, s, f"fused at {s:g}{label(pairs, relief)}") for pairs, relief in combinations for s in args.scales]
+    names = ["network"] + [name for *_, name in fused]
     for light, azimuth in (("below", (math.pi - 1.22, math.pi + 1.22)), ("above", None)):
         extra = {} if azimuth is None else {"light_azimuth": azimuth}
         config = GeneratorConfig(size=256, grid=128, sheet_probability=1.0, texture_families=FAMILIES, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
@@ -55,8 +66,8 @@ def main() -> None:
         for video, truth, params in zip(clips.video, clips.depth, clips.params):
             focal, centre = camera(params, config.size)
             network = nrdepth.reconstruct(video)
-            sheet = isometric.isometric_depth(video, focal, centre)
-            readings = {"network": network, **{name: isometric.fuse(network, sheet, s * config.size) for name, s in zip(names[1:], args.scales)}}
+            sheets = {pairs: isometric.isometric_depth(video, focal, centre, neighbours=pairs[0], far=pairs[1], reach=pairs[2]) for pairs in args.pairs}
+            readings = {"network": network, **{name: isometric.fuse(network, sheets[pairs], s * config.size, relief=relief) for pairs, relief, s, name in fused}}
             row = {name: (mae_sn(d, truth), sign_rates(d, truth)["sign_correct"]) for name, d in readings.items()}
             base = dense_baselines(truth)
             row["plane"], row["bowl"] = (base["plane"], np.nan), (base["bowl"], np.nan)
@@ -69,6 +80,10 @@ def main() -> None:
             if name in names[1:]:
                 difference = np.array([r[name][0] - r["network"][0] for r in rows])
                 line += f", paired against the network {difference.mean():+.4f} ± {difference.std(ddof=1) / math.sqrt(len(rows)):.4f}"
+            if name in names[1 + len(args.scales):]:
+                first = names[1 + names[1 + len(args.scales):].index(name) % len(args.scales)]
+                difference = np.array([r[name][0] - r[first][0] for r in rows])
+                line += f", against the first combination {difference.mean():+.4f} ± {difference.std(ddof=1) / math.sqrt(len(rows)):.4f}"
             print(line)
 
 

@@ -58,7 +58,7 @@ def kinect_inputs() -> tuple:
     return frames, (K[0, 0], K[1, 1]), (K[0, 2], K[1, 2]), print_area
 
 
-def phisft_inputs(points: int, neighbours: int) -> tuple:
+def phisft_inputs(points: int, neighbours: int, far: int, reach: int) -> tuple:
     """The binned crop the network reads, its truth, and the cloth's isometric depth on that crop."""
     from scipy.ndimage import binary_erosion
 
@@ -72,7 +72,7 @@ def phisft_inputs(points: int, neighbours: int) -> tuple:
     inside = np.zeros_like(cloth)
     inside[4 * top : 4 * bottom, 4 * left : 4 * right] = True
     xy = isometric.track_grid(full, cloth & inside, points)
-    depths = isometric.mdh_depths(xy, FOCAL, CENTRE, neighbours=neighbours)
+    depths = isometric.mdh_depths(xy, FOCAL, CENTRE, neighbours=neighbours, far=far, reach=reach)
     binned = (xy + 0.5) / 4 - 0.5 - np.array([left, top])  # full-frame pixels to the binned crop's
     return video, truth, densify(binned, depths, video.shape)
 
@@ -90,10 +90,11 @@ def read_all(args) -> list:
     frames, focal, centre, print_area = kinect_inputs()
     truth = kinect_truth()
     start = time.perf_counter()
-    paper = isometric.isometric_depth(frames, focal, centre, mask=print_area, points=args.points[0], neighbours=args.neighbours[0])
+    paper = isometric.isometric_depth(frames, focal, centre, mask=print_area, points=args.points[0], neighbours=args.neighbours[0],
+                                      far=args.far, reach=args.reach)
     print(f"kinect_paper: isometric depth in {time.perf_counter() - start:.0f} s")
     start = time.perf_counter()
-    video, cloth_truth, cloth = phisft_inputs(args.points[0], args.neighbours[0])
+    video, cloth_truth, cloth = phisft_inputs(args.points[0], args.neighbours[0], args.far, args.reach)
     print(f"phisft_R1: isometric depth in {time.perf_counter() - start:.0f} s")
     scored = np.isfinite(cloth_truth)
     networks = {region: cached_network(f"kinect_{region[0]}_{region[1]}", frames[:, region[1] : region[1] + region[3], region[0] : region[0] + region[2]], args.cache)
@@ -134,7 +135,7 @@ def grid(args) -> None:
         for neighbours in args.neighbours:
             for factor in args.focal_factors:
                 start = time.perf_counter()
-                depth = densify(xy, isometric.mdh_depths(xy, np.multiply(focal, factor), centre, neighbours=neighbours), frames.shape)
+                depth = densify(xy, isometric.mdh_depths(xy, np.multiply(focal, factor), centre, neighbours=neighbours, far=args.far, reach=args.reach), frames.shape)
                 scores = [kinect_score(depth[:, y : y + h, x : x + w], truth, (x, y, w, h)) for x, y, w, h in (KINECT_ROI, KINECT_INNER)]
                 print(f"{xy.shape[1]} points, {neighbours} neighbours, focal × {factor:g}: kinect_paper {scores[0]:.2f} / {scores[1]:.2f} mm "
                       f"({time.perf_counter() - start:.0f} s)", flush=True)
@@ -172,6 +173,8 @@ def main() -> None:
     numbers = lambda kind: (lambda text: [kind(v) for v in text.split(",")])  # noqa: E731
     parser.add_argument("--points", type=numbers(int), default=[400], help="points tracked (the first is used without --grid)")
     parser.add_argument("--neighbours", type=numbers(int), default=[20], help="neighbours tied to each point (the first is used without --grid)")
+    parser.add_argument("--far", type=int, default=0, help="far pairs of each point (isometric.neighbour_pairs)")
+    parser.add_argument("--reach", type=int, default=0, help="the far pairs' largest rank")
     parser.add_argument("--scales", type=numbers(float), default=[0, 0.05, 0.1, 0.2, 0.3, 0.5])
     parser.add_argument("--focal-factors", type=numbers(float), default=[1.0], help="with --grid: the focal length used, times the true one")
     parser.add_argument("--grid", action="store_true", help="only the paper, at each --points, --neighbours and --focal-factors")

@@ -106,25 +106,48 @@ def test_track_grid_is_the_same_at_any_thread_count():
 
 
 def test_fuse_is_gbr_invariant_and_spans_its_inputs():
+    from nrdepth.metrics import _design, gbr_fit
+
     rng = np.random.default_rng(0)
     depth, iso = rng.normal(size=(2, 3, 24, 32))
     rows, cols = np.mgrid[0:24, 0:32]
-    warped = 0.7 * cols - 0.2 * rows - 3.0 * depth + 5.0  # a GBR of the network's depth, with the sign turned
+    tilt = rng.normal(size=(3, 3, 1, 1))
+    planes = tilt[0] * cols + tilt[1] * rows + tilt[2]  # a plane per frame
+    # one λ for the video (the sign turned), a plane per frame: the video's GBR, which "video" ignores
+    warped = planes - 3.0 * depth
     np.testing.assert_allclose(isometric.fuse(warped, iso, 4.0), isometric.fuse(depth, iso, 4.0), atol=1e-9)
+    # a λ per frame: a GBR per frame, which "frame" ignores
+    warped = planes + np.array([-3.0, 0.5, 2.0])[:, None, None] * depth
+    np.testing.assert_allclose(isometric.fuse(warped, iso, 4.0, relief="frame"), isometric.fuse(depth, iso, 4.0, relief="frame"), atol=1e-9)
     np.testing.assert_array_equal(isometric.fuse(depth, iso, 0.0), iso)
-    from nrdepth.metrics import gbr_align
-
-    aligned = gbr_align(depth, iso, "frame")
-    np.testing.assert_allclose(isometric.fuse(depth, iso, 1e4), aligned, atol=1e-6)
+    # far above the frame's size the fusion is the network's depth fitted to the isometric one
+    each = [gbr_fit(d, i) for d, i in zip(depth, iso)]
+    shared = np.median([fit[2] for fit in each])
+    by_frame = np.stack([(_design(d) @ fit).reshape(d.shape) for d, fit in zip(depth, each)])
+    np.testing.assert_allclose(isometric.fuse(depth, iso, 1e4, relief="frame"), by_frame, atol=1e-6)
+    video = isometric.fuse(depth, iso, 1e4) - shared * depth  # one λ, the median of the frames': a plane per frame is left
+    for frame in video:
+        plane = np.column_stack([cols.ravel(), rows.ravel(), np.ones(cols.size)])
+        np.testing.assert_allclose(plane @ np.linalg.lstsq(plane, frame.ravel(), rcond=None)[0], frame.ravel(), atol=1e-6)
     # against scipy's direct Gaussian, the mask's outside left out (normalised convolution)
     from scipy.ndimage import gaussian_filter
 
     mask = np.ones(depth.shape, bool)
     mask[:, :6, :10] = False
-    aligned = gbr_align(depth, iso, "frame", mask=mask)
+    aligned = [(_design(d) @ gbr_fit(d, i, m)).reshape(d.shape) for d, i, m in zip(depth, iso, mask)]
     smooth = lambda a: gaussian_filter(a, 2.0, mode="constant", truncate=8.0)  # noqa: E731
     brute = [a + smooth(np.where(m, i - a, 0.0)) / smooth(m.astype(float)) for a, i, m in zip(aligned, iso, mask)]
-    np.testing.assert_allclose(isometric.fuse(depth, iso, 2.0, mask=mask), brute, atol=1e-6)  # the FFT pads by 4σ
+    np.testing.assert_allclose(isometric.fuse(depth, iso, 2.0, mask=mask, relief="frame"), brute, atol=1e-6)  # the FFT pads by 4σ
+
+
+def test_neighbour_pairs_agree_with_brute_force():
+    xy = np.random.default_rng(3).random((60, 2)) * 100
+    order = np.argsort(np.linalg.norm(xy[:, None] - xy[None], axis=2), axis=1)  # column r: each point's rank-r nearest
+    for neighbours, far, reach in ((6, 0, 0), (4, 5, 30), (5, 3, 200)):
+        ranks = list(range(1, neighbours + 1)) + ([int(r) for r in np.rint(np.linspace(2 * neighbours, reach, far))] if far else [])
+        ranks = [r for r in ranks if r < len(xy)]
+        brute = {tuple(sorted((i, int(order[i, r])))) for i in range(len(xy)) for r in ranks}
+        assert {tuple(p) for p in isometric.neighbour_pairs(xy, neighbours, far, reach)} == brute
 
 
 def test_bad_input_names_the_argument():
@@ -154,3 +177,9 @@ def test_bad_input_names_the_argument():
         isometric.fuse(np.zeros((1, 8, 8)), np.zeros((1, 8, 8)), -1.0)
     with pytest.raises(ValueError, match="depth, isometric"):
         isometric.fuse(np.zeros((1, 8, 8)), np.zeros((1, 8, 9)), 1.0)
+    with pytest.raises(ValueError, match="relief"):
+        isometric.fuse(np.zeros((1, 8, 8)), np.zeros((1, 8, 8)), 1.0, relief="pixel")
+    with pytest.raises(ValueError, match="far"):
+        isometric.neighbour_pairs(xy[0], 4, far=-1)
+    with pytest.raises(ValueError, match="reach"):
+        isometric.neighbour_pairs(xy[0], 4, far=3, reach=5)

@@ -100,9 +100,12 @@ def track_grid(video: np.ndarray, mask: Optional[np.ndarray] = None, points: int
     return xy
 
 
-def neighbour_pairs(xy: np.ndarray, neighbours: int = 20) -> np.ndarray:
-    """The pairs (E, 2), i < j, of each point (n, 2) with its ``neighbours``
-    nearest, sorted."""
+def neighbour_pairs(xy: np.ndarray, neighbours: int = 20, far: int = 0, reach: int = 0) -> np.ndarray:
+    """The pairs (E, 2), i < j, sorted, of each point (n, 2) with its
+    ``neighbours`` nearest, and with ``far`` more spread evenly in rank over
+    its nearest ``2 · neighbours`` to ``reach`` (0: none). Why far pairs: a
+    track's error is a smaller share of a longer distance, and a pair a few
+    points apart still bends little between them."""
     from scipy.spatial import cKDTree
 
     xy = np.asarray(xy, np.float64)
@@ -110,9 +113,17 @@ def neighbour_pairs(xy: np.ndarray, neighbours: int = 20) -> np.ndarray:
         raise ValueError(f"xy: expected points (n, 2) with n >= 2, got shape {xy.shape}")
     if not (isinstance(neighbours, (int, np.integer)) and neighbours >= 1):
         raise ValueError(f"neighbours: expected an int >= 1, got {neighbours!r}")
-    _, nearest = cKDTree(xy).query(xy, min(neighbours, len(xy) - 1) + 1)
-    i = np.repeat(np.arange(len(xy)), nearest.shape[1] - 1)
-    j = nearest[:, 1:].ravel()
+    if not (isinstance(far, (int, np.integer)) and far >= 0):
+        raise ValueError(f"far: expected an int >= 0, got {far!r}")
+    if far and not (isinstance(reach, (int, np.integer)) and reach >= 2 * neighbours):
+        raise ValueError(f"reach: expected an int >= 2 · neighbours = {2 * neighbours} with far pairs, got {reach!r}")
+    ranks = np.arange(1, neighbours + 1)
+    if far:
+        ranks = np.union1d(ranks, np.rint(np.linspace(2 * neighbours, reach, far)).astype(int))
+    ranks = ranks[ranks < len(xy)]
+    _, nearest = cKDTree(xy).query(xy, ranks + 1)  # k as a list: those ranks only (1 is the nearest other point)
+    i = np.repeat(np.arange(len(xy)), len(ranks))
+    j = nearest.ravel()
     pairs = np.unique(np.sort(np.column_stack([i, j]), axis=1), axis=0)
     return pairs[pairs[:, 0] != pairs[:, 1]]
 
@@ -187,12 +198,13 @@ def _rays(xy: np.ndarray, focal, centre) -> np.ndarray:
 
 
 def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None, neighbours: int = 20,
-               keyframes: int = 24) -> np.ndarray:
+               keyframes: int = 24, far: int = 0, reach: int = 0) -> np.ndarray:
     """Depths (T, n) of tracked points ``xy`` (T, n, 2) by the maximum-depth
     heuristic (module docstring). ``focal``: the focal length in pixels, one
     number or (f_x, f_y); ``centre``: the principal point (c_x, c_y);
-    ``pairs`` (E, 2): the neighbours tied by inextensibility (default: each
-    point's ``neighbours`` nearest in the first frame). The template
+    ``pairs`` (E, 2): the neighbours tied by inextensibility (default:
+    :func:`neighbour_pairs` of the first frame with ``neighbours``, ``far``
+    and ``reach``). The template
     distances come from ``keyframes`` frames spread evenly over the video,
     solved together; every other frame is then solved with them fixed."""
     xy = np.asarray(xy, np.float64)
@@ -200,7 +212,7 @@ def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None
         raise ValueError(f"xy: expected finite tracks (T, n, 2) with T >= 2 and n >= 3, got shape {xy.shape}")
     if not (isinstance(keyframes, (int, np.integer)) and keyframes >= 2):
         raise ValueError(f"keyframes: expected an int >= 2, got {keyframes!r}")
-    pairs = neighbour_pairs(xy[0], neighbours) if pairs is None else np.asarray(pairs)
+    pairs = neighbour_pairs(xy[0], neighbours, far, reach) if pairs is None else np.asarray(pairs)
     if pairs.ndim != 2 or pairs.shape[1] != 2 or len(pairs) < 1 or pairs.min() < 0 or pairs.max() >= xy.shape[1]:
         raise ValueError(f"pairs: expected (E, 2) indices of the {xy.shape[1]} points, got shape {pairs.shape}")
     rays = _rays(xy, focal, centre)
@@ -218,7 +230,7 @@ def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None
 
 
 def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.ndarray] = None, points: int = 400,
-                    neighbours: int = 20, keyframes: int = 24) -> np.ndarray:
+                    neighbours: int = 20, keyframes: int = 24, far: int = 0, reach: int = 0) -> np.ndarray:
     """Dense depth (T, H, W) float64 of an inextensible sheet filmed by
     ``video`` (T, H, W) uint8 through a perspective camera of focal length
     ``focal`` pixels (one number or (f_x, f_y)) and principal point
@@ -234,35 +246,49 @@ def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.nda
         centre = ((video.shape[2] - 1) / 2, (video.shape[1] - 1) / 2)
     _camera(focal, centre)  # before tracking
     xy = track_grid(video, mask, points)
-    return densify(xy, mdh_depths(xy, focal, centre, neighbours=neighbours, keyframes=keyframes), video.shape)
+    return densify(xy, mdh_depths(xy, focal, centre, neighbours=neighbours, keyframes=keyframes, far=far, reach=reach), video.shape)
 
 
-def fuse(depth: np.ndarray, isometric: np.ndarray, scale: float, mask: Optional[np.ndarray] = None) -> np.ndarray:
+def fuse(depth: np.ndarray, isometric: np.ndarray, scale: float, mask: Optional[np.ndarray] = None,
+         relief: str = "video") -> np.ndarray:
     """The network's ``depth`` (T, H, W) with its shape above ``scale``
     (the standard deviation of a Gaussian, in pixels) taken from
-    ``isometric`` (T, H, W, :func:`isometric_depth`): each frame of
-    ``depth`` is fitted to ``isometric`` by a GBR (``α x + β y + λ d + τ``,
-    over ``mask`` (T, H, W), default every pixel), and their difference,
-    smoothed by the Gaussian over ``mask``, is added. In ``isometric``'s
-    units; ``scale`` 0 gives ``isometric`` back."""
-    from .metrics import gbr_align
+    ``isometric`` (T, H, W, :func:`isometric_depth`): ``depth`` is fitted to
+    ``isometric`` over ``mask`` (T, H, W, default every pixel) by
+    ``λ d + α x + β y + τ``, a plane per frame, and their difference,
+    smoothed by the Gaussian over ``mask``, is added. ``relief``: "video"
+    takes one λ for the whole video (the median of the frames' own), so the
+    relief keeps the network's scale from frame to frame, and its sign is
+    the isometric depth's in most frames; "frame" fits each frame's own λ
+    (a GBR per frame). In ``isometric``'s units; ``scale`` 0 gives
+    ``isometric`` back."""
+    from .metrics import _design, gbr_fit
 
     depth, isometric = np.asarray(depth, np.float64), np.asarray(isometric, np.float64)
     if depth.ndim != 3 or depth.shape != isometric.shape:
         raise ValueError(f"depth, isometric: expected two depth videos (T, H, W) of one shape, got {depth.shape} and {isometric.shape}")
     if not (np.isfinite(scale) and scale >= 0):
         raise ValueError(f"scale: expected a length in pixels >= 0, got {scale!r}")
+    if relief not in ("video", "frame"):
+        raise ValueError(f"relief: expected 'video' or 'frame', got {relief!r}")
     mask = np.ones(depth.shape, bool) if mask is None else np.asarray(mask)
     if mask.dtype != np.bool_ or mask.shape != depth.shape:
         raise ValueError(f"mask: expected a bool array of the videos' shape {depth.shape}, got {mask.dtype} {mask.shape}")
     if scale == 0:
         return isometric.copy()
-    aligned = gbr_align(depth, isometric, "frame", mask=mask)
+    fits = [gbr_fit(d, i, m) for d, i, m in zip(depth, isometric, mask)]  # each frame's (α, β, λ, τ)
+    if relief == "video":
+        shared = float(np.median([fit[2] for fit in fits]))
+        fits = []
+        for d, i, m in zip(depth, isometric, mask):
+            plane = _design(np.zeros_like(d), m)[:, [0, 1, 3]]
+            fits.append(np.insert(np.linalg.lstsq(plane, i[m] - shared * d[m], rcond=None)[0], 2, shared))
     out = np.empty_like(depth)
-    for t in range(len(depth)):
-        weight = _blur(mask[t].astype(np.float64), scale)
-        difference = _blur(np.where(mask[t], isometric[t] - aligned[t], 0.0), scale)
-        out[t] = aligned[t] + difference / np.maximum(weight, 1e-6)  # normalised: the mask's outside takes no part
+    for t, (d, i, m, fit) in enumerate(zip(depth, isometric, mask, fits)):
+        aligned = (_design(d, None) @ fit).reshape(d.shape)
+        weight = _blur(m.astype(np.float64), scale)
+        difference = _blur(np.where(m, i - aligned, 0.0), scale)
+        out[t] = aligned + difference / np.maximum(weight, 1e-6)  # normalised: the mask's outside takes no part
     return out
 
 
