@@ -14,7 +14,7 @@ shape-blind references.
 one λ for the video, or one per frame): a reading for each combination
 given, each paired against the network and against the first combination.
 
-    python experiments/isometric_generated.py [--videos 32] [--scales 0,0.05,0.1,0.2,0.3] [--pairs 20:0:0,10:10:80] [--relief video,frame]
+    python experiments/isometric_generated.py [--videos 32] [--scales 0,0.05,0.1,0.2,0.3] [--pairs 20:0:0,10:10:80] [--relief frame,video]
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ def main() -> None:
                         help="fusion scales, fractions of the frame's side (0: the isometric depth alone)")
     parser.add_argument("--pairs", type=lambda text: [tuple(int(v) for v in item.split(":")) for item in text.split(",")], default=[(20, 0, 0)],
                         help="neighbours:far:reach of each reading (isometric.neighbour_pairs)")
-    parser.add_argument("--relief", type=lambda text: text.split(","), default=["video"], help="fuse's relief: video, frame or both")
+    parser.add_argument("--relief", type=lambda text: text.split(","), default=["frame"], help="fuse's relief: frame, video or both")
     args = parser.parse_args()
     combinations = [(pairs, relief) for pairs in args.pairs for relief in args.relief]
     label = lambda pairs, relief: "" if len(combinations) == 1 else " ({}:{}:{}, {})".format(*pairs, relief)  # noqa: E731

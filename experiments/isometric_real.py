@@ -16,7 +16,9 @@ shape-blind references.
   frame and from the first frame.
 
 ``--scales``: :func:`nrdepth.isometric.fuse`'s length scale, as a fraction
-of the region's shorter side (0: the isometric depth alone). ``--grid``
+of the region's shorter side (0: the isometric depth alone); ``--relief``
+its relief scale, and ``--far``/``--reach`` the far pairs of
+:func:`nrdepth.isometric.neighbour_pairs`. ``--grid``
 reads the paper again at each number of points and neighbours given, and
 with a focal length off by each factor given (no network): how much the
 figure depends on them.
@@ -106,10 +108,10 @@ def read_all(args) -> list:
         for key, region in (("kinect_mm", KINECT_ROI), ("kinect_inner_mm", KINECT_INNER)):
             x, y, w, h = region
             net = networks[region]
-            depth = net if scale is None else isometric.fuse(net, paper[:, y : y + h, x : x + w], scale * min(w, h))
+            depth = net if scale is None else isometric.fuse(net, paper[:, y : y + h, x : x + w], scale * min(w, h), relief=args.relief)
             row[key] = kinect_score(depth, truth, region)
             row[key.replace("_mm", "_sign")] = kinect_score(depth, truth, region, signs=True)
-        depth = cloth_network if scale is None else isometric.fuse(cloth_network, cloth, scale * min(video.shape[1:]), mask=video > 10)
+        depth = cloth_network if scale is None else isometric.fuse(cloth_network, cloth, scale * min(video.shape[1:]), mask=video > 10, relief=args.relief)
         row["phisft_frame"] = mae_sn(depth, cloth_truth, "frame", mask=scored)
         row["phisft_first"] = mae_sn(depth, cloth_truth, "first", mask=scored)
         row["phisft_sign"] = sign_rates(depth, cloth_truth, mask=scored)["sign_correct"]
@@ -173,6 +175,7 @@ def main() -> None:
     numbers = lambda kind: (lambda text: [kind(v) for v in text.split(",")])  # noqa: E731
     parser.add_argument("--points", type=numbers(int), default=[400], help="points tracked (the first is used without --grid)")
     parser.add_argument("--neighbours", type=numbers(int), default=[20], help="neighbours tied to each point (the first is used without --grid)")
+    parser.add_argument("--relief", default="frame", choices=("frame", "video"), help="fuse's relief scale: each frame's own, or one for the video")
     parser.add_argument("--far", type=int, default=0, help="far pairs of each point (isometric.neighbour_pairs)")
     parser.add_argument("--reach", type=int, default=0, help="the far pairs' largest rank")
     parser.add_argument("--scales", type=numbers(float), default=[0, 0.05, 0.1, 0.2, 0.3, 0.5])

@@ -115,17 +115,17 @@ def test_fuse_is_gbr_invariant_and_spans_its_inputs():
     planes = tilt[0] * cols + tilt[1] * rows + tilt[2]  # a plane per frame
     # one λ for the video (the sign turned), a plane per frame: the video's GBR, which "video" ignores
     warped = planes - 3.0 * depth
-    np.testing.assert_allclose(isometric.fuse(warped, iso, 4.0), isometric.fuse(depth, iso, 4.0), atol=1e-9)
+    np.testing.assert_allclose(isometric.fuse(warped, iso, 4.0, relief="video"), isometric.fuse(depth, iso, 4.0, relief="video"), atol=1e-9)
     # a λ per frame: a GBR per frame, which "frame" ignores
     warped = planes + np.array([-3.0, 0.5, 2.0])[:, None, None] * depth
-    np.testing.assert_allclose(isometric.fuse(warped, iso, 4.0, relief="frame"), isometric.fuse(depth, iso, 4.0, relief="frame"), atol=1e-9)
+    np.testing.assert_allclose(isometric.fuse(warped, iso, 4.0), isometric.fuse(depth, iso, 4.0), atol=1e-9)
     np.testing.assert_array_equal(isometric.fuse(depth, iso, 0.0), iso)
     # far above the frame's size the fusion is the network's depth fitted to the isometric one
     each = [gbr_fit(d, i) for d, i in zip(depth, iso)]
     shared = np.median([fit[2] for fit in each])
     by_frame = np.stack([(_design(d) @ fit).reshape(d.shape) for d, fit in zip(depth, each)])
-    np.testing.assert_allclose(isometric.fuse(depth, iso, 1e4, relief="frame"), by_frame, atol=1e-6)
-    video = isometric.fuse(depth, iso, 1e4) - shared * depth  # one λ, the median of the frames': a plane per frame is left
+    np.testing.assert_allclose(isometric.fuse(depth, iso, 1e4), by_frame, atol=1e-6)
+    video = isometric.fuse(depth, iso, 1e4, relief="video") - shared * depth  # one λ, the median of the frames': a plane per frame is left
     for frame in video:
         plane = np.column_stack([cols.ravel(), rows.ravel(), np.ones(cols.size)])
         np.testing.assert_allclose(plane @ np.linalg.lstsq(plane, frame.ravel(), rcond=None)[0], frame.ravel(), atol=1e-6)
@@ -137,7 +137,7 @@ def test_fuse_is_gbr_invariant_and_spans_its_inputs():
     aligned = [(_design(d) @ gbr_fit(d, i, m)).reshape(d.shape) for d, i, m in zip(depth, iso, mask)]
     smooth = lambda a: gaussian_filter(a, 2.0, mode="constant", truncate=8.0)  # noqa: E731
     brute = [a + smooth(np.where(m, i - a, 0.0)) / smooth(m.astype(float)) for a, i, m in zip(aligned, iso, mask)]
-    np.testing.assert_allclose(isometric.fuse(depth, iso, 2.0, mask=mask, relief="frame"), brute, atol=1e-6)  # the FFT pads by 4σ
+    np.testing.assert_allclose(isometric.fuse(depth, iso, 2.0, mask=mask), brute, atol=1e-6)  # the FFT pads by 4σ
 
 
 def test_neighbour_pairs_agree_with_brute_force():

@@ -250,17 +250,18 @@ def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.nda
 
 
 def fuse(depth: np.ndarray, isometric: np.ndarray, scale: float, mask: Optional[np.ndarray] = None,
-         relief: str = "video") -> np.ndarray:
+         relief: str = "frame") -> np.ndarray:
     """The network's ``depth`` (T, H, W) with its shape above ``scale``
     (the standard deviation of a Gaussian, in pixels) taken from
     ``isometric`` (T, H, W, :func:`isometric_depth`): ``depth`` is fitted to
     ``isometric`` over ``mask`` (T, H, W, default every pixel) by
     ``λ d + α x + β y + τ``, a plane per frame, and their difference,
-    smoothed by the Gaussian over ``mask``, is added. ``relief``: "video"
-    takes one λ for the whole video (the median of the frames' own), so the
-    relief keeps the network's scale from frame to frame, and its sign is
-    the isometric depth's in most frames; "frame" fits each frame's own λ
-    (a GBR per frame). In ``isometric``'s units; ``scale`` 0 gives
+    smoothed by the Gaussian over ``mask``, is added. ``relief``: "frame"
+    fits each frame's own λ (a GBR per frame); "video" takes one λ for the
+    whole video (the median of the frames' own), so the relief keeps the
+    network's scale from frame to frame and the sign the isometric depth
+    has in most frames (better on both real videos, worse on short generated
+    clips: docs/findings.md). In ``isometric``'s units; ``scale`` 0 gives
     ``isometric`` back."""
     from .metrics import _design, gbr_fit
 
