@@ -156,7 +156,7 @@ def parameter_sweep(seed: int = 0, size: int = 128) -> np.ndarray:
     constraint, a non-identity Σ, more flexibility and more folding. Each
     panel renders frame 0 under an oblique light with a check texture over
     the whole patch, so in-plane folding shows as distorted checks."""
-    from .render import Light, Material, procedural_texture, render
+    from .render import Light, Material, render
     from .surface import SurfaceParams, grid_triangles, synthesize_surface
 
     base = SurfaceParams(
