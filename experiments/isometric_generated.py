@@ -9,12 +9,13 @@ from above (the default lights). Per frame MAE-SN and the share of frames
 whose relief sign is right, paired over the same videos, beside the
 shape-blind references.
 
+``--trackers`` (``track_grid``'s flow both ways or forward only),
 ``--pairs`` (the points tied by inextensibility, ``neighbours:far:reach``,
 :func:`nrdepth.isometric.neighbour_pairs`) and ``--relief`` (``fuse``'s
-one λ for the video, or one per frame): a reading for each combination
+one λ per frame, or one for the video): a reading for each combination
 given, each paired against the network and against the first combination.
 
-    python experiments/isometric_generated.py [--videos 32] [--scales 0,0.05,0.1,0.2,0.3] [--pairs 20:0:0,10:10:80] [--relief frame,video]
+    python experiments/isometric_generated.py [--videos 32] [--scales 0,0.05,0.1,0.2,0.3] [--trackers both,forward] [--pairs 20:0:0,10:10:80] [--relief frame,video]
 """
 
 from __future__ import annotations
@@ -52,11 +53,13 @@ def main() -> None:
                         help="fusion scales, fractions of the frame's side (0: the isometric depth alone)")
     parser.add_argument("--pairs", type=lambda text: [tuple(int(v) for v in item.split(":")) for item in text.split(",")], default=[(20, 0, 0)],
                         help="neighbours:far:reach of each reading (isometric.neighbour_pairs)")
+    parser.add_argument("--trackers", type=lambda text: text.split(","), default=["both"],
+                        help="isometric.track_grid's flow: both (forward and backward), forward, or both of them")
     parser.add_argument("--relief", type=lambda text: text.split(","), default=["frame"], help="fuse's relief: frame, video or both")
     args = parser.parse_args()
-    combinations = [(pairs, relief) for pairs in args.pairs for relief in args.relief]
-    label = lambda pairs, relief: "" if len(combinations) == 1 else " ({}:{}:{}, {})".format(*pairs, relief)  # noqa: E731
-    fused = [(pairs, relief, s, f"fused at {s:g}{label(pairs, relief)}") for pairs, relief in combinations for s in args.scales]
+    combinations = [(tracker, pairs, relief) for tracker in args.trackers for pairs in args.pairs for relief in args.relief]
+    label = lambda tracker, pairs, relief: "" if len(combinations) == 1 else " ({}, {}:{}:{}, {})".format(tracker, *pairs, relief)  # noqa: E731
+    fused = [(tracker, pairs, relief, s, f"fused at {s:g}{label(tracker, pairs, relief)}") for tracker, pairs, relief in combinations for s in args.scales]
     names = ["network"] + [name for *_, name in fused]
     for light, azimuth in (("below", (math.pi - 1.22, math.pi + 1.22)), ("above", None)):
         extra = {} if azimuth is None else {"light_azimuth": azimuth}
@@ -66,8 +69,10 @@ def main() -> None:
         for video, truth, params in zip(clips.video, clips.depth, clips.params):
             focal, centre = camera(params, config.size)
             network = nrdepth.reconstruct(video)
-            sheets = {pairs: isometric.isometric_depth(video, focal, centre, neighbours=pairs[0], far=pairs[1], reach=pairs[2]) for pairs in args.pairs}
-            readings = {"network": network, **{name: isometric.fuse(network, sheets[pairs], s * config.size, relief=relief) for pairs, relief, s, name in fused}}
+            sheets = {(tracker, pairs): isometric.isometric_depth(video, focal, centre, neighbours=pairs[0], far=pairs[1], reach=pairs[2], backward=tracker == "both")
+                      for tracker in args.trackers for pairs in args.pairs}
+            readings = {"network": network, **{name: isometric.fuse(network, sheets[tracker, pairs], s * config.size, relief=relief)
+                                               for tracker, pairs, relief, s, name in fused}}
             row = {name: (mae_sn(d, truth), sign_rates(d, truth)["sign_correct"]) for name, d in readings.items()}
             base = dense_baselines(truth)
             row["plane"], row["bowl"] = (base["plane"], np.nan), (base["bowl"], np.nan)

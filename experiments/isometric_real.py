@@ -60,7 +60,7 @@ def kinect_inputs() -> tuple:
     return frames, (K[0, 0], K[1, 1]), (K[0, 2], K[1, 2]), print_area
 
 
-def phisft_inputs(points: int, neighbours: int, far: int, reach: int) -> tuple:
+def phisft_inputs(points: int, neighbours: int, far: int, reach: int, window: int) -> tuple:
     """The binned crop the network reads, its truth, and the cloth's isometric depth on that crop."""
     from scipy.ndimage import binary_erosion
 
@@ -73,7 +73,7 @@ def phisft_inputs(points: int, neighbours: int, far: int, reach: int) -> tuple:
     cloth = binary_erosion(full[0] > 10, iterations=8)
     inside = np.zeros_like(cloth)
     inside[4 * top : 4 * bottom, 4 * left : 4 * right] = True
-    xy = isometric.track_grid(full, cloth & inside, points)
+    xy = isometric.track_grid(full, cloth & inside, points, window)
     depths = isometric.mdh_depths(xy, FOCAL, CENTRE, neighbours=neighbours, far=far, reach=reach)
     binned = (xy + 0.5) / 4 - 0.5 - np.array([left, top])  # full-frame pixels to the binned crop's
     return video, truth, densify(binned, depths, video.shape)
@@ -93,10 +93,10 @@ def read_all(args) -> list:
     truth = kinect_truth()
     start = time.perf_counter()
     paper = isometric.isometric_depth(frames, focal, centre, mask=print_area, points=args.points[0], neighbours=args.neighbours[0],
-                                      far=args.far, reach=args.reach)
+                                      far=args.far, reach=args.reach, window=args.window)
     print(f"kinect_paper: isometric depth in {time.perf_counter() - start:.0f} s")
     start = time.perf_counter()
-    video, cloth_truth, cloth = phisft_inputs(args.points[0], args.neighbours[0], args.far, args.reach)
+    video, cloth_truth, cloth = phisft_inputs(args.points[0], args.neighbours[0], args.far, args.reach, args.window)
     print(f"phisft_R1: isometric depth in {time.perf_counter() - start:.0f} s")
     scored = np.isfinite(cloth_truth)
     networks = {region: cached_network(f"kinect_{region[0]}_{region[1]}", frames[:, region[1] : region[1] + region[3], region[0] : region[0] + region[2]], args.cache)
@@ -133,7 +133,7 @@ def grid(args) -> None:
     from nrdepth.tracks import densify
 
     for points in args.points:
-        xy = isometric.track_grid(frames, print_area, points)
+        xy = isometric.track_grid(frames, print_area, points, args.window)
         for neighbours in args.neighbours:
             for factor in args.focal_factors:
                 start = time.perf_counter()
@@ -176,6 +176,7 @@ def main() -> None:
     parser.add_argument("--points", type=numbers(int), default=[400], help="points tracked (the first is used without --grid)")
     parser.add_argument("--neighbours", type=numbers(int), default=[20], help="neighbours tied to each point (the first is used without --grid)")
     parser.add_argument("--relief", default="frame", choices=("frame", "video"), help="fuse's relief scale: each frame's own, or one for the video")
+    parser.add_argument("--window", type=int, default=21, help="the flow's window in pixels (isometric.track_grid)")
     parser.add_argument("--far", type=int, default=0, help="far pairs of each point (isometric.neighbour_pairs)")
     parser.add_argument("--reach", type=int, default=0, help="the far pairs' largest rank")
     parser.add_argument("--scales", type=numbers(float), default=[0, 0.05, 0.1, 0.2, 0.3, 0.5])
