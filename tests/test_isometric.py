@@ -87,6 +87,9 @@ def test_track_grid_follows_a_shift():
     assert 16 <= xy.shape[1] <= 36
     assert mask[xy[0, :, 1].astype(int), xy[0, :, 0].astype(int)].all()
     np.testing.assert_allclose(xy[-1] - xy[0], np.broadcast_to([8.0, 4.0], xy[0].shape), atol=0.15)
+    forward = isometric.track_grid(video, mask, points=25, backward=False)  # the forward flow alone follows it too
+    np.testing.assert_allclose(forward[-1] - forward[0], np.broadcast_to([8.0, 4.0], xy[0].shape), atol=0.15)
+    assert not np.array_equal(forward, xy)  # and the backward flow took part
 
 
 def test_track_grid_is_the_same_at_any_thread_count():
@@ -179,6 +182,8 @@ def test_bad_input_names_the_argument():
         isometric.fuse(np.zeros((1, 8, 8)), np.zeros((1, 8, 9)), 1.0)
     with pytest.raises(ValueError, match="relief"):
         isometric.fuse(np.zeros((1, 8, 8)), np.zeros((1, 8, 8)), 1.0, relief="pixel")
+    with pytest.raises(ValueError, match="window"):
+        isometric.track_grid(video, window=1)
     with pytest.raises(ValueError, match="far"):
         isometric.neighbour_pairs(xy[0], 4, far=-1)
     with pytest.raises(ValueError, match="reach"):
