@@ -15,7 +15,7 @@ shape-blind references.
 one λ per frame, or one for the video): a reading for each combination
 given, each paired against the network and against the first combination.
 
-    python experiments/isometric_generated.py [--videos 32] [--scales 0,0.05,0.1,0.2,0.3] [--trackers both,forward] [--pairs 20:0:0,10:10:80] [--relief frame,video]
+    python experiments/isometric_generated.py [--videos 32] [--scales 0,0.05,0.1,0.2,0.3] [--trackers forward,both] [--pairs 20:0:0,10:10:80] [--relief frame,video]
 """
 
 from __future__ import annotations
@@ -53,8 +53,8 @@ def main() -> None:
                         help="fusion scales, fractions of the frame's side (0: the isometric depth alone)")
     parser.add_argument("--pairs", type=lambda text: [tuple(int(v) for v in item.split(":")) for item in text.split(",")], default=[(20, 0, 0)],
                         help="neighbours:far:reach of each reading (isometric.neighbour_pairs)")
-    parser.add_argument("--trackers", type=lambda text: text.split(","), default=["both"],
-                        help="isometric.track_grid's flow: both (forward and backward), forward, or both of them")
+    parser.add_argument("--trackers", type=lambda text: text.split(","), default=["forward"],
+                        help="isometric.track_grid's flow: forward, both (forward and backward), or a list")
     parser.add_argument("--relief", type=lambda text: text.split(","), default=["frame"], help="fuse's relief: frame, video or both")
     args = parser.parse_args()
     combinations = [(tracker, pairs, relief) for tracker in args.trackers for pairs in args.pairs for relief in args.relief]
