@@ -57,10 +57,14 @@ def main() -> None:
                         help="isometric.track_grid's flow: forward, both (forward and backward), or a list")
     parser.add_argument("--relief", type=lambda text: text.split(","), default=["frame"], help="fuse's relief: frame, video or both")
     args = parser.parse_args()
+    if not set(args.trackers) <= {"forward", "both"} or not set(args.relief) <= {"frame", "video"}:
+        parser.error("--trackers takes forward and both, --relief frame and video")
     combinations = [(tracker, pairs, relief) for tracker in args.trackers for pairs in args.pairs for relief in args.relief]
     label = lambda tracker, pairs, relief: "" if len(combinations) == 1 else " ({}, {}:{}:{}, {})".format(tracker, *pairs, relief)  # noqa: E731
     fused = [(tracker, pairs, relief, s, f"fused at {s:g}{label(tracker, pairs, relief)}") for tracker, pairs, relief in combinations for s in args.scales]
     names = ["network"] + [name for *_, name in fused]
+    first = {name: f"fused at {s:g}{label(*combinations[0])}" for *_, s, name in fused}  # the first combination at the same scale
+    every = []
     for light, azimuth in (("below", (math.pi - 1.22, math.pi + 1.22)), ("above", None)):
         extra = {} if azimuth is None else {"light_azimuth": azimuth}
         config = GeneratorConfig(size=256, grid=128, sheet_probability=1.0, texture_families=FAMILIES, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
@@ -77,20 +81,28 @@ def main() -> None:
             base = dense_baselines(truth)
             row["plane"], row["bowl"] = (base["plane"], np.nan), (base["bowl"], np.nan)
             rows.append(row)
-        print(f"{args.videos} sheets lit from {light} ({time.perf_counter() - start:.0f} s):")
-        for name in names + ["plane", "bowl"]:
-            line = f"  {name:>14s}: per frame {np.mean([r[name][0] for r in rows]):.4f}"
-            if name in names:
-                line += f", sign right in {100 * np.mean([r[name][1] for r in rows]):3.0f} % of frames"
-            if name in names[1:]:
-                difference = np.array([r[name][0] - r["network"][0] for r in rows])
-                line += f", paired against the network {difference.mean():+.4f} ± {difference.std(ddof=1) / math.sqrt(len(rows)):.4f}"
-            if name in names[1 + len(args.scales):]:
-                first = names[1 + names[1 + len(args.scales):].index(name) % len(args.scales)]
-                difference = np.array([r[name][0] - r[first][0] for r in rows])
-                line += f", against the first combination {difference.mean():+.4f} ± {difference.std(ddof=1) / math.sqrt(len(rows)):.4f}"
-            print(line)
+        every += rows
+        report(f"{args.videos} sheets lit from {light} ({time.perf_counter() - start:.0f} s):", rows, names, first)
+    report(f"all {len(every)} sheets:", every, names, first)
 
+
+def paired(rows: list, name: str, other: str) -> str:
+    """Mean ± standard error of ``name``'s per-frame figure minus ``other``'s over the same videos."""
+    difference = np.array([r[name][0] - r[other][0] for r in rows])
+    return f"{difference.mean():+.5f} ± {difference.std(ddof=1) / math.sqrt(len(rows)):.5f}"
+
+
+def report(title: str, rows: list, names: list, first: dict) -> None:
+    print(title)
+    for name in names + ["plane", "bowl"]:
+        line = f"  {name:>14s}: per frame {np.mean([r[name][0] for r in rows]):.4f}"
+        if name in names:
+            line += f", sign right in {100 * np.mean([r[name][1] for r in rows]):3.0f} % of frames"
+        if name in names[1:]:
+            line += f", paired against the network {paired(rows, name, 'network')}"
+        if name in first and first[name] != name:
+            line += f", against the first combination {paired(rows, name, first[name])}"
+        print(line)
 
 if __name__ == "__main__":
     main()

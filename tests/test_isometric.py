@@ -180,6 +180,8 @@ def test_bad_input_names_the_argument():
         isometric.fuse(np.zeros((1, 8, 8)), np.zeros((1, 8, 8)), -1.0)
     with pytest.raises(ValueError, match="depth, isometric"):
         isometric.fuse(np.zeros((1, 8, 8)), np.zeros((1, 8, 9)), 1.0)
+    with pytest.raises(ValueError, match="depth, isometric: expected finite"):
+        isometric.fuse(np.full((1, 8, 8), np.nan), np.zeros((1, 8, 8)), 1.0)
     with pytest.raises(ValueError, match="relief"):
         isometric.fuse(np.zeros((1, 8, 8)), np.zeros((1, 8, 8)), 1.0, relief="pixel")
     with pytest.raises(ValueError, match="window"):

@@ -294,6 +294,8 @@ def fuse(depth: np.ndarray, isometric: np.ndarray, scale: float, mask: Optional[
     mask = np.ones(depth.shape, bool) if mask is None else np.asarray(mask)
     if mask.dtype != np.bool_ or mask.shape != depth.shape:
         raise ValueError(f"mask: expected a bool array of the videos' shape {depth.shape}, got {mask.dtype} {mask.shape}")
+    if not (np.isfinite(depth[mask]).all() and np.isfinite(isometric[mask]).all()):
+        raise ValueError("depth, isometric: expected finite values inside mask (found NaN or inf)")
     if scale == 0:
         return isometric.copy()
     fits = [gbr_fit(d, i, m) for d, i, m in zip(depth, isometric, mask)]  # each frame's (α, β, λ, τ)
