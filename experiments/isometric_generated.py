@@ -3,7 +3,9 @@
 ``--scales`` (what ``reconstruct(video, focal=…)`` computes, with the
 camera's own focal length and principal point) on the same generated
 sheets (bends, rolls and folds with a little relief, ``bench_sheets.py``'s
-families, a held-out seed), 256×256×16, through a pinhole of 40–80°, lit
+families, a held-out seed), 256×256×16 (``--frames``; ``--phases``: spans
+of the video, each bending the sheet a new way, ``GeneratorConfig.sheet_phases``),
+through a pinhole of 40–80°, lit
 from below (azimuth 180° ± 70°: the shading prior reads them inverted) and
 from above (the default lights). Per frame MAE-SN and the share of frames
 whose relief sign is right, paired over the same videos, beside the
@@ -15,7 +17,7 @@ shape-blind references.
 one λ per frame, or one for the video): a reading for each combination
 given, each paired against the network and against the first combination.
 
-    python experiments/isometric_generated.py [--videos 32] [--scales 0,0.05,0.1,0.2,0.3] [--trackers forward,both] [--pairs 20:0:0,10:10:80] [--relief frame,video]
+    python experiments/isometric_generated.py [--videos 32] [--frames 16] [--phases 1] [--scales 0,0.05,0.1,0.2,0.3] [--trackers forward,both] [--pairs 20:0:0,10:10:80] [--relief frame,video]
 """
 
 from __future__ import annotations
@@ -49,6 +51,8 @@ def camera(params: dict, size: int) -> tuple:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--videos", type=int, default=32)
+    parser.add_argument("--frames", type=int, default=16, help="frames of each video")
+    parser.add_argument("--phases", type=int, default=1, help="spans of each video, each bending the sheet a new way")
     parser.add_argument("--scales", type=lambda text: [float(v) for v in text.split(",")], default=[0, 0.05, 0.1, 0.2, 0.3],
                         help="fusion scales, fractions of the frame's side (0: the isometric depth alone)")
     parser.add_argument("--pairs", type=lambda text: [tuple(int(v) for v in item.split(":")) for item in text.split(",")], default=[(20, 0, 0)],
@@ -67,7 +71,7 @@ def main() -> None:
     every = []
     for light, azimuth in (("below", (math.pi - 1.22, math.pi + 1.22)), ("above", None)):
         extra = {} if azimuth is None else {"light_azimuth": azimuth}
-        config = GeneratorConfig(size=256, grid=128, sheet_probability=1.0, texture_families=FAMILIES, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
+        config = GeneratorConfig(frames=args.frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=args.phases, texture_families=FAMILIES, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
         clips = generate_clips(args.videos, seed=SEED, config=config)
         rows, start = [], time.perf_counter()
         for video, truth, params in zip(clips.video, clips.depth, clips.params):

@@ -463,6 +463,7 @@ fn generator_config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<GeneratorConfig
                 centre_drift: range("sheet_centre_drift")?,
                 axis_rate: range("sheet_axis_rate")?,
                 relief: range("sheet_relief")?,
+                phases: size("sheet_phases")?,
             }
         },
         backdrop: BackdropConfig {
@@ -514,6 +515,7 @@ fn default_generator_config(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("sheet_probability", sheet.probability)?;
     d.set_item("sheet_bends", sheet.bends)?;
     d.set_item("sheet_fold_probability", sheet.fold_probability)?;
+    d.set_item("sheet_phases", sheet.phases)?;
     set_ranges(&d, &[
         ("sheet_bend_angle", sheet.bend_angle),
         ("sheet_bend_width", sheet.bend_width),
@@ -606,14 +608,14 @@ fn backdrop_to_dict<'py>(py: Python<'py>, b: &BackdropParams) -> PyResult<Bound<
 
 fn sheet_to_dict<'py>(py: Python<'py>, sheet: &SheetParams) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
-    d.set_item("axis", sheet.axis)?;
+    d.set_item("axis", &sheet.axis)?;
     let terms = sheet
         .terms
         .iter()
         .map(|term| {
             let t = PyDict::new(py);
-            t.set_item("angle", term.angle)?;
-            t.set_item("centre", term.centre)?;
+            t.set_item("angle", &term.angle)?;
+            t.set_item("centre", &term.centre)?;
             t.set_item("width", term.width)?;
             Ok(t)
         })

@@ -16,7 +16,11 @@
 //! sheet by `A_j` radians, spread over a Gaussian of width `w_j` about `c_j`:
 //! wide terms are bends and rolls, narrow ones folds (creases). `A_j`, `c_j`
 //! and α move linearly over the clip (t in clip durations), so the
-//! curvature changes smoothly in time. `h` is a small relief along the normal
+//! curvature changes smoothly in time; with `phases` P > 1 they pass
+//! through P + 1 knots evenly spaced in time (each new knot: a turn drawn
+//! afresh, a centre moved by a further drift and kept in the centre's
+//! range, an axis turned by a further rate) and move linearly between them:
+//! a long video bends the sheet P ways in turn. `h` is a small relief along the normal
 //! (the coloured-noise surface of `synthesis`, its intensity scaled by
 //! `relief`), which stretches the sheet by what that relief stretches.
 //!
@@ -62,6 +66,10 @@ pub struct SheetConfig {
     pub axis_rate: Range,
     /// Factor on the surface's coloured-noise intensity κ (small relief).
     pub relief: Range,
+    /// Number of spans the clip is cut into, each a new bend (knots of
+    /// `A_j`, `c_j` and α drawn afresh at their ends; 1 moves linearly from
+    /// start to end).
+    pub phases: usize,
 }
 
 impl Default for SheetConfig {
@@ -78,6 +86,7 @@ impl Default for SheetConfig {
             centre_drift: Range::new(-0.3, 0.3),
             axis_rate: Range::new(-0.3, 0.3),
             relief: Range::new(0.0, 0.5),
+            phases: 1,
         }
     }
 }
@@ -99,6 +108,9 @@ impl SheetConfig {
         self.centre_drift.check("config.sheet_centre_drift", -SPAN, SPAN)?;
         self.axis_rate.check("config.sheet_axis_rate", -turn, turn)?;
         self.relief.check("config.sheet_relief", 0.0, 1.0)?;
+        if !(1..=64).contains(&self.phases) {
+            return Err(InvalidArgument::new("config.sheet_phases", format!("expected 1 <= phases <= 64, got {}", self.phases)));
+        }
         Ok(())
     }
 
@@ -111,10 +123,10 @@ impl SheetConfig {
         let bends = lo + (rng.next_u64() % (hi - lo + 1) as u64) as usize;
         let fold = rng.unit() < self.fold_probability;
         let mut term = |angle: Range, width: Range| BendTerm {
-            angle: [rng.uniform(angle.lo, angle.hi), rng.uniform(angle.lo, angle.hi)],
+            angle: vec![rng.uniform(angle.lo, angle.hi), rng.uniform(angle.lo, angle.hi)],
             centre: {
                 let c = rng.uniform(self.centre.lo, self.centre.hi);
-                [c, c + rng.uniform(self.centre_drift.lo, self.centre_drift.hi)]
+                vec![c, c + rng.uniform(self.centre_drift.lo, self.centre_drift.hi)]
             },
             width: rng.uniform(width.lo, width.hi),
         };
@@ -123,19 +135,29 @@ impl SheetConfig {
             terms.push(term(self.fold_angle, self.fold_width));
         }
         let axis = rng.uniform(0.0, std::f64::consts::PI);
-        let axis_rate = rng.uniform(self.axis_rate.lo, self.axis_rate.hi);
+        let mut axis = vec![axis, axis + rng.uniform(self.axis_rate.lo, self.axis_rate.hi)];
         let relief = rng.uniform(self.relief.lo, self.relief.hi);
-        Some(SheetParams { axis: [axis, axis + axis_rate], terms, relief })
+        // Later phases' knots are drawn after everything else, so one phase draws what it always drew.
+        for _ in 1..self.phases {
+            for (j, term) in terms.iter_mut().enumerate() {
+                let range = if j < bends { self.bend_angle } else { self.fold_angle };
+                term.angle.push(rng.uniform(range.lo, range.hi));
+                let c = term.centre[term.centre.len() - 1];
+                term.centre.push((c + rng.uniform(self.centre_drift.lo, self.centre_drift.hi)).clamp(self.centre.lo, self.centre.hi));
+            }
+            axis.push(axis[axis.len() - 1] + rng.uniform(self.axis_rate.lo, self.axis_rate.hi));
+        }
+        Some(SheetParams { axis, terms, relief })
     }
 }
 
 /// One term of the curvature profile.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BendTerm {
-    /// Turn A (radians) at t = 0 and t = 1.
-    pub angle: [f64; 2],
-    /// Centre c along s at t = 0 and t = 1.
-    pub centre: [f64; 2],
+    /// Turn A (radians) at the knots t = 0, 1/P, …, 1.
+    pub angle: Vec<f64>,
+    /// Centre c along s at the knots.
+    pub centre: Vec<f64>,
     /// Width w of the curvature Gaussian.
     pub width: f64,
 }
@@ -143,15 +165,21 @@ pub struct BendTerm {
 /// Everything drawn for one sheet.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SheetParams {
-    /// Axis angle α (radians, in the patch plane from +x) at t = 0 and t = 1.
-    pub axis: [f64; 2],
+    /// Axis angle α (radians, in the patch plane from +x) at the knots
+    /// t = 0, 1/P, …, 1 (as many as every term's).
+    pub axis: Vec<f64>,
     pub terms: Vec<BendTerm>,
     /// Factor on the surface's coloured-noise intensity.
     pub relief: f64,
 }
 
-fn lerp([a, b]: [f64; 2], t: f64) -> f64 {
-    a + t * (b - a)
+/// The value at time `t` ∈ [0, 1] of knots evenly spaced over [0, 1], linear between them.
+fn lerp(knots: &[f64], t: f64) -> f64 {
+    let spans = knots.len() - 1;
+    let u = t * spans as f64;
+    let k = (u.max(0.0) as usize).min(spans - 1);
+    let (a, b) = (knots[k], knots[k + 1]);
+    a + (u - k as f64) * (b - a)
 }
 
 /// The cross-section of one frame, tabulated: θ and C at `s_i = −SPAN + i·step`.
@@ -174,7 +202,7 @@ impl Bender {
                 .terms
                 .iter()
                 .map(|term| {
-                    let (a, c, w) = (lerp(term.angle, t), lerp(term.centre, t), term.width);
+                    let (a, c, w) = (lerp(&term.angle, t), lerp(&term.centre, t), term.width);
                     a * (-0.5 * ((s - c) / w).powi(2)).exp() / (w * (std::f64::consts::TAU).sqrt())
                 })
                 .sum()
@@ -214,7 +242,7 @@ impl Bender {
     /// (in-plane position and relief along the normal) becomes `f(x)` above.
     pub fn bend_frame(&mut self, sheet: &SheetParams, t: f64, positions: &mut [[f64; 3]]) {
         self.tabulate(sheet, t);
-        let alpha = lerp(sheet.axis, t);
+        let alpha = lerp(&sheet.axis, t);
         let (a, b) = ([alpha.cos(), alpha.sin()], [-alpha.sin(), alpha.cos()]);
         for p in positions {
             let (u, s, h) = (p[0] * a[0] + p[1] * a[1], p[0] * b[0] + p[1] * b[1], p[2]);
@@ -283,10 +311,46 @@ mod tests {
     }
 
     #[test]
+    fn phases_pass_through_their_knots_and_keep_one_phases_draws() {
+        let one = SheetConfig { probability: 1.0, fold_probability: 1.0, ..SheetConfig::default() };
+        let four = SheetConfig { phases: 4, ..one.clone() };
+        let grid = 64;
+        let flat = flat_grid(grid);
+        let mut bender = Bender::default();
+        for seed in 0..16 {
+            let (a, b) = (one.sample(&mut SplitMix64::new(seed)).unwrap(), four.sample(&mut SplitMix64::new(seed)).unwrap());
+            // The first phase's knots are one phase's endpoints: later knots are drawn after everything else.
+            assert_eq!(b.axis.len(), 5);
+            assert_eq!((b.axis[0], b.axis[1], b.relief), (a.axis[0], a.axis[1], a.relief));
+            for (p, q) in a.terms.iter().zip(&b.terms) {
+                assert_eq!((&q.angle[..2], &q.centre[..2], q.width), (&p.angle[..], &p.centre[..], p.width));
+                assert!(q.centre[2..].iter().all(|c| (one.centre.lo..=one.centre.hi).contains(c)));
+            }
+            // At knot k (t = k/4) the sheet is the one-phase sheet made of knots k and k + 1 at its start.
+            for k in 0..4 {
+                let span = SheetParams {
+                    axis: b.axis[k..k + 2].to_vec(),
+                    terms: b.terms.iter().map(|q| BendTerm { angle: q.angle[k..k + 2].to_vec(), centre: q.centre[k..k + 2].to_vec(), width: q.width }).collect(),
+                    relief: b.relief,
+                };
+                for (u, t) in [(0.0, k as f64 / 4.0), (0.5, (k as f64 + 0.5) / 4.0)] {
+                    let (mut p, mut q) = (flat.clone(), flat.clone());
+                    bender.bend_frame(&span, u, &mut p);
+                    bender.bend_frame(&b, t, &mut q);
+                    let gap = p.iter().zip(&q).flat_map(|(x, y)| (0..3).map(move |c| (x[c] - y[c]).abs())).fold(0.0, f64::max);
+                    assert!(gap < 1e-12, "seed {seed} knot {k} at {u}: {gap}");
+                    assert!(stretch(&flat, &q, grid) < 5e-3);
+                }
+            }
+        }
+        assert_eq!(SheetConfig { phases: 0, ..one }.validate().unwrap_err().name, "config.sheet_phases");
+    }
+
+    #[test]
     fn a_constant_curvature_rolls_the_sheet_onto_a_circle() {
         // One very wide term: curvature A/(w√2π) nearly constant over the patch.
         let (angle, width) = (1.0, 40.0);
-        let sheet = SheetParams { axis: [0.3, 0.3], terms: vec![BendTerm { angle: [angle; 2], centre: [0.0; 2], width }], relief: 0.0 };
+        let sheet = SheetParams { axis: vec![0.3, 0.3], terms: vec![BendTerm { angle: vec![angle; 2], centre: vec![0.0; 2], width }], relief: 0.0 };
         let k = angle / (width * std::f64::consts::TAU.sqrt());
         let radius = 1.0 / k;
         let mut points = flat_grid(9);

@@ -106,6 +106,19 @@ def test_sheets_bend_the_patch_and_leave_everything_else_drawn_as_it_was():
     assert all(p["texture"]["family"] == "print" for p in half.params)
 
 
+def test_sheet_phases_bend_a_long_clip_several_ways():
+    # Each phase draws new knots after everything else: the first phase's knots are the one-phase sheet's.
+    config = SMALL.replace(frames=9, sheet_probability=1.0)
+    one = nrdepth.generate_clips(4, seed=5, config=config)
+    four = nrdepth.generate_clips(4, seed=5, config=config.replace(sheet_phases=4))
+    for a, b in zip(one.params, four.params):
+        assert len(b["sheet"]["axis"]) == 5 and b["sheet"]["axis"][:2] == a["sheet"]["axis"]
+        assert all(len(t["angle"]) == len(t["centre"]) == 5 and t["angle"][:2] == s["angle"] for s, t in zip(a["sheet"]["terms"], b["sheet"]["terms"]))
+    assert not np.array_equal(one.depth, four.depth)
+    with pytest.raises(ValueError, match="sheet_phases"):
+        nrdepth.GeneratorConfig(sheet_phases=0)
+
+
 def test_backdrops_show_the_border_over_a_background_and_mask_the_depth_off_the_sheet():
     # Drawn after the sheet: everything but the window stays the plain clip's.
     plain = nrdepth.generate_clips(6, seed=3, config=SMALL)

@@ -51,7 +51,7 @@ _RANGES = (
     "camera_fov",
     "crop_share",
 )
-_INTS = ("frames", "size", "grid", "supersample", "texture_size", "max_redraws")
+_INTS = ("frames", "size", "grid", "supersample", "texture_size", "max_redraws", "sheet_phases")
 
 
 @dataclass(frozen=True)
@@ -130,6 +130,13 @@ class GeneratorConfig:
     """Change of the bend axis's in-plane angle over the clip (radians)."""
     sheet_relief: Interval = _DEFAULT["sheet_relief"]
     """Factor on the surface's coloured-noise intensity for a sheet."""
+    sheet_phases: int = _DEFAULT["sheet_phases"]
+    """Spans a sheet's clip is cut into, each bending it a new way: the
+    angles at every span's end drawn afresh, the centres moved by a further
+    ``sheet_centre_drift`` (kept inside ``sheet_centre``), the axis turned by
+    a further ``sheet_axis_rate``, linear in between. 1 (the default) moves
+    from the clip's start to its end; more suit long videos (the isometric
+    shape needs a sheet bent many ways: docs/reconstruction.md)."""
     backdrop_probability: float = _DEFAULT["backdrop_probability"]
     """Share of clips whose view is wider than the sheet, so that its border
     shows and a background behind it: a window of side
