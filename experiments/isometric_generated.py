@@ -57,9 +57,10 @@ def main() -> None:
                         help="fusion scales, fractions of the frame's side (0: the isometric depth alone)")
     parser.add_argument("--pairs", type=lambda text: [tuple(int(v) for v in item.split(":")) for item in text.split(",")], default=[(20, 0, 0)],
                         help="neighbours:far:reach of each reading (isometric.neighbour_pairs)")
-    parser.add_argument("--trackers", type=lambda text: text.split(","), default=["forward"],
+    parser.add_argument("--trackers", type=lambda text: text.split(","), default=["both"],
                         help="isometric.track_grid's flow: forward, both (forward and backward), or a list")
     parser.add_argument("--relief", type=lambda text: text.split(","), default=["frame"], help="fuse's relief: frame, video or both")
+    parser.add_argument("--csv", type=Path, default=None, help="also write each video's readings here (one row a video)")
     args = parser.parse_args()
     if not set(args.trackers) <= {"forward", "both"} or not set(args.relief) <= {"frame", "video"}:
         parser.error("--trackers takes forward and both, --relief frame and video")
@@ -84,10 +85,21 @@ def main() -> None:
             row = {name: (mae_sn(d, truth), sign_rates(d, truth)["sign_correct"]) for name, d in readings.items()}
             base = dense_baselines(truth)
             row["plane"], row["bowl"] = (base["plane"], np.nan), (base["bowl"], np.nan)
+            row["light"] = (light, None)
             rows.append(row)
         every += rows
         report(f"{args.videos} sheets lit from {light} ({time.perf_counter() - start:.0f} s):", rows, names, first)
     report(f"all {len(every)} sheets:", every, names, first)
+    if args.csv is not None:
+        import csv
+
+        columns = names + ["plane", "bowl"]
+        with open(args.csv, "w", newline="") as out:
+            writer = csv.writer(out)
+            writer.writerow(["video", "light"] + [f"{n} per frame" for n in columns] + [f"{n} sign right" for n in names])
+            for k, row in enumerate(every):
+                writer.writerow([k, row["light"][0]] + [f"{row[n][0]:.5f}" for n in columns] + [f"{row[n][1]:.3f}" for n in names])
+        print(f"wrote {args.csv}")
 
 
 def paired(rows: list, name: str, other: str) -> str:

@@ -18,7 +18,7 @@ shape-blind references.
 ``--scales``: :func:`nrdepth.isometric.fuse`'s length scale, as a fraction
 of the region's shorter side (0: the isometric depth alone); ``--relief``
 its relief scale, ``--far``/``--reach`` the far pairs of
-:func:`nrdepth.isometric.neighbour_pairs`, ``--window`` and ``--backward``
+:func:`nrdepth.isometric.neighbour_pairs`, ``--window`` and ``--forward``
 :func:`nrdepth.isometric.track_grid`'s flow. ``--grid``
 reads the paper again at each number of points and neighbours given, and
 with a focal length off by each factor given (no network): how much the
@@ -95,10 +95,10 @@ def read_all(args) -> list:
     start = time.perf_counter()
     paper = isometric.isometric_depth(frames, focal, centre, mask=print_area, points=args.points[0], neighbours=args.neighbours[0],
                                       far=args.far, reach=args.reach, window=args.window,
-                                      backward=args.backward)
+                                      backward=not args.forward)
     print(f"kinect_paper: isometric depth in {time.perf_counter() - start:.0f} s")
     start = time.perf_counter()
-    video, cloth_truth, cloth = phisft_inputs(args.points[0], args.neighbours[0], args.far, args.reach, args.window, args.backward)
+    video, cloth_truth, cloth = phisft_inputs(args.points[0], args.neighbours[0], args.far, args.reach, args.window, not args.forward)
     print(f"phisft_R1: isometric depth in {time.perf_counter() - start:.0f} s")
     scored = np.isfinite(cloth_truth)
     networks = {region: cached_network(f"kinect_{region[0]}_{region[1]}", frames[:, region[1] : region[1] + region[3], region[0] : region[0] + region[2]], args.cache)
@@ -135,7 +135,7 @@ def grid(args) -> None:
     from nrdepth.tracks import densify
 
     for points in args.points:
-        xy = isometric.track_grid(frames, print_area, points, args.window, args.backward)
+        xy = isometric.track_grid(frames, print_area, points, args.window, not args.forward)
         for neighbours in args.neighbours:
             for factor in args.focal_factors:
                 start = time.perf_counter()
@@ -179,7 +179,7 @@ def main() -> None:
     parser.add_argument("--neighbours", type=numbers(int), default=[20], help="neighbours tied to each point (the first is used without --grid)")
     parser.add_argument("--relief", default="frame", choices=("frame", "video"), help="fuse's relief scale: each frame's own, or one for the video")
     parser.add_argument("--window", type=int, default=21, help="the flow's window in pixels (isometric.track_grid)")
-    parser.add_argument("--backward", action="store_true", help="the flow both ways (isometric.track_grid)")
+    parser.add_argument("--forward", action="store_true", help="the forward flow alone, not both ways (isometric.track_grid)")
     parser.add_argument("--far", type=int, default=0, help="far pairs of each point (isometric.neighbour_pairs)")
     parser.add_argument("--reach", type=int, default=0, help="the far pairs' largest rank")
     parser.add_argument("--scales", type=numbers(float), default=[0, 0.05, 0.1, 0.2, 0.3, 0.5])

@@ -87,9 +87,9 @@ def test_track_grid_follows_a_shift():
     assert 16 <= xy.shape[1] <= 36
     assert mask[xy[0, :, 1].astype(int), xy[0, :, 0].astype(int)].all()
     np.testing.assert_allclose(xy[-1] - xy[0], np.broadcast_to([8.0, 4.0], xy[0].shape), atol=0.15)
-    both = isometric.track_grid(video, mask, points=25, backward=True)  # the flow both ways follows it too
-    np.testing.assert_allclose(both[-1] - both[0], np.broadcast_to([8.0, 4.0], xy[0].shape), atol=0.15)
-    assert not np.array_equal(both, xy)  # and the backward flow took part
+    forward = isometric.track_grid(video, mask, points=25, backward=False)  # the forward flow alone follows it too
+    np.testing.assert_allclose(forward[-1] - forward[0], np.broadcast_to([8.0, 4.0], xy[0].shape), atol=0.15)
+    assert not np.array_equal(forward, xy)  # and the backward flow took part
 
 
 def test_track_grid_is_the_same_at_any_thread_count():
