@@ -66,9 +66,9 @@ pub struct SheetConfig {
     pub axis_rate: Range,
     /// Factor on the surface's coloured-noise intensity κ (small relief).
     pub relief: Range,
-    /// Number of spans the clip is cut into, each a new bend (knots of
-    /// `A_j`, `c_j` and α drawn afresh at their ends; 1 moves linearly from
-    /// start to end).
+    /// Number of spans the clip is cut into, each bending the sheet a new
+    /// way (new knots at their ends: the module header); 1 moves linearly
+    /// from start to end.
     pub phases: usize,
 }
 

@@ -81,7 +81,7 @@ def track_grid(video: np.ndarray, mask: Optional[np.ndarray] = None, points: int
     pyramid levels, ``window``-pixel windows) from each frame to the next:
     the mean of where the forward flow takes a point and where the backward
     flow says it came from (both real videos read better, generated sheets
-    within 0.0005 per frame: docs/findings.md), or with ``backward`` False
+    within 0.0005 per frame: docs/reconstruction.md), or with ``backward`` False
     the forward flow alone (half the flow's cost)."""
     from scipy.ndimage import map_coordinates
 
