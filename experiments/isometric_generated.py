@@ -17,7 +17,7 @@ shape-blind references.
 one λ per frame, or one for the video): a reading for each combination
 given, each paired against the network and against the first combination.
 
-    python experiments/isometric_generated.py [--videos 32] [--frames 16] [--phases 1] [--scales 0,0.05,0.1,0.2,0.3] [--trackers forward,both] [--pairs 20:0:0,10:10:80] [--relief frame,video]
+    python experiments/isometric_generated.py [--videos 32] [--frames 16] [--phases 1] [--textures print] [--scales 0,0.05,0.1,0.2,0.3] [--trackers forward,both] [--pairs 20:0:0,10:10:80] [--relief frame,video]
 """
 
 from __future__ import annotations
@@ -61,6 +61,8 @@ def main() -> None:
                         help="isometric.track_grid's flow: forward, both (forward and backward), or a list")
     parser.add_argument("--relief", type=lambda text: text.split(","), default=["frame"], help="fuse's relief: frame, video or both")
     parser.add_argument("--csv", type=Path, default=None, help="also write each video's readings here (one row a video)")
+    parser.add_argument("--textures", type=lambda text: tuple(text.split(",")), default=FAMILIES,
+                        help="texture families (default: bench_sheets.py's)")
     args = parser.parse_args()
     if not set(args.trackers) <= {"forward", "both"} or not set(args.relief) <= {"frame", "video"}:
         parser.error("--trackers takes forward and both, --relief frame and video")
@@ -72,7 +74,7 @@ def main() -> None:
     every = []
     for light, azimuth in (("below", (math.pi - 1.22, math.pi + 1.22)), ("above", None)):
         extra = {} if azimuth is None else {"light_azimuth": azimuth}
-        config = GeneratorConfig(frames=args.frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=args.phases, texture_families=FAMILIES, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
+        config = GeneratorConfig(frames=args.frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=args.phases, texture_families=args.textures, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
         clips = generate_clips(args.videos, seed=SEED, config=config)
         rows, start = [], time.perf_counter()
         for video, truth, params in zip(clips.video, clips.depth, clips.params):
