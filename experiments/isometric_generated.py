@@ -71,7 +71,7 @@ def main() -> None:
     fused = [(tracker, pairs, relief, s, f"fused at {s:g}{label(tracker, pairs, relief)}") for tracker, pairs, relief in combinations for s in args.scales]
     names = ["network"] + [name for *_, name in fused]
     first = {name: f"fused at {s:g}{label(*combinations[0])}" for *_, s, name in fused}  # the first combination at the same scale
-    every = []
+    every, lights = [], []
     for light, azimuth in (("below", (math.pi - 1.22, math.pi + 1.22)), ("above", None)):
         extra = {} if azimuth is None else {"light_azimuth": azimuth}
         config = GeneratorConfig(frames=args.frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=args.phases, texture_families=args.textures, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
@@ -87,9 +87,9 @@ def main() -> None:
             row = {name: (mae_sn(d, truth), sign_rates(d, truth)["sign_correct"]) for name, d in readings.items()}
             base = dense_baselines(truth)
             row["plane"], row["bowl"] = (base["plane"], np.nan), (base["bowl"], np.nan)
-            row["light"] = (light, None)
             rows.append(row)
         every += rows
+        lights += [light] * len(rows)
         report(f"{args.videos} sheets lit from {light} ({time.perf_counter() - start:.0f} s):", rows, names, first)
     report(f"all {len(every)} sheets:", every, names, first)
     if args.csv is not None:
@@ -98,9 +98,9 @@ def main() -> None:
         columns = names + ["plane", "bowl"]
         with open(args.csv, "w", newline="") as out:
             writer = csv.writer(out)
-            writer.writerow(["video", "light"] + [f"{n} per frame" for n in columns] + [f"{n} sign right" for n in names])
-            for k, row in enumerate(every):
-                writer.writerow([k, row["light"][0]] + [f"{row[n][0]:.5f}" for n in columns] + [f"{row[n][1]:.3f}" for n in names])
+            writer.writerow(["light", "clip"] + [f"{n} per frame" for n in columns] + [f"{n} sign right" for n in names])
+            for k, (light, row) in enumerate(zip(lights, every)):
+                writer.writerow([light, k % args.videos] + [f"{row[n][0]:.5f}" for n in columns] + [f"{row[n][1]:.3f}" for n in names])
         print(f"wrote {args.csv}")
 
 
