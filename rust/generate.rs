@@ -528,14 +528,17 @@ pub fn interrupted() -> InvalidArgument {
 /// Clips `start .. start + n` into `video` (n·T·H·W u8) and `depth` (same, f32),
 /// in parallel over clips.
 pub fn generate_clips(config: &GeneratorConfig, bank: Option<&TextureBank>, seed: u64, start: u64, n: usize, video: &mut [u8], depth: &mut [f32]) -> Result<Vec<ClipParams>> {
-    generate_clips_until(config, bank, seed, start, n, video, depth, &AtomicBool::new(false))
+    generate_clips_until(config, bank, seed, start, n, video, depth, None, &AtomicBool::new(false))
 }
 
 /// [`generate_clips`], giving up with an `interrupted` error soon after
 /// `cancel` is set (every clip checks it before each draw), so a caller can
-/// honour Ctrl-C during a long or hopeless batch.
+/// honour Ctrl-C during a long or hopeless batch; with `vertices`
+/// (n·T·grid·grid·3), also each clip's mesh in world coordinates (T, grid,
+/// grid, 3): vertex (j, k) is the undeformed point (`grid_coordinate(k)`,
+/// `grid_coordinate(j)`, 0), so a vertex keeps its index in every frame.
 #[allow(clippy::too_many_arguments)]
-pub fn generate_clips_until(config: &GeneratorConfig, bank: Option<&TextureBank>, seed: u64, start: u64, n: usize, video: &mut [u8], depth: &mut [f32], cancel: &AtomicBool) -> Result<Vec<ClipParams>> {
+pub fn generate_clips_until(config: &GeneratorConfig, bank: Option<&TextureBank>, seed: u64, start: u64, n: usize, video: &mut [u8], depth: &mut [f32], vertices: Option<&mut [f32]>, cancel: &AtomicBool) -> Result<Vec<ClipParams>> {
     config.validate()?;
     if n > 0 && start.checked_add(n as u64 - 1).is_none() {
         return Err(InvalidArgument::new("start", format!("clips {start} .. {start} + {n} pass the last clip index 2**64 − 1")));
@@ -544,14 +547,29 @@ pub fn generate_clips_until(config: &GeneratorConfig, bank: Option<&TextureBank>
     if video.len() != n * len || depth.len() != n * len {
         return Err(InvalidArgument::new("out", format!("expected {} values per output, got {} and {}", n * len, video.len(), depth.len())));
     }
+    let mesh_len = clip_len(config.frames, config.grid);
+    let meshes: Vec<Option<&mut [f32]>> = match vertices {
+        Some(v) if v.len() != n * mesh_len => return Err(InvalidArgument::new("vertices", format!("expected {} values, got {}", n * mesh_len, v.len()))),
+        Some(v) => v.chunks_mut(mesh_len.max(1)).map(Some).collect(),
+        None => (0..n).map(|_| None).collect(),
+    };
     if n == 0 {
         return Ok(Vec::new());
     }
     video
         .par_chunks_mut(len)
         .zip(depth.par_chunks_mut(len))
+        .zip(meshes)
         .enumerate()
-        .map(|(i, (v, d))| with_worker(config, |worker| worker.clip_until(config, bank, seed, start + i as u64, v, d, cancel)))
+        .map(|(i, ((v, d), mesh))| {
+            with_worker(config, |worker| {
+                let params = worker.clip_until(config, bank, seed, start + i as u64, v, d, cancel)?;
+                if let Some(mesh) = mesh {
+                    mesh.copy_from_slice(worker.positions.as_flattened());
+                }
+                Ok(params)
+            })
+        })
         .collect()
 }
 
@@ -871,7 +889,7 @@ mod tests {
                 std::thread::sleep(std::time::Duration::from_millis(50));
                 cancel.store(true, Ordering::Relaxed);
             });
-            generate_clips_until(&config, None, 0, 0, 2, &mut vec![0; 2 * len], &mut vec![0.0; 2 * len], &cancel).unwrap_err()
+            generate_clips_until(&config, None, 0, 0, 2, &mut vec![0; 2 * len], &mut vec![0.0; 2 * len], None, &cancel).unwrap_err()
         });
         assert_eq!(err.name, "interrupted");
         assert!(started.elapsed().as_secs() < 10);
@@ -888,6 +906,10 @@ mod tests {
         config.size = 0;
         let err = generate_clips(&config, None, 0, 0, 1, &mut [], &mut []).unwrap_err();
         assert_eq!(err.name, "config.size");
+        let config = small();
+        let len = config.clip_pixels();
+        let err = generate_clips_until(&config, None, 0, 0, 1, &mut vec![0; len], &mut vec![0.0; len], Some(&mut []), &AtomicBool::new(false)).unwrap_err();
+        assert_eq!(err.name, "vertices");
         let mut config = small();
         config.light_count = (3, 2);
         assert_eq!(config.validate().unwrap_err().name, "config.light_count");

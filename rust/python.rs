@@ -464,6 +464,7 @@ fn generator_config_from_dict(d: &Bound<'_, PyDict>) -> PyResult<GeneratorConfig
                 axis_rate: range("sheet_axis_rate")?,
                 relief: range("sheet_relief")?,
                 phases: size("sheet_phases")?,
+                flat_start: field(d, "config", "sheet_flat_start")?,
             }
         },
         backdrop: BackdropConfig {
@@ -516,6 +517,7 @@ fn default_generator_config(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("sheet_bends", sheet.bends)?;
     d.set_item("sheet_fold_probability", sheet.fold_probability)?;
     d.set_item("sheet_phases", sheet.phases)?;
+    d.set_item("sheet_flat_start", sheet.flat_start)?;
     set_ranges(&d, &[
         ("sheet_bend_angle", sheet.bend_angle),
         ("sheet_bend_width", sheet.bend_width),
@@ -625,9 +627,11 @@ fn sheet_to_dict<'py>(py: Python<'py>, sheet: &SheetParams) -> PyResult<Bound<'p
     Ok(d)
 }
 
-/// Clips `start .. start + n`: (video u8 (n, T, H, W), depth f32 (n, T, H, W), params list).
+/// Clips `start .. start + n`: (video u8 (n, T, H, W), depth f32 (n, T, H, W),
+/// params list, with `vertices` their meshes f32 (n, T, grid, grid, 3), else None).
 #[pyfunction]
-#[pyo3(signature = (n, seed, start, config, textures=None))]
+#[pyo3(signature = (n, seed, start, config, textures=None, vertices=false))]
+#[allow(clippy::too_many_arguments)]
 fn generate_clips<'py>(
     py: Python<'py>,
     n: i64,
@@ -635,7 +639,8 @@ fn generate_clips<'py>(
     start: u64,
     config: &Bound<'py, PyDict>,
     textures: Option<PathBuf>,
-) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyList>)> {
+    vertices: bool,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyList>, Option<Bound<'py, PyAny>>)> {
     let config = generator_config_from_dict(config)?;
     let n = crate::error::size_in("n", n, 0, 1 << 24).map_err(value_error)?;
     let len = n
@@ -646,17 +651,25 @@ fn generate_clips<'py>(
     // numpy's allocator backs large arrays with transparent huge pages where
     // the kernel offers them (`madvise`): a batch's first touch of its output
     // then costs a few page faults, not one per 4 KiB.
+    let mesh_len = n
+        .checked_mul(clip_len(config.frames, config.grid))
+        .filter(|&l| !vertices || l <= MAX_VALUES)
+        .ok_or_else(|| PyValueError::new_err(format!("n: the meshes of {n} clips exceed {MAX_VALUES} values per call; generate in smaller batches")))?;
     let (video, depth) = (PyArray1::<u8>::zeros(py, len, false), PyArray1::<f32>::zeros(py, len, false));
+    let meshes = vertices.then(|| PyArray1::<f32>::zeros(py, mesh_len, false));
     let params = {
         let (mut video, mut depth) = (video.readwrite(), depth.readwrite());
+        let mut meshes = meshes.as_ref().map(|m| m.readwrite());
+        let meshes = meshes.as_mut().map(|m| m.as_slice_mut()).transpose()?;
         let (video, depth) = (video.as_slice_mut()?, depth.as_slice_mut()?);
         let cancel = AtomicBool::new(false);
-        parallel_interruptible(py, &cancel, || generate::generate_clips_until(&config, bank.as_deref(), seed, start, n, video, depth, &cancel))?.map_err(value_error)?
+        parallel_interruptible(py, &cancel, || generate::generate_clips_until(&config, bank.as_deref(), seed, start, n, video, depth, meshes, &cancel))?.map_err(value_error)?
     };
-    let (t, s) = (config.frames, config.size);
+    let (t, s, g) = (config.frames, config.size, config.grid);
     let (video, depth) = (video.reshape([n, t, s, s])?.into_any(), depth.reshape([n, t, s, s])?.into_any());
+    let meshes = meshes.map(|m| m.reshape([n, t, g, g, 3]).map(|m| m.into_any())).transpose()?;
     let params = PyList::new(py, params.iter().map(|p| clip_to_dict(py, p, bank.as_deref())).collect::<PyResult<Vec<_>>>()?)?;
-    Ok((video, depth, params))
+    Ok((video, depth, params, meshes))
 }
 
 // ------------------------------------------------------------------ stitching

@@ -70,6 +70,9 @@ pub struct SheetConfig {
     /// way (new knots at their ends: the module header); 1 moves linearly
     /// from start to end.
     pub phases: usize,
+    /// Whether every term's turn at t = 0 is 0: the clip starts from the
+    /// flat sheet (its relief aside), as a real video of paper often does.
+    pub flat_start: bool,
 }
 
 impl Default for SheetConfig {
@@ -87,6 +90,7 @@ impl Default for SheetConfig {
             axis_rate: Range::new(-0.3, 0.3),
             relief: Range::new(0.0, 0.5),
             phases: 1,
+            flat_start: false,
         }
     }
 }
@@ -146,6 +150,11 @@ impl SheetConfig {
                 term.centre.push((c + rng.uniform(self.centre_drift.lo, self.centre_drift.hi)).clamp(self.centre.lo, self.centre.hi));
             }
             axis.push(axis[axis.len() - 1] + rng.uniform(self.axis_rate.lo, self.axis_rate.hi));
+        }
+        if self.flat_start {  // after every draw: the same sheet, unbent at the start
+            for term in &mut terms {
+                term.angle[0] = 0.0;
+            }
         }
         Some(SheetParams { axis, terms, relief })
     }
@@ -344,6 +353,24 @@ mod tests {
             }
         }
         assert_eq!(SheetConfig { phases: 0, ..one }.validate().unwrap_err().name, "config.sheet_phases");
+    }
+
+    #[test]
+    fn a_flat_start_unbends_only_the_first_knot() {
+        let bent = SheetConfig { probability: 1.0, fold_probability: 1.0, phases: 3, ..SheetConfig::default() };
+        let flat_start = SheetConfig { flat_start: true, ..bent.clone() };
+        let flat = flat_grid(16);
+        let mut bender = Bender::default();
+        for seed in 0..16 {
+            let (a, b) = (bent.sample(&mut SplitMix64::new(seed)).unwrap(), flat_start.sample(&mut SplitMix64::new(seed)).unwrap());
+            assert_eq!((&a.axis, a.relief, a.terms.len()), (&b.axis, b.relief, b.terms.len()));
+            for (p, q) in a.terms.iter().zip(&b.terms) {
+                assert_eq!((&p.angle[1..], &p.centre, p.width, q.angle[0]), (&q.angle[1..], &q.centre, q.width, 0.0));
+            }
+            let mut start = flat.clone();
+            bender.bend_frame(&b, 0.0, &mut start);
+            assert!(start.iter().zip(&flat).all(|(p, q)| (0..3).all(|c| (p[c] - q[c]).abs() < 1e-9)), "seed {seed}: not flat at t = 0");
+        }
     }
 
     #[test]

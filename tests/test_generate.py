@@ -117,6 +117,42 @@ def test_sheet_phases_bend_a_long_clip_several_ways():
     assert not np.array_equal(one.depth, four.depth)
     with pytest.raises(ValueError, match="sheet_phases"):
         nrdepth.GeneratorConfig(sheet_phases=0)
+    # A flat start zeroes the first knot's turns and draws everything else as it was (in a draw both keep).
+    flat = nrdepth.generate_clips(4, seed=5, config=config.replace(sheet_phases=4, sheet_flat_start=True))
+    kept = [(a, b) for a, b in zip(four.params, flat.params) if a["redraws"] == b["redraws"]]
+    assert len(kept) >= 2
+    for a, b in kept:
+        assert all(t["angle"][0] == 0 and t["angle"][1:] == s["angle"][1:] for s, t in zip(a["sheet"]["terms"], b["sheet"]["terms"]))
+    with pytest.raises(TypeError, match="sheet_flat_start"):
+        nrdepth.GeneratorConfig(sheet_flat_start=1)
+
+
+@pytest.mark.parametrize("camera", [{}, {"sheet_probability": 1.0, "camera_fov": (0.7, 1.4), "crop_share": (1.0, 1.0)},
+                                    {"camera_fov": (0.6, 1.3), "crop_share": (0.3, 1.0), "backdrop_probability": 1.0}],
+                         ids=["orthographic", "pinhole sheets", "pinhole crops over backdrops"])
+def test_the_meshes_project_where_the_depth_shows_them(camera):
+    from scipy.ndimage import map_coordinates
+
+    config = SMALL.replace(size=48, grid=40, **camera)
+    clips = nrdepth.generate_clips(3, seed=8, config=config, vertices=True)
+    plain = nrdepth.generate_clips(3, seed=8, config=config)
+    assert plain.vertices is None and clips.vertices.shape == (3, 4, 40, 40, 3)
+    assert np.array_equal(clips.video, plain.video) and clips.params == plain.params
+    for vertices, depth, params in zip(clips.vertices, clips.depth, clips.params):
+        points = nrdepth.image_points(vertices, params, config.size)
+        errors, mirrored = [], []
+        for frame, seen in zip(depth.astype(np.float64), points.reshape(4, -1, 3)):
+            seen = seen[(seen[:, :2] > 1).all(axis=1) & (seen[:, :2] < config.size - 2).all(axis=1)]
+            for error, rows in ((errors, seen[:, 1]), (mirrored, config.size - 1 - seen[:, 1])):
+                at = map_coordinates(frame, [rows, seen[:, 0]], order=1)
+                error += list(np.abs(at - seen[:, 2])[np.isfinite(at)])
+        # The depth map, read bilinearly where a vertex projects, is the vertex's depth (up to the
+        # mesh's curvature within a pixel); read with the rows mirrored, it is not.
+        assert np.median(errors) < 5e-4 * np.nanmedian(depth) < np.median(mirrored) / 3
+    with pytest.raises(TypeError, match="^vertices:"):
+        nrdepth.generate_clips(1, config=SMALL, vertices=1)
+    with pytest.raises(ValueError, match="^vertices:"):
+        nrdepth.image_points(np.zeros((4, 2)), clips.params[0], 48)
 
 
 def test_backdrops_show_the_border_over_a_background_and_mask_the_depth_off_the_sheet():

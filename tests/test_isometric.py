@@ -90,6 +90,9 @@ def test_track_grid_follows_a_shift():
     forward = isometric.track_grid(video, mask, points=25, backward=False)  # the forward flow alone follows it too
     np.testing.assert_allclose(forward[-1] - forward[0], np.broadcast_to([8.0, 4.0], xy[0].shape), atol=0.15)
     assert not np.array_equal(forward, xy)  # and the backward flow took part
+    assert np.array_equal(isometric.track_points(video, xy[0]), xy)  # the grid's points, followed by track_points
+    anywhere = np.array([[37.3, 41.9], [55.5, 33.1]])
+    np.testing.assert_allclose(isometric.track_points(video, anywhere)[-1] - anywhere, [[8.0, 4.0]] * 2, atol=0.15)
 
 
 def test_track_grid_is_the_same_at_any_thread_count():
@@ -186,6 +189,8 @@ def test_bad_input_names_the_argument():
         isometric.fuse(np.zeros((1, 8, 8)), np.zeros((1, 8, 8)), 1.0, relief="pixel")
     with pytest.raises(ValueError, match="window"):
         isometric.track_grid(video, window=1)
+    with pytest.raises(ValueError, match="start"):
+        isometric.track_points(video, np.zeros((4, 3)))
     with pytest.raises(ValueError, match="far"):
         isometric.neighbour_pairs(xy[0], 4, far=-1)
     with pytest.raises(ValueError, match="reach"):

@@ -15,7 +15,7 @@ import os as _os
 # allocation; a value the user set is kept.
 _os.environ.setdefault("THP_MEM_ALLOC_ENABLE", "1")
 
-from .generate import Clips, GeneratorConfig, generate_clips, observable_depth
+from .generate import Clips, GeneratorConfig, generate_clips, image_points, observable_depth
 from .metrics import flat_baseline, gbr_align, grid_contrast, mae_sn, sign_rates
 from .stitch import PatchLayout, patch_layout, stitch, temporal_align
 from .reconstruct import reconstruct, reconstruct_file
@@ -40,6 +40,7 @@ __all__ = [
     "Render",
     "flat_baseline",
     "generate_clips",
+    "image_points",
     "observable_depth",
     "gbr_align",
     "grid_contrast",

@@ -16,9 +16,10 @@ from typing import Any, Dict, List, NamedTuple, Optional, Tuple
 import numpy as np
 
 from . import _core
+from .render import CAMERA_Z
 from .surface import SurfaceConfig, _check_int, _check_seed, _float_tuple
 
-__all__ = ["GeneratorConfig", "Clips", "generate_clips", "observable_depth", "window_widths"]
+__all__ = ["GeneratorConfig", "Clips", "generate_clips", "image_points", "observable_depth", "window_widths"]
 
 _DEFAULT = _core.default_generator_config()
 Interval = Tuple[float, float]
@@ -137,6 +138,10 @@ class GeneratorConfig:
     a further ``sheet_axis_rate``, linear in between. 1 (the default) moves
     from the clip's start to its end; more suit long videos (the isometric
     shape needs a sheet bent many ways: docs/reconstruction.md)."""
+    sheet_flat_start: bool = _DEFAULT["sheet_flat_start"]
+    """Whether a sheet starts flat (every turn 0 at the clip's start, its
+    relief aside), as a real video of paper often does; everything else is
+    drawn as without it."""
     backdrop_probability: float = _DEFAULT["backdrop_probability"]
     """Share of clips whose view is wider than the sheet, so that its border
     shows and a background behind it: a window of side
@@ -185,6 +190,8 @@ class GeneratorConfig:
         if lo != int(lo) or hi != int(hi):
             raise ValueError(f"config.sheet_bends: expected two integers, got {self.sheet_bends}")
         object.__setattr__(self, "sheet_bends", (int(lo), int(hi)))
+        if not isinstance(self.sheet_flat_start, bool):
+            raise TypeError(f"config.sheet_flat_start: expected a bool, got {type(self.sheet_flat_start).__name__}")
         if not isinstance(self.surface, SurfaceConfig):
             raise TypeError(f"config.surface: expected a SurfaceConfig, got {type(self.surface).__name__}")
         if isinstance(self.texture_families, str):
@@ -228,11 +235,19 @@ class Clips(NamedTuple):
     params: List[Dict[str, Any]]
     """Per clip: surface, window, lights, material, texture, noise_std, noise_seed, blur, gamma, sheet (None, or its axis, terms and relief), backdrop (None, or
     its background's family (None: flat), seed and brightness), pinhole (None: orthographic, or its ``xy`` and ``camera_z``), redraws."""
+    vertices: Optional[np.ndarray] = None
+    """With ``generate_clips(…, vertices=True)``: float32 (n, T, grid, grid, 3)
+    each clip's mesh in world coordinates, frame by frame; vertex ``[j, k]``
+    is the same point of the surface in every frame, at ``x = −1 + 2k/(grid − 1)``,
+    ``y = −1 + 2j/(grid − 1)`` before it deforms. Else None."""
 
 
-def generate_clips(n: int, seed: int = 0, config: Optional[GeneratorConfig] = None, start: int = 0) -> Clips:
+def generate_clips(n: int, seed: int = 0, config: Optional[GeneratorConfig] = None, start: int = 0,
+                   vertices: bool = False) -> Clips:
     """Generate clips ``start .. start + n`` of the run ``(config, seed)``, in
-    parallel (Rust threads, GIL released). Safe in forked DataLoader workers."""
+    parallel (Rust threads, GIL released). Safe in forked DataLoader workers.
+    ``vertices``: also return each clip's mesh (``Clips.vertices``; with
+    :func:`image_points`, ground-truth tracks of every point of the surface)."""
     config = GeneratorConfig() if config is None else config
     if not isinstance(config, GeneratorConfig):
         raise TypeError(f"config: expected a GeneratorConfig or None, got {type(config).__name__}")
@@ -240,8 +255,36 @@ def generate_clips(n: int, seed: int = 0, config: Optional[GeneratorConfig] = No
     if n < 0:
         raise ValueError(f"n: expected a non-negative number of clips, got {n}")
     start = _check_seed("start", start)
-    video, depth, params = _core.generate_clips(n, _check_seed("seed", seed), start, config._core_dict(), config.textures)
-    return Clips(video, depth, params)
+    if not isinstance(vertices, bool):
+        raise TypeError(f"vertices: expected a bool, got {type(vertices).__name__}")
+    return Clips(*_core.generate_clips(n, _check_seed("seed", seed), start, config._core_dict(), config.textures, vertices))
+
+
+def image_points(vertices: np.ndarray, params: Dict[str, Any], size: int) -> np.ndarray:
+    """Where world points ``vertices`` (..., 3) appear in a clip's frames of
+    ``size`` pixels (``params`` one of ``Clips.params``): float64 (..., 3)
+    of column, row (pixel centres at integers, as :mod:`nrdepth.isometric`
+    counts them) and depth (distance along the optical axis, as
+    ``Clips.depth``), through the clip's pinhole or its orthographic camera.
+    Visibility is not checked: a point behind a fold projects all the same."""
+    vertices = np.asarray(vertices, np.float64)
+    if vertices.ndim < 1 or vertices.shape[-1] != 3:
+        raise ValueError(f"vertices: expected points (..., 3), got shape {vertices.shape}")
+    size = _check_int("size", size)
+    if size < 1:
+        raise ValueError(f"size: expected the frames' side in pixels >= 1, got {size}")
+    x0, y0, x1, y1 = params["window"]
+    x, y, z = np.moveaxis(vertices, -1, 0)
+    pinhole = params.get("pinhole")
+    if pinhole is None:
+        depth, (cx, cy), k = CAMERA_Z - z, (x0, y0), 1.0
+    else:  # the perspective camera's window is what it shows of the plane z = 0
+        (cx, cy), camera_z = pinhole["xy"], pinhole["camera_z"]
+        depth = camera_z - z
+        k = camera_z / depth
+    column = (cx + (x - cx) * k - x0) * size / (x1 - x0) - 0.5
+    row = (y1 - cy - (y - cy) * k) * size / (y1 - y0) - 0.5
+    return np.stack([column, row, depth], axis=-1)
 
 
 def observable_depth(depth: np.ndarray, params: Dict[str, Any]) -> np.ndarray:

@@ -6,7 +6,7 @@ A network reads a frame's relief but little of its large-scale bend
 away through perspective. Three steps:
 
 - :func:`track_grid`: points spread evenly over ``mask`` in the first frame,
-  moved from each frame to the next by OpenCV's Farneback dense optical flow
+  moved (:func:`track_points`) from each frame to the next by OpenCV's Farneback dense optical flow
   (sampled bilinearly at each point), forward and backward. No point is dropped: a point that a
   sparse tracker would lose in a fast or blurred frame is carried by the
   flow of its neighbourhood.
@@ -43,7 +43,7 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-__all__ = ["track_grid", "neighbour_pairs", "mdh_depths", "isometric_depth", "fuse"]
+__all__ = ["track_grid", "track_points", "neighbour_pairs", "mdh_depths", "isometric_depth", "fuse"]
 
 
 def _cv2():
@@ -77,27 +77,38 @@ def track_grid(video: np.ndarray, mask: Optional[np.ndarray] = None, points: int
                backward: bool = True) -> np.ndarray:
     """Tracks (T, n, 2) (column, row) of about ``points`` points on a square
     grid over ``mask`` (H, W) of the first frame (default: the whole frame),
-    moved through ``video`` (T, H, W) uint8 by Farneback optical flow (5
-    pyramid levels, ``window``-pixel windows) from each frame to the next:
-    the mean of where the forward flow takes a point and where the backward
-    flow says it came from (both real videos read better, generated sheets
-    within 0.0005 per frame: docs/reconstruction.md), or with ``backward`` False
-    the forward flow alone (half the flow's cost)."""
-    from scipy.ndimage import map_coordinates
-
-    cv2 = _cv2()
+    moved through ``video`` (T, H, W) uint8 by :func:`track_points`
+    (``window``, ``backward``)."""
     video = _check_video(video)
     mask = _check_mask(mask, video.shape[1:])
     if not (isinstance(points, (int, np.integer)) and points >= 4):
         raise ValueError(f"points: expected an int >= 4, got {points!r}")
-    if not (isinstance(window, (int, np.integer)) and window >= 3):
-        raise ValueError(f"window: expected an int >= 3 (pixels), got {window!r}")
     spacing = max(1.0, float(np.sqrt(mask.sum() / points)))
     rows, cols = np.mgrid[spacing / 2 : video.shape[1] : spacing, spacing / 2 : video.shape[2] : spacing]
     grid = np.column_stack([cols.ravel(), rows.ravel()])
     grid = grid[mask[rows.astype(int).ravel(), cols.astype(int).ravel()]]
     if len(grid) < 4:
         raise ValueError(f"mask: expected room for at least 4 points at {points} points over its area, got {len(grid)}")
+    return track_points(video, grid, window, backward)
+
+
+def track_points(video: np.ndarray, start: np.ndarray, window: int = 21, backward: bool = True) -> np.ndarray:
+    """Tracks (T, n, 2) (column, row) of the points ``start`` (n, 2) of the
+    first frame, moved through ``video`` (T, H, W) uint8 by Farneback optical
+    flow (5 pyramid levels, ``window``-pixel windows) from each frame to the
+    next: the mean of where the forward flow takes a point and where the
+    backward flow says it came from (both real videos read better, generated
+    sheets within 0.0005 per frame: docs/reconstruction.md), or with
+    ``backward`` False the forward flow alone (half the flow's cost)."""
+    from scipy.ndimage import map_coordinates
+
+    cv2 = _cv2()
+    video = _check_video(video)
+    start = np.asarray(start, np.float64)
+    if start.ndim != 2 or start.shape[1] != 2 or not np.isfinite(start).all():
+        raise ValueError(f"start: expected finite points (n, 2) (column, row), got shape {start.shape}")
+    if not (isinstance(window, (int, np.integer)) and window >= 3):
+        raise ValueError(f"window: expected an int >= 3 (pixels), got {window!r}")
 
     def flow(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return cv2.calcOpticalFlowFarneback(a, b, None, 0.5, 5, window, 5, 7, 1.5, 0)
@@ -105,8 +116,8 @@ def track_grid(video: np.ndarray, mask: Optional[np.ndarray] = None, points: int
     def at(field: np.ndarray, where: np.ndarray) -> np.ndarray:  # bilinear
         return np.stack([map_coordinates(field[..., c], [where[:, 1], where[:, 0]], order=1, mode="nearest") for c in (0, 1)], axis=1)
 
-    xy = np.empty((len(video), len(grid), 2))
-    xy[0] = grid
+    xy = np.empty((len(video), len(start), 2))
+    xy[0] = start
     for t in range(1, len(video)):
         xy[t] = ahead = xy[t - 1] + at(flow(video[t - 1], video[t]), xy[t - 1])
         if backward:
