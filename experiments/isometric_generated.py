@@ -18,13 +18,15 @@ and ``image_points``; no tracking error, so what is left is the
 heuristic's and the video's; with it, each video's flow drift: the flow
 both ways from those vertices' first positions, its median distance from
 their true positions in the last frame), ``--flat-start`` (every sheet starts unbent,
-``GeneratorConfig.sheet_flat_start``),
+``GeneratorConfig.sheet_flat_start``), ``--template`` (``mdh_depths``'s
+template distances: ``joint`` over keyframes, or ``first``, the first
+frame as a flat sheet facing the camera),
 ``--pairs`` (the points tied by inextensibility, ``neighbours:far:reach``,
 :func:`nrdepth.isometric.neighbour_pairs`) and ``--relief`` (``fuse``'s
 one λ per frame, or one for the video): a reading for each combination
 given, each paired against the network and against the first combination.
 
-    python experiments/isometric_generated.py [--videos 32] [--frames 16] [--phases 1] [--textures print] [--scales 0,0.05,0.1,0.2,0.3] [--trackers forward,both,truth] [--flat-start] [--pairs 20:0:0,10:10:80] [--relief frame,video]
+    python experiments/isometric_generated.py [--videos 32] [--frames 16] [--phases 1] [--textures print] [--scales 0,0.05,0.1,0.2,0.3] [--trackers forward,both,truth] [--flat-start] [--template joint,first] [--pairs 20:0:0,10:10:80] [--relief frame,video]
 """
 
 from __future__ import annotations
@@ -82,15 +84,16 @@ def main() -> None:
                         help="isometric.track_grid's flow: forward, both (forward and backward), truth (the mesh's true positions), or a list")
     parser.add_argument("--flat-start", action="store_true", help="every sheet starts unbent (GeneratorConfig.sheet_flat_start)")
     parser.add_argument("--relief", type=lambda text: text.split(","), default=["frame"], help="fuse's relief: frame, video or both")
+    parser.add_argument("--template", type=lambda text: text.split(","), default=["joint"], help="mdh_depths's template distances: joint, first, or both")
     parser.add_argument("--csv", type=Path, default=None, help="also write each video's readings here (one row a video)")
     parser.add_argument("--textures", type=lambda text: tuple(text.split(",")), default=FAMILIES,
                         help="texture families (default: bench_sheets.py's)")
     args = parser.parse_args()
-    if not set(args.trackers) <= {"forward", "both", "truth"} or not set(args.relief) <= {"frame", "video"}:
-        parser.error("--trackers takes forward, both and truth, --relief frame and video")
-    combinations = [(tracker, pairs, relief) for tracker in args.trackers for pairs in args.pairs for relief in args.relief]
-    label = lambda tracker, pairs, relief: "" if len(combinations) == 1 else " ({}, {}:{}:{}, {})".format(tracker, *pairs, relief)  # noqa: E731
-    fused = [(tracker, pairs, relief, s, f"fused at {s:g}{label(tracker, pairs, relief)}") for tracker, pairs, relief in combinations for s in args.scales]
+    if not set(args.trackers) <= {"forward", "both", "truth"} or not set(args.relief) <= {"frame", "video"} or not set(args.template) <= {"joint", "first"}:
+        parser.error("--trackers takes forward, both and truth, --relief frame and video, --template joint and first")
+    combinations = [(tracker, pairs, template, relief) for tracker in args.trackers for pairs in args.pairs for template in args.template for relief in args.relief]
+    label = lambda tracker, pairs, template, relief: "" if len(combinations) == 1 else " ({}, {}:{}:{}, {}, {})".format(tracker, *pairs, template, relief)  # noqa: E731
+    fused = [(tracker, pairs, template, relief, s, f"fused at {s:g}{label(tracker, pairs, template, relief)}") for tracker, pairs, template, relief in combinations for s in args.scales]
     names = ["network"] + [name for *_, name in fused]
     first = {name: f"fused at {s:g}{label(*combinations[0])}" for *_, s, name in fused}  # the first combination at the same scale
     every, lights = [], []
@@ -104,16 +107,17 @@ def main() -> None:
             network = nrdepth.reconstruct(video)
             sheets, drift = {}, np.nan
             for tracker in args.trackers:
+                if tracker == "truth":
+                    xy = true_tracks(clips.vertices[k], params, config.size)
+                    drift = float(np.median(np.linalg.norm(isometric.track_points(video, xy[0])[-1] - xy[-1], axis=1)))
+                else:
+                    xy = isometric.track_grid(video, backward=tracker == "both")
                 for pairs in args.pairs:
-                    if tracker == "truth":
-                        xy = true_tracks(clips.vertices[k], params, config.size)
-                        depths = isometric.mdh_depths(xy, focal, centre, neighbours=pairs[0], far=pairs[1], reach=pairs[2])
-                        sheets[tracker, pairs] = densify(xy, depths, video.shape)
-                        drift = float(np.median(np.linalg.norm(isometric.track_points(video, xy[0])[-1] - xy[-1], axis=1)))
-                    else:
-                        sheets[tracker, pairs] = isometric.isometric_depth(video, focal, centre, neighbours=pairs[0], far=pairs[1], reach=pairs[2], backward=tracker == "both")
-            readings = {"network": network, **{name: isometric.fuse(network, sheets[tracker, pairs], s * config.size, relief=relief)
-                                               for tracker, pairs, relief, s, name in fused}}
+                    for template in args.template:
+                        depths = isometric.mdh_depths(xy, focal, centre, neighbours=pairs[0], far=pairs[1], reach=pairs[2], template=template)
+                        sheets[tracker, pairs, template] = densify(xy, depths, video.shape)
+            readings = {"network": network, **{name: isometric.fuse(network, sheets[tracker, pairs, template], s * config.size, relief=relief)
+                                               for tracker, pairs, template, relief, s, name in fused}}
             row = {name: (mae_sn(d, truth), sign_rates(d, truth)["sign_correct"]) for name, d in readings.items()}
             base = dense_baselines(truth)
             row["plane"], row["bowl"] = (base["plane"], np.nan), (base["bowl"], np.nan)

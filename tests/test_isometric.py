@@ -15,15 +15,15 @@ from nrdepth.isometric import _rays, _socp  # noqa: E402
 FOCAL = 500.0
 
 
-def rolled_sheet(frames: int = 8, side: int = 9):
+def rolled_sheet(frames: int = 8, side: int = 9, start: float = 0.2):
     """Image positions (T, n, 2) and depths (T, n) of a grid on a sheet 2 × 1.6
-    rolled about its vertical axis, the curvature growing frame by frame
+    rolled about its vertical axis, the curvature growing frame by frame from ``start``
     (arc-length parametrised: no stretch), turning and drifting, 4 units in
     front of a pinhole of focal length FOCAL with its centre at pixel (0, 0)."""
     s, v = (a.ravel() for a in np.meshgrid(np.linspace(-1, 1, side), np.linspace(-0.8, 0.8, side)))
     xy, depth = [], []
     for t in range(frames):
-        k = 0.2 + 0.8 * t / (frames - 1)
+        k = start + (1 - start) * t / (frames - 1)
         x, z = np.sin(k * s) / k, (1 - np.cos(k * s)) / k
         a = 0.3 * np.sin(t)
         x, z = np.cos(a) * x + np.sin(a) * z, -np.sin(a) * x + np.cos(a) * z
@@ -53,6 +53,16 @@ def test_mdh_reads_a_rolled_sheet():
     # the depth grows away from the camera: λ > 0 in the bent half (the first frames are nearly flat)
     for d, z, p in zip(depth[4:], truth[4:], xy[4:]):
         assert np.linalg.lstsq(np.column_stack([p, np.ones(len(z)), d]), z, rcond=None)[0][3] > 0
+
+
+def test_mdh_reads_a_sheet_exactly_from_its_flat_first_frame():
+    # A flat first frame facing the camera gives the template distances: every frame then reads as the truth.
+    xy, truth = rolled_sheet(start=1e-4)
+    first = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, template="first")
+    joint = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4)
+    assert relief_error(first[1:], truth[1:], xy[1:]).max() < 0.02 < relief_error(joint[1:], truth[1:], xy[1:]).mean()
+    with pytest.raises(ValueError, match="template"):
+        isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), template="last")
 
 
 def test_mdh_fixed_distances_give_back_the_joint_solution():

@@ -220,34 +220,51 @@ def _camera(focal, centre) -> Tuple[Tuple[float, float], Tuple[float, float]]:
     return (float(f[0]), float(f[1])), (float(c[0]), float(c[1]))
 
 
+def _check_template(template: str) -> None:
+    if template not in ("joint", "first"):
+        raise ValueError(f"template: expected 'joint' or 'first', got {template!r}")
+
+
 def _rays(xy: np.ndarray, focal, centre) -> np.ndarray:
     (fx, fy), (cx, cy) = _camera(focal, centre)
     return np.stack([(xy[..., 0] - cx) / fx, (xy[..., 1] - cy) / fy, np.ones(xy.shape[:2])], axis=-1)
 
 
 def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None, neighbours: int = 20,
-               keyframes: int = 24, far: int = 0, reach: int = 0) -> np.ndarray:
+               keyframes: int = 24, far: int = 0, reach: int = 0, template: str = "joint") -> np.ndarray:
     """Depths (T, n) of tracked points ``xy`` (T, n, 2) by the maximum-depth
     heuristic (module docstring). ``focal``: the focal length in pixels, one
     number or (f_x, f_y); ``centre``: the principal point (c_x, c_y);
     ``pairs`` (E, 2): the neighbours tied by inextensibility (default:
     :func:`neighbour_pairs` of the first frame with ``neighbours``, ``far``
-    and ``reach``). The template
-    distances come from ``keyframes`` frames spread evenly over the video,
-    solved together; every other frame is then solved with them fixed."""
+    and ``reach``). ``template``: where the pairs' template distances come
+    from. "joint": ``keyframes`` frames spread evenly over the video, solved
+    together, every other frame then solved with them fixed. "first": the
+    first frame taken as a flat sheet facing the camera (the distances
+    between its points' rays at depth 1), every frame solved alone with
+    them: for a video that starts with the sheet flat and nearly
+    fronto-parallel (docs/reconstruction.md)."""
     xy = np.asarray(xy, np.float64)
     if xy.ndim != 3 or xy.shape[2] != 2 or xy.shape[0] < 2 or xy.shape[1] < 3 or not np.isfinite(xy).all():
         raise ValueError(f"xy: expected finite tracks (T, n, 2) with T >= 2 and n >= 3, got shape {xy.shape}")
     if not (isinstance(keyframes, (int, np.integer)) and keyframes >= 2):
         raise ValueError(f"keyframes: expected an int >= 2, got {keyframes!r}")
+    _check_template(template)
     pairs = neighbour_pairs(xy[0], neighbours, far, reach) if pairs is None else np.asarray(pairs)
     if pairs.ndim != 2 or pairs.shape[1] != 2 or len(pairs) < 1 or pairs.min() < 0 or pairs.max() >= xy.shape[1]:
         raise ValueError(f"pairs: expected (E, 2) indices of the {xy.shape[1]} points, got shape {pairs.shape}")
     rays = _rays(xy, focal, centre)
     T = len(xy)
-    keys = np.unique(np.rint(np.linspace(0, T - 1, min(keyframes, T))).astype(int))
     depths = np.empty(xy.shape[:2])
-    depths[keys], distances = _socp(rays[keys], pairs, None)
+    if template == "joint":
+        keys = np.unique(np.rint(np.linspace(0, T - 1, min(keyframes, T))).astype(int))
+        depths[keys], distances = _socp(rays[keys], pairs, None)
+    else:
+        keys = np.zeros(0, int)
+        distances = np.linalg.norm(rays[0, pairs[:, 0]] - rays[0, pairs[:, 1]], axis=1)
+        if not np.all(distances > 0):
+            raise ValueError("xy: two paired points share a position in the first frame")
+        distances *= len(pairs) / distances.sum()  # the joint program's units: Σ D = the number of pairs
     rest = np.setdiff1d(np.arange(T), keys)
     # With the distances fixed the frames are independent: one small program each (ten times faster than
     # several frames in one), in threads (Clarabel releases the GIL; each frame's answer is the same in any thread).
@@ -259,14 +276,14 @@ def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None
 
 def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.ndarray] = None, points: int = 400,
                     neighbours: int = 20, keyframes: int = 24, far: int = 0, reach: int = 0, window: int = 21,
-                    backward: bool = True) -> np.ndarray:
+                    backward: bool = True, template: str = "joint") -> np.ndarray:
     """Dense depth (T, H, W) float64 of an inextensible sheet filmed by
     ``video`` (T, H, W) uint8 through a perspective camera of focal length
     ``focal`` pixels (one number or (f_x, f_y)) and principal point
     ``centre`` (default: the frame's centre): :func:`track_grid` over
     ``mask`` (the sheet in the first frame; default: the whole frame;
     ``points``, ``window``, ``backward``), :func:`mdh_depths` (``neighbours``,
-    ``keyframes``, ``far``, ``reach``), then linear over the points' Delaunay triangles,
+    ``keyframes``, ``far``, ``reach``, ``template``), then linear over the points' Delaunay triangles,
     nearest outside their hull. Units: the mean distance between
     neighbouring points is about 1."""
     from .tracks import densify
@@ -275,8 +292,10 @@ def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.nda
     if centre is None:
         centre = ((video.shape[2] - 1) / 2, (video.shape[1] - 1) / 2)
     _camera(focal, centre)  # before tracking
+    _check_template(template)
     xy = track_grid(video, mask, points, window, backward)
-    return densify(xy, mdh_depths(xy, focal, centre, neighbours=neighbours, keyframes=keyframes, far=far, reach=reach), video.shape)
+    depths = mdh_depths(xy, focal, centre, neighbours=neighbours, keyframes=keyframes, far=far, reach=reach, template=template)
+    return densify(xy, depths, video.shape)
 
 
 def fuse(depth: np.ndarray, isometric: np.ndarray, scale: float, mask: Optional[np.ndarray] = None,
