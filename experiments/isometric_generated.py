@@ -19,8 +19,9 @@ heuristic's and the video's; with it, each video's flow drift: the flow
 both ways from those vertices' first positions, its median distance from
 their true positions in the last frame), ``--flat-start`` (every sheet starts unbent,
 ``GeneratorConfig.sheet_flat_start``), ``--template`` (``mdh_depths``'s
-template distances: ``joint`` over keyframes, or ``first``, the first
-frame as a flat sheet facing the camera),
+template distances: ``joint`` over keyframes, ``first``, the first
+frame as a flat sheet facing the camera, or with ``--trackers truth``,
+``truth``, the distances on the flat sheet between the mesh's vertices),
 ``--pairs`` (the points tied by inextensibility, ``neighbours:far:reach``,
 :func:`nrdepth.isometric.neighbour_pairs`) and ``--relief`` (``fuse``'s
 one λ per frame, or one for the video): a reading for each combination
@@ -58,17 +59,19 @@ def camera(params: dict, size: int) -> tuple:
     return params["pinhole"]["camera_z"] * size / (x1 - x0), ((px - x0) / (x1 - x0) * size - 0.5, (y1 - py) / (y1 - y0) * size - 0.5)
 
 
-def true_tracks(vertices: np.ndarray, params: dict, size: int, points: int = 400) -> np.ndarray:
+def true_tracks(vertices: np.ndarray, params: dict, size: int, points: int = 400) -> tuple:
     """The true image positions (T, n, 2) of the mesh vertices (``vertices``
     (T, grid, grid, 3)) nearest the points of ``track_grid``'s grid over the
-    first frame, in every frame (in view or not)."""
+    first frame, in every frame (in view or not), and where those vertices
+    lie on the flat sheet (n, 2), before it bends."""
     from scipy.spatial import cKDTree
 
     seen = image_points(vertices.reshape(len(vertices), -1, 3), params, size)[..., :2]
     spacing = size / np.sqrt(points)
     rows, cols = np.mgrid[spacing / 2 : size : spacing, spacing / 2 : size : spacing]
     _, nearest = cKDTree(seen[0]).query(np.column_stack([cols.ravel(), rows.ravel()]))
-    return seen[:, np.unique(nearest)]
+    index, grid = np.unique(nearest), vertices.shape[1]
+    return seen[:, index], np.column_stack([index % grid, index // grid]) * 2.0 / (grid - 1) - 1.0
 
 
 def main() -> None:
@@ -84,13 +87,16 @@ def main() -> None:
                         help="isometric.track_grid's flow: forward, both (forward and backward), truth (the mesh's true positions), or a list")
     parser.add_argument("--flat-start", action="store_true", help="every sheet starts unbent (GeneratorConfig.sheet_flat_start)")
     parser.add_argument("--relief", type=lambda text: text.split(","), default=["frame"], help="fuse's relief: frame, video or both")
-    parser.add_argument("--template", type=lambda text: text.split(","), default=["joint"], help="mdh_depths's template distances: joint, first, or both")
+    parser.add_argument("--template", type=lambda text: text.split(","), default=["joint"],
+                        help="mdh_depths's template distances: joint, first, truth (the flat sheet's, with --trackers truth), or a list")
     parser.add_argument("--csv", type=Path, default=None, help="also write each video's readings here (one row a video)")
     parser.add_argument("--textures", type=lambda text: tuple(text.split(",")), default=FAMILIES,
                         help="texture families (default: bench_sheets.py's)")
     args = parser.parse_args()
-    if not set(args.trackers) <= {"forward", "both", "truth"} or not set(args.relief) <= {"frame", "video"} or not set(args.template) <= {"joint", "first"}:
-        parser.error("--trackers takes forward, both and truth, --relief frame and video, --template joint and first")
+    if not set(args.trackers) <= {"forward", "both", "truth"} or not set(args.relief) <= {"frame", "video"} or not set(args.template) <= {"joint", "first", "truth"}:
+        parser.error("--trackers takes forward, both and truth, --relief frame and video, --template joint, first and truth")
+    if "truth" in args.template and args.trackers != ["truth"]:
+        parser.error("--template truth (the flat sheet's distances between the mesh's vertices) needs --trackers truth")
     combinations = [(tracker, pairs, template, relief) for tracker in args.trackers for pairs in args.pairs for template in args.template for relief in args.relief]
     label = lambda tracker, pairs, template, relief: "" if len(combinations) == 1 else " ({}, {}:{}:{}, {}, {})".format(tracker, *pairs, template, relief)  # noqa: E731
     fused = [(tracker, pairs, template, relief, s, f"fused at {s:g}{label(tracker, pairs, template, relief)}") for tracker, pairs, template, relief in combinations for s in args.scales]
@@ -108,13 +114,15 @@ def main() -> None:
             sheets, drift = {}, np.nan
             for tracker in args.trackers:
                 if tracker == "truth":
-                    xy = true_tracks(clips.vertices[k], params, config.size)
+                    xy, flat = true_tracks(clips.vertices[k], params, config.size)
                     drift = float(np.median(np.linalg.norm(isometric.track_points(video, xy[0])[-1] - xy[-1], axis=1)))
                 else:
                     xy = isometric.track_grid(video, backward=tracker == "both")
                 for pairs in args.pairs:
                     for template in args.template:
-                        depths = isometric.mdh_depths(xy, focal, centre, neighbours=pairs[0], far=pairs[1], reach=pairs[2], template=template)
+                        tied = isometric.neighbour_pairs(xy[0], *pairs)
+                        given = np.linalg.norm(flat[tied[:, 0]] - flat[tied[:, 1]], axis=1) if template == "truth" else template
+                        depths = isometric.mdh_depths(xy, focal, centre, pairs=tied, keyframes=24, template=given)
                         sheets[tracker, pairs, template] = densify(xy, depths, video.shape)
             readings = {"network": network, **{name: isometric.fuse(network, sheets[tracker, pairs, template], s * config.size, relief=relief)
                                                for tracker, pairs, template, relief, s, name in fused}}

@@ -63,6 +63,15 @@ def test_mdh_reads_a_sheet_exactly_from_its_flat_first_frame():
     assert relief_error(first[1:], truth[1:], xy[1:]).max() < 0.02 < relief_error(joint[1:], truth[1:], xy[1:]).mean()
     with pytest.raises(ValueError, match="template"):
         isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), template="last")
+    # The true distances (a template), given: every frame reads as the truth, in the template's units.
+    pairs = isometric.neighbour_pairs(xy[0], 8)
+    points = np.concatenate([xy / FOCAL, np.ones(xy.shape[:2] + (1,))], axis=2) * truth[..., None]
+    known = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), pairs=pairs, template=np.linalg.norm(points[0, pairs[:, 0]] - points[0, pairs[:, 1]], axis=1))
+    np.testing.assert_allclose(known, truth, rtol=2e-3)
+    with pytest.raises(ValueError, match="pairs"):
+        isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), template=np.ones(len(pairs)))
+    with pytest.raises(ValueError, match="template"):
+        isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), pairs=pairs, template=np.ones(3))
 
 
 def test_mdh_fixed_distances_give_back_the_joint_solution():

@@ -222,7 +222,7 @@ def _camera(focal, centre) -> Tuple[Tuple[float, float], Tuple[float, float]]:
 
 def _check_template(template: str) -> None:
     if template not in ("joint", "first"):
-        raise ValueError(f"template: expected 'joint' or 'first', got {template!r}")
+        raise ValueError(f"template: expected 'joint', 'first' or the pairs' distances, got {template!r}")
 
 
 def _rays(xy: np.ndarray, focal, centre) -> np.ndarray:
@@ -231,7 +231,7 @@ def _rays(xy: np.ndarray, focal, centre) -> np.ndarray:
 
 
 def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None, neighbours: int = 20,
-               keyframes: int = 24, far: int = 0, reach: int = 0, template: str = "joint") -> np.ndarray:
+               keyframes: int = 24, far: int = 0, reach: int = 0, template="joint") -> np.ndarray:
     """Depths (T, n) of tracked points ``xy`` (T, n, 2) by the maximum-depth
     heuristic (module docstring). ``focal``: the focal length in pixels, one
     number or (f_x, f_y); ``centre``: the principal point (c_x, c_y);
@@ -243,20 +243,31 @@ def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None
     first frame taken as a flat sheet facing the camera (the distances
     between its points' rays at depth 1), every frame solved alone with
     them: for a video that starts with the sheet flat and nearly
-    fronto-parallel (docs/reconstruction.md)."""
+    fronto-parallel (docs/reconstruction.md). Or the distances themselves,
+    (E,) positive, one for each of ``pairs`` (given), as a template of
+    the sheet gives them (shape from template): the depths come out in
+    their units."""
     xy = np.asarray(xy, np.float64)
     if xy.ndim != 3 or xy.shape[2] != 2 or xy.shape[0] < 2 or xy.shape[1] < 3 or not np.isfinite(xy).all():
         raise ValueError(f"xy: expected finite tracks (T, n, 2) with T >= 2 and n >= 3, got shape {xy.shape}")
     if not (isinstance(keyframes, (int, np.integer)) and keyframes >= 2):
         raise ValueError(f"keyframes: expected an int >= 2, got {keyframes!r}")
-    _check_template(template)
+    if isinstance(template, str):
+        _check_template(template)
+    elif pairs is None:
+        raise ValueError("pairs: expected the pairs whose template distances are given (template)")
     pairs = neighbour_pairs(xy[0], neighbours, far, reach) if pairs is None else np.asarray(pairs)
     if pairs.ndim != 2 or pairs.shape[1] != 2 or len(pairs) < 1 or pairs.min() < 0 or pairs.max() >= xy.shape[1]:
         raise ValueError(f"pairs: expected (E, 2) indices of the {xy.shape[1]} points, got shape {pairs.shape}")
     rays = _rays(xy, focal, centre)
     T = len(xy)
     depths = np.empty(xy.shape[:2])
-    if template == "joint":
+    if not isinstance(template, str):
+        keys = np.zeros(0, int)
+        distances = np.asarray(template, np.float64)
+        if distances.shape != (len(pairs),) or not np.all(np.isfinite(distances) & (distances > 0)):
+            raise ValueError(f"template: expected 'joint', 'first' or the {len(pairs)} pairs' distances, positive, got shape {distances.shape}")
+    elif template == "joint":
         keys = np.unique(np.rint(np.linspace(0, T - 1, min(keyframes, T))).astype(int))
         depths[keys], distances = _socp(rays[keys], pairs, None)
     else:
