@@ -631,7 +631,6 @@ fn sheet_to_dict<'py>(py: Python<'py>, sheet: &SheetParams) -> PyResult<Bound<'p
 /// params list, with `vertices` their meshes f32 (n, T, grid, grid, 3), else None).
 #[pyfunction]
 #[pyo3(signature = (n, seed, start, config, textures=None, vertices=false))]
-#[allow(clippy::too_many_arguments)]
 fn generate_clips<'py>(
     py: Python<'py>,
     n: i64,
@@ -648,13 +647,13 @@ fn generate_clips<'py>(
         .filter(|&l| l <= MAX_VALUES)
         .ok_or_else(|| PyValueError::new_err(format!("n: {n} clips exceed {MAX_VALUES} pixels per call; generate in smaller batches")))?;
     let bank = textures.as_deref().map(|dir| texture_bank(dir, config.texture_size)).transpose()?;
-    // numpy's allocator backs large arrays with transparent huge pages where
-    // the kernel offers them (`madvise`): a batch's first touch of its output
-    // then costs a few page faults, not one per 4 KiB.
     let mesh_len = n
         .checked_mul(clip_len(config.frames, config.grid))
         .filter(|&l| !vertices || l <= MAX_VALUES)
         .ok_or_else(|| PyValueError::new_err(format!("n: the meshes of {n} clips exceed {MAX_VALUES} values per call; generate in smaller batches")))?;
+    // numpy's allocator backs large arrays with transparent huge pages where
+    // the kernel offers them (`madvise`): a batch's first touch of its output
+    // then costs a few page faults, not one per 4 KiB.
     let (video, depth) = (PyArray1::<u8>::zeros(py, len, false), PyArray1::<f32>::zeros(py, len, false));
     let meshes = vertices.then(|| PyArray1::<f32>::zeros(py, mesh_len, false));
     let params = {
