@@ -153,6 +153,8 @@ def test_the_meshes_project_where_the_depth_shows_them(camera):
         nrdepth.generate_clips(1, config=SMALL, vertices=1)
     with pytest.raises(ValueError, match="^vertices:"):
         nrdepth.image_points(np.zeros((4, 2)), clips.params[0], 48)
+    with pytest.raises(ValueError, match="^params:"):
+        nrdepth.image_points(np.zeros((4, 3)), {"window": (0, 1)}, 48)
 
 
 def test_backdrops_show_the_border_over_a_background_and_mask_the_depth_off_the_sheet():

@@ -273,6 +273,8 @@ def image_points(vertices: np.ndarray, params: Dict[str, Any], size: int) -> np.
     size = _check_int("size", size)
     if size < 1:
         raise ValueError(f"size: expected the frames' side in pixels >= 1, got {size}")
+    if not (isinstance(params, dict) and np.shape(params.get("window")) == (4,)):
+        raise ValueError("params: expected one of Clips.params (a dict with its clip's window and pinhole)")
     x0, y0, x1, y1 = params["window"]
     x, y, z = np.moveaxis(vertices, -1, 0)
     pinhole = params.get("pinhole")

@@ -303,6 +303,8 @@ def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.nda
     if centre is None:
         centre = ((video.shape[2] - 1) / 2, (video.shape[1] - 1) / 2)
     _camera(focal, centre)  # before tracking
+    if not isinstance(template, str):  # given distances need the pairs, which are drawn after tracking
+        raise ValueError(f"template: expected 'joint' or 'first' (given distances go to mdh_depths with their pairs), got {type(template).__name__}")
     _check_template(template)
     xy = track_grid(video, mask, points, window, backward)
     depths = mdh_depths(xy, focal, centre, neighbours=neighbours, keyframes=keyframes, far=far, reach=reach, template=template)
