@@ -19,15 +19,18 @@ heuristic's and the video's; with it, each video's flow drift: the flow
 both ways from those vertices' first positions, its median distance from
 their true positions in the last frame), ``--flat-start`` (every sheet starts unbent,
 ``GeneratorConfig.sheet_flat_start``), ``--template`` (``mdh_depths``'s
-template distances: ``joint`` over keyframes, ``first``, the first
+template distances: ``joint`` over keyframes, ``refined``, those
+refined so that each pair keeps its distance in every keyframe, ``first``, the first
 frame as a flat sheet facing the camera, or with ``--trackers truth``,
 ``truth``, the distances on the flat sheet between the mesh's vertices),
 ``--pairs`` (the points tied by inextensibility, ``neighbours:far:reach``,
 :func:`nrdepth.isometric.neighbour_pairs`) and ``--relief`` (``fuse``'s
 one λ per frame, or one for the video): a reading for each combination
 given, each paired against the network and against the first combination.
+``--lights``: the sheets lit from below, from above, or both (the default;
+each light its own ``--videos``).
 
-    python experiments/isometric_generated.py [--videos 32] [--frames 16] [--phases 1] [--textures print] [--scales 0,0.05,0.1,0.2,0.3] [--trackers forward,both,truth] [--flat-start] [--template joint,first] [--pairs 20:0:0,10:10:80] [--relief frame,video]
+    python experiments/isometric_generated.py [--videos 32] [--frames 16] [--phases 1] [--textures print] [--scales 0,0.05,0.1,0.2,0.3] [--trackers forward,both,truth] [--flat-start] [--template joint,refined,first] [--pairs 20:0:0,10:10:80] [--relief frame,video] [--lights below,above]
 """
 
 from __future__ import annotations
@@ -88,13 +91,14 @@ def main() -> None:
     parser.add_argument("--flat-start", action="store_true", help="every sheet starts unbent (GeneratorConfig.sheet_flat_start)")
     parser.add_argument("--relief", type=lambda text: text.split(","), default=["frame"], help="fuse's relief: frame, video or both")
     parser.add_argument("--template", type=lambda text: text.split(","), default=["joint"],
-                        help="mdh_depths's template distances: joint, first, truth (the flat sheet's, with --trackers truth), or a list")
+                        help="mdh_depths's template distances: joint, refined, first, truth (the flat sheet's, with --trackers truth), or a list")
+    parser.add_argument("--lights", type=lambda text: text.split(","), default=["below", "above"], help="the sheets lit from below, above, or both")
     parser.add_argument("--csv", type=Path, default=None, help="also write each video's readings here (one row a video)")
     parser.add_argument("--textures", type=lambda text: tuple(text.split(",")), default=FAMILIES,
                         help="texture families (default: bench_sheets.py's)")
     args = parser.parse_args()
-    if not set(args.trackers) <= {"forward", "both", "truth"} or not set(args.relief) <= {"frame", "video"} or not set(args.template) <= {"joint", "first", "truth"}:
-        parser.error("--trackers takes forward, both and truth, --relief frame and video, --template joint, first and truth")
+    if not set(args.trackers) <= {"forward", "both", "truth"} or not set(args.relief) <= {"frame", "video"} or not set(args.template) <= {*isometric.TEMPLATES, "truth"} or not set(args.lights) <= {"below", "above"}:
+        parser.error("--trackers takes forward, both and truth, --relief frame and video, --template joint, refined, first and truth, --lights below and above")
     if "truth" in args.template and args.trackers != ["truth"]:
         parser.error("--template truth (the flat sheet's distances between the mesh's vertices) needs --trackers truth")
     combinations = [(tracker, pairs, template, relief) for tracker in args.trackers for pairs in args.pairs for template in args.template for relief in args.relief]
@@ -104,6 +108,8 @@ def main() -> None:
     first = {name: f"fused at {s:g}{label(*combinations[0])}" for *_, s, name in fused}  # the first combination at the same scale
     every, lights = [], []
     for light, azimuth in (("below", (math.pi - 1.22, math.pi + 1.22)), ("above", None)):
+        if light not in args.lights:
+            continue
         extra = {} if azimuth is None else {"light_azimuth": azimuth}
         config = GeneratorConfig(frames=args.frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=args.phases, sheet_flat_start=args.flat_start, texture_families=args.textures, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
         clips = generate_clips(args.videos, seed=SEED, config=config, vertices="truth" in args.trackers)

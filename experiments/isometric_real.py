@@ -181,8 +181,8 @@ def main() -> None:
     parser.add_argument("--relief", default="frame", choices=("frame", "video"), help="fuse's relief scale: each frame's own, or one for the video")
     parser.add_argument("--window", type=int, default=21, help="the flow's window in pixels (isometric.track_grid)")
     parser.add_argument("--forward", action="store_true", help="the forward flow alone, not both ways (isometric.track_grid)")
-    parser.add_argument("--template", default="joint", choices=("joint", "first"),
-                        help="mdh_depths's template distances: over keyframes, or the first frame as a flat sheet facing the camera")
+    parser.add_argument("--template", default="joint", choices=isometric.TEMPLATES,
+                        help="mdh_depths's template distances: over keyframes, refined by least squares, or the first frame as a flat sheet facing the camera")
     parser.add_argument("--far", type=int, default=0, help="far pairs of each point (isometric.neighbour_pairs)")
     parser.add_argument("--reach", type=int, default=0, help="the far pairs' largest rank")
     parser.add_argument("--scales", type=numbers(float), default=[0, 0.05, 0.1, 0.2, 0.3, 0.5])

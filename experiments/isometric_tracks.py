@@ -9,9 +9,17 @@ frame's GBR) at the truth's points:
 - at positions followed from frame 8 by Lucas–Kanade (``track_video``'s
   settings) and by Farneback flow (``nrdepth.isometric``'s), over frames
   8–112, where Lucas–Kanade keeps them all (it loses them after 120);
-  with each tracker's median distance from the truth's positions, to frame 184.
+  with each tracker's median distance from the truth's positions, to frame 184;
+- followed from frame 8 to the end by ``track_points``'s flow both ways
+  (``isometric_depth``'s tracker), every frame read with 24 keyframes as
+  ``isometric_depth`` reads them, scored in the 23 frames with truth.
 
-    python experiments/isometric_tracks.py
+``--template``: ``mdh_depths``'s template distances, each read in turn
+(``joint``, ``refined``). ``--noise``: also at the truth's positions plus
+independent Gaussian noise of each standard deviation given (pixels, seed
+0): noise of no spatial pattern, beside a tracker's drift.
+
+    python experiments/isometric_tracks.py [--template joint,refined] [--noise 0.25,0.5,1]
 """
 
 from __future__ import annotations
@@ -24,7 +32,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from bench_real import DATA, kinect_truth  # noqa: E402
 
-from nrdepth.isometric import mdh_depths  # noqa: E402
+from nrdepth.isometric import mdh_depths, track_points  # noqa: E402
 from nrdepth.videoio import read_video  # noqa: E402
 
 NEIGHBOURS = 10
@@ -58,12 +66,23 @@ def follow(frames: np.ndarray, start: np.ndarray, first: int, last: int, tracker
 
 
 def main() -> None:
+    import argparse
+
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--template", type=lambda text: text.split(","), default=["joint"], help="mdh_depths's template distances, each read in turn")
+    parser.add_argument("--noise", type=lambda text: [float(v) for v in text.split(",")], default=[], help="standard deviations in pixels")
+    args = parser.parse_args()
     truth = kinect_truth()
     K = np.load(DATA / "kinect_paper" / "gt_mdh.npz")["K"].astype(np.float64)
     focal, centre = (K[0, 0], K[1, 1]), (K[0, 2], K[1, 2])
     uv = truth["uv"].transpose(0, 2, 1)  # (23, 301, 2)
     frames_with_truth = list(truth["frames"])
-    print(f"the truth's image positions, {len(uv)} frames: {score(mdh_depths(uv, focal, centre, neighbours=NEIGHBOURS, keyframes=len(uv)), uv, truth['z']):.2f} mm")
+    read = lambda xy, keyframes, template: mdh_depths(xy, focal, centre, neighbours=NEIGHBOURS, keyframes=keyframes, template=template)  # noqa: E731
+    for template in args.template:
+        print(f"{template}: the truth's image positions, {len(uv)} frames: {score(read(uv, len(uv), template), uv, truth['z']):.2f} mm")
+    for sigma in args.noise:
+        noisy = uv + np.random.default_rng(0).normal(0, sigma, uv.shape)
+        print(f"the truth's positions plus noise of {sigma:g} px: " + ", ".join(f"{template} {score(read(noisy, len(uv), template), uv, truth['z']):.2f} mm" for template in args.template))
     video = read_video(DATA / "kinect_paper").frames
     span = [i for i, f in enumerate(frames_with_truth) if f <= 112]
     for tracker in ("Lucas–Kanade", "Farneback"):
@@ -72,11 +91,17 @@ def main() -> None:
         print(f"{tracker}: median distance from the truth's positions after frame 112: " + ", ".join(f"{f}: {d:.1f}" for f, d in later.items()) + " px")
         tracked = np.stack([positions[frames_with_truth[i]] for i in span])
         drift = np.median(np.linalg.norm(tracked - uv[span], axis=2), axis=1)
-        depths = mdh_depths(tracked, focal, centre, neighbours=NEIGHBOURS, keyframes=len(span))
-        print(f"{tracker}, frames {frames_with_truth[span[0]]}–{frames_with_truth[span[-1]]} ({len(span)} with truth): "
-              f"{score(depths, uv[span], truth['z'][span]):.2f} mm (the truth's positions: "
-              f"{score(mdh_depths(uv[span], focal, centre, neighbours=NEIGHBOURS, keyframes=len(span)), uv[span], truth['z'][span]):.2f}); "
-              f"median drift from the truth's positions {drift.mean():.2f} px over the frames, {drift[-1]:.2f} at the last")
+        for template in args.template:
+            print(f"{template}, {tracker}, frames {frames_with_truth[span[0]]}–{frames_with_truth[span[-1]]} ({len(span)} with truth): "
+                  f"{score(read(tracked, len(span), template), uv[span], truth['z'][span]):.2f} mm (the truth's positions: "
+                  f"{score(read(uv[span], len(span), template), uv[span], truth['z'][span]):.2f}); "
+                  f"median drift from the truth's positions {drift.mean():.2f} px over the frames, {drift[-1]:.2f} at the last")
+    followed = track_points(video[frames_with_truth[0] :], uv[0])
+    seen = np.array(frames_with_truth) - frames_with_truth[0]
+    drift = np.median(np.linalg.norm(followed[seen] - uv, axis=2), axis=1)
+    for template in args.template:
+        print(f"{template}, the flow both ways, frames {frames_with_truth[0]}–{len(video) - 1}, 24 keyframes: "
+              f"{score(read(followed, 24, template)[seen], uv, truth['z']):.2f} mm; median drift {drift.mean():.2f} px over the 23 frames, {drift[-1]:.2f} at the last")
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ pytest.importorskip("cv2")
 pytest.importorskip("clarabel")
 
 from nrdepth import isometric  # noqa: E402
-from nrdepth.isometric import _rays, _socp  # noqa: E402
+from nrdepth.isometric import _rays, _refine, _socp  # noqa: E402
 
 FOCAL = 500.0
 
@@ -72,6 +72,27 @@ def test_mdh_reads_a_sheet_exactly_from_its_flat_first_frame():
         isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), template=np.ones(len(pairs)))
     with pytest.raises(ValueError, match="template"):
         isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), pairs=pairs, template=np.ones(3))
+
+
+def test_mdh_refined_reads_a_rolled_sheet_the_joint_program_domes():
+    # The joint program picks distances that dome every frame; asking each pair to keep its distance in every
+    # keyframe gives the roll back, and the truth is a fixed point of that refinement.
+    xy, truth = rolled_sheet(start=0.5)
+    joint = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4)
+    refined = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, template="refined")
+    assert relief_error(refined, truth, xy).max() < 0.03 < 0.2 < relief_error(joint, truth, xy).mean()
+    # A sheet moved rigidly keeps every chord: its depths and distances are a zero of the residuals, kept.
+    points = (_rays(xy, FOCAL, (0.0, 0.0)) * truth[..., None])[3]
+    moved = np.stack([points @ np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]]) + [0.1 * a, 0, a] for a in (0, 0.3, 0.6)])
+    pairs = isometric.neighbour_pairs(moved[0, :, :2] / moved[0, :, 2:], 8)
+    distances = np.linalg.norm(points[pairs[:, 0]] - points[pairs[:, 1]], axis=1)
+    unit = len(pairs) / distances.sum()  # the refinement's units: Σ D = the number of pairs
+    depths, kept = _refine(moved / moved[..., 2:], pairs, moved[..., 2] * unit, distances * unit, 100)
+    np.testing.assert_allclose(depths, moved[..., 2] * unit, rtol=1e-9)
+    np.testing.assert_allclose(kept, distances * unit, rtol=1e-9)
+    assert refined.tobytes() == isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, template="refined").tobytes()
+    with pytest.raises(ValueError, match="evaluations"):
+        isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), template="refined", evaluations=0)
 
 
 def test_mdh_fixed_distances_give_back_the_joint_solution():

@@ -22,7 +22,13 @@ away through perspective. Three steps:
   enough ways (a short or barely bending clip leaves the distances loose
   and reads as a taut dome). A second-order cone program, solved by Clarabel over
   ``keyframes`` frames spread over the video; every other frame is then
-  solved alone with those ``D_ij`` fixed, in parallel threads.
+  solved alone with those ``D_ij`` fixed, in parallel threads. The program
+  only bounds each pair's distance, and with the ``D_ij`` free it favours a
+  dome: it lengthens the pairs in the middle of the sheet and shortens those
+  at its edge. ``template="refined"`` then asks each pair's distance to
+  equal ``D_ij`` in every keyframe (isometry as an equality): a
+  least-squares refinement of the keyframes' depths and the ``D_ij``,
+  started from the program's answer (docs/reconstruction.md).
 - :func:`isometric_depth` runs both and spreads the depths over each frame
   (linear over the points' Delaunay triangles, nearest outside their hull);
   :func:`fuse` keeps the network's relief and takes the shape above a
@@ -200,6 +206,52 @@ def _socp(rays: np.ndarray, pairs: np.ndarray, distances: Optional[np.ndarray]) 
     return x[:depths].reshape(M, n), (x[depths:] if free else distances)
 
 
+def _refine(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distances: np.ndarray,
+            evaluations: int) -> Tuple[np.ndarray, np.ndarray]:
+    """Depths (M, n) and template distances (E,), from ``depths`` and
+    ``distances``, that make each pair's distance ``‖Z_i r_i − Z_j r_j‖``
+    equal to its ``D_ij`` in every frame: least squares of the strains
+    ``‖Z_i r_i − Z_j r_j‖ / D_ij − 1`` (relative, so that shrinking the
+    sheet towards the camera gains nothing), depths and distances kept
+    positive, ``Σ D = E`` kept by one more residual; trust-region
+    reflective Gauss–Newton with the sparse exact Jacobian, at most
+    ``evaluations`` evaluations (it stops where it got to)."""
+    from scipy import sparse
+    from scipy.optimize import least_squares
+
+    M, n, _ = rays.shape
+    E = len(pairs)
+    t = np.repeat(np.arange(M), E)
+    e = np.tile(np.arange(E), M)
+    i, j = pairs[e, 0], pairs[e, 1]
+    ray_i, ray_j = rays[t, i], rays[t, j]
+    weight = np.sqrt(M * E)  # the scale's residual weighs as much as all strains
+
+    def chords(x: np.ndarray) -> np.ndarray:
+        depth = x[: M * n].reshape(M, n)
+        return depth[t, i, None] * ray_i - depth[t, j, None] * ray_j
+
+    def residuals(x: np.ndarray) -> np.ndarray:
+        return np.append(np.linalg.norm(chords(x), axis=1) / x[M * n + e] - 1, (x[M * n :].sum() / E - 1) * weight)
+
+    rows = np.arange(M * E)
+
+    def jacobian(x: np.ndarray) -> sparse.csr_matrix:
+        chord = chords(x)
+        length = np.linalg.norm(chord, axis=1)
+        unit = chord / length[:, None]
+        distance = x[M * n + e]
+        values = [np.einsum("ka,ka->k", unit, ray_i) / distance, -np.einsum("ka,ka->k", unit, ray_j) / distance,
+                  -length / distance**2, np.full(E, weight / E)]
+        return sparse.csr_matrix((np.concatenate(values), (np.concatenate([rows, rows, rows, np.full(E, M * E)]),
+                                                           np.concatenate([t * n + i, t * n + j, M * n + e, M * n + np.arange(E)]))),
+                                 shape=(M * E + 1, M * n + E))
+
+    x = least_squares(residuals, np.append(depths.ravel(), distances), jac=jacobian, bounds=(0, np.inf), method="trf",
+                      tr_solver="lsmr", x_scale="jac", max_nfev=evaluations).x
+    return x[: M * n].reshape(M, n), x[M * n :]
+
+
 def _camera(focal, centre) -> Tuple[Tuple[float, float], Tuple[float, float]]:
     """``focal`` (one number or (f_x, f_y), pixels, positive) and ``centre``
     ((c_x, c_y), pixels), checked: ((f_x, f_y), (c_x, c_y))."""
@@ -220,9 +272,13 @@ def _camera(focal, centre) -> Tuple[Tuple[float, float], Tuple[float, float]]:
     return (float(f[0]), float(f[1])), (float(c[0]), float(c[1]))
 
 
+TEMPLATES = ("joint", "refined", "first")
+"""Where :func:`mdh_depths` takes the template distances from, when it is not given them."""
+
+
 def _check_template(template: str) -> None:
-    if template not in ("joint", "first"):
-        raise ValueError(f"template: expected 'joint', 'first' or the pairs' distances, got {template!r}")
+    if template not in TEMPLATES:
+        raise ValueError(f"template: expected one of {TEMPLATES} or the pairs' distances, got {template!r}")
 
 
 def _rays(xy: np.ndarray, focal, centre) -> np.ndarray:
@@ -231,7 +287,7 @@ def _rays(xy: np.ndarray, focal, centre) -> np.ndarray:
 
 
 def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None, neighbours: int = 20,
-               keyframes: int = 24, far: int = 0, reach: int = 0, template="joint") -> np.ndarray:
+               keyframes: int = 24, far: int = 0, reach: int = 0, template="joint", evaluations: int = 100) -> np.ndarray:
     """Depths (T, n) of tracked points ``xy`` (T, n, 2) by the maximum-depth
     heuristic (module docstring). ``focal``: the focal length in pixels, one
     number or (f_x, f_y); ``centre``: the principal point (c_x, c_y);
@@ -239,7 +295,11 @@ def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None
     :func:`neighbour_pairs` of the first frame with ``neighbours``, ``far``
     and ``reach``). ``template``: where the pairs' template distances come
     from. "joint": ``keyframes`` frames spread evenly over the video, solved
-    together, every other frame then solved with them fixed. "first": the
+    together, every other frame then solved with them fixed. "refined": the
+    same, with the keyframes' depths and the distances refined in between
+    so that each pair's distance equals its template distance in every
+    keyframe (least squares, at most ``evaluations`` evaluations; module
+    docstring): for tracks that do not drift. "first": the
     first frame taken as a flat sheet facing the camera (the distances
     between its points' rays at depth 1), every frame solved alone with
     them: for a video that starts with the sheet flat and nearly
@@ -252,6 +312,8 @@ def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None
         raise ValueError(f"xy: expected finite tracks (T, n, 2) with T >= 2 and n >= 3, got shape {xy.shape}")
     if not (isinstance(keyframes, (int, np.integer)) and keyframes >= 2):
         raise ValueError(f"keyframes: expected an int >= 2, got {keyframes!r}")
+    if not (isinstance(evaluations, (int, np.integer)) and evaluations >= 1):
+        raise ValueError(f"evaluations: expected an int >= 1, got {evaluations!r}")
     if isinstance(template, str):
         _check_template(template)
     elif pairs is None:
@@ -266,10 +328,12 @@ def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None
         keys = np.zeros(0, int)
         distances = np.asarray(template, np.float64)
         if distances.shape != (len(pairs),) or not np.all(np.isfinite(distances) & (distances > 0)):
-            raise ValueError(f"template: expected 'joint', 'first' or the {len(pairs)} pairs' distances, positive, got shape {distances.shape}")
-    elif template == "joint":
+            raise ValueError(f"template: expected one of {TEMPLATES} or the {len(pairs)} pairs' distances, positive, got shape {distances.shape}")
+    elif template in ("joint", "refined"):
         keys = np.unique(np.rint(np.linspace(0, T - 1, min(keyframes, T))).astype(int))
         depths[keys], distances = _socp(rays[keys], pairs, None)
+        if template == "refined":
+            depths[keys], distances = _refine(rays[keys], pairs, depths[keys], distances, evaluations)
     else:
         keys = np.zeros(0, int)
         distances = np.linalg.norm(rays[0, pairs[:, 0]] - rays[0, pairs[:, 1]], axis=1)
@@ -304,7 +368,7 @@ def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.nda
         centre = ((video.shape[2] - 1) / 2, (video.shape[1] - 1) / 2)
     _camera(focal, centre)  # before tracking
     if not isinstance(template, str):  # given distances need the pairs, which are drawn after tracking
-        raise ValueError(f"template: expected 'joint' or 'first' (given distances go to mdh_depths with their pairs), got {type(template).__name__}")
+        raise ValueError(f"template: expected one of {TEMPLATES} (given distances go to mdh_depths with their pairs), got {type(template).__name__}")
     _check_template(template)
     xy = track_grid(video, mask, points, window, backward)
     depths = mdh_depths(xy, focal, centre, neighbours=neighbours, keyframes=keyframes, far=far, reach=reach, template=template)
