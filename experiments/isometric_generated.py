@@ -17,7 +17,8 @@ true image positions in every frame, ``generate_clips(vertices=True)``
 and ``image_points``; no tracking error, so what is left is the
 heuristic's and the video's; with it, each video's flow drift: the flow
 both ways from those vertices' first positions, its median distance from
-their true positions in the last frame), ``--flat-start`` (every sheet starts unbent,
+their true positions in the last frame), ``--drop`` (with the flow both ways: the shares of points
+whose flows disagree most, left out, ``track_grid``'s ``drop``, each read as a tracker), ``--flat-start`` (every sheet starts unbent,
 ``GeneratorConfig.sheet_flat_start``), ``--template`` (``mdh_depths``'s
 template distances: ``joint`` over keyframes, ``refined``, those
 refined so that each pair keeps its distance in every keyframe, ``first``, the first
@@ -30,7 +31,7 @@ given, each paired against the network and against the first combination.
 ``--lights``: the sheets lit from below, from above, or both (the default;
 each light its own ``--videos``).
 
-    python experiments/isometric_generated.py [--videos 32] [--frames 16] [--phases 1] [--textures print] [--scales 0,0.05,0.1,0.2,0.3] [--trackers forward,both,truth] [--flat-start] [--template joint,refined,first] [--pairs 20:0:0,10:10:80] [--relief frame,video] [--lights below,above]
+    python experiments/isometric_generated.py [--videos 32] [--frames 16] [--phases 1] [--textures print] [--scales 0,0.05,0.1,0.2,0.3] [--trackers forward,both,truth] [--drop 0,0.2] [--flat-start] [--template joint,refined,first] [--pairs 20:0:0,10:10:80] [--relief frame,video] [--lights below,above]
 """
 
 from __future__ import annotations
@@ -88,6 +89,8 @@ def main() -> None:
                         help="neighbours:far:reach of each reading (isometric.neighbour_pairs)")
     parser.add_argument("--trackers", type=lambda text: text.split(","), default=["both"],
                         help="isometric.track_grid's flow: forward, both (forward and backward), truth (the mesh's true positions), or a list")
+    parser.add_argument("--drop", type=lambda text: [float(v) for v in text.split(",")], default=[0.0],
+                        help="with --trackers both: the shares of points whose flows disagree most, left out (isometric.track_grid), each a tracker")
     parser.add_argument("--flat-start", action="store_true", help="every sheet starts unbent (GeneratorConfig.sheet_flat_start)")
     parser.add_argument("--relief", type=lambda text: text.split(","), default=["frame"], help="fuse's relief: frame, video or both")
     parser.add_argument("--template", type=lambda text: text.split(","), default=["joint"],
@@ -101,7 +104,10 @@ def main() -> None:
         parser.error("--trackers takes forward, both and truth, --relief frame and video, --template joint, refined, first and truth, --lights below and above")
     if "truth" in args.template and args.trackers != ["truth"]:
         parser.error("--template truth (the flat sheet's distances between the mesh's vertices) needs --trackers truth")
-    combinations = [(tracker, pairs, template, relief) for tracker in args.trackers for pairs in args.pairs for template in args.template for relief in args.relief]
+    if args.drop != [0.0] and "both" not in args.trackers:
+        parser.error("--drop finds the points to leave out by the flow both ways: it needs --trackers both")
+    trackers = [name for tracker in args.trackers for name in ([tracker] if tracker != "both" else [f"both, drop {d:g}" if d else "both" for d in args.drop])]
+    combinations = [(tracker, pairs, template, relief) for tracker in trackers for pairs in args.pairs for template in args.template for relief in args.relief]
     label = lambda tracker, pairs, template, relief: "" if len(combinations) == 1 else " ({}, {}:{}:{}, {}, {})".format(tracker, *pairs, template, relief)  # noqa: E731
     fused = [(tracker, pairs, template, relief, s, f"fused at {s:g}{label(tracker, pairs, template, relief)}") for tracker, pairs, template, relief in combinations for s in args.scales]
     names = ["network"] + [name for *_, name in fused]
@@ -118,12 +124,12 @@ def main() -> None:
             focal, centre = camera(params, config.size)
             network = nrdepth.reconstruct(video)
             sheets, drift = {}, np.nan
-            for tracker in args.trackers:
+            for tracker in trackers:
                 if tracker == "truth":
                     xy, flat = true_tracks(clips.vertices[k], params, config.size)
                     drift = float(np.median(np.linalg.norm(isometric.track_points(video, xy[0])[-1] - xy[-1], axis=1)))
                 else:
-                    xy = isometric.track_grid(video, backward=tracker == "both")
+                    xy = isometric.track_grid(video, backward=tracker != "forward", drop=float(tracker.partition("drop ")[2] or 0))
                 for pairs in args.pairs:
                     for template in args.template:
                         tied = isometric.neighbour_pairs(xy[0], *pairs)

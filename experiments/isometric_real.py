@@ -20,7 +20,8 @@ of the region's shorter side (0: the isometric depth alone); ``--relief``
 its relief scale, ``--template`` :func:`nrdepth.isometric.mdh_depths`'s
 template distances, ``--far``/``--reach`` the far pairs of
 :func:`nrdepth.isometric.neighbour_pairs`, ``--window`` and ``--forward``
-:func:`nrdepth.isometric.track_grid`'s flow. ``--grid``
+:func:`nrdepth.isometric.track_grid`'s flow, ``--drop`` the share of its points
+left out where the flow both ways disagrees most. ``--grid``
 reads the paper again at each number of points and neighbours given, and
 with a focal length off by each factor given (no network): how much the
 figure depends on them.
@@ -62,7 +63,7 @@ def kinect_inputs() -> tuple:
     return frames, (K[0, 0], K[1, 1]), (K[0, 2], K[1, 2]), print_area
 
 
-def phisft_inputs(points: int, neighbours: int, far: int, reach: int, window: int, backward: bool, template: str) -> tuple:
+def phisft_inputs(points: int, neighbours: int, far: int, reach: int, window: int, backward: bool, template: str, drop: float) -> tuple:
     """The binned crop the network reads, its truth, and the cloth's isometric depth on that crop."""
     from scipy.ndimage import binary_erosion
 
@@ -75,7 +76,7 @@ def phisft_inputs(points: int, neighbours: int, far: int, reach: int, window: in
     cloth = binary_erosion(full[0] > 10, iterations=8)
     inside = np.zeros_like(cloth)
     inside[4 * top : 4 * bottom, 4 * left : 4 * right] = True
-    xy = isometric.track_grid(full, cloth & inside, points, window, backward)
+    xy = isometric.track_grid(full, cloth & inside, points, window, backward, drop)
     depths = isometric.mdh_depths(xy, FOCAL, CENTRE, neighbours=neighbours, far=far, reach=reach, template=template)
     binned = (xy + 0.5) / 4 - 0.5 - np.array([left, top])  # full-frame pixels to the binned crop's
     return video, truth, densify(binned, depths, video.shape)
@@ -96,10 +97,10 @@ def read_all(args) -> list:
     start = time.perf_counter()
     paper = isometric.isometric_depth(frames, focal, centre, mask=print_area, points=args.points[0], neighbours=args.neighbours[0],
                                       far=args.far, reach=args.reach, window=args.window,
-                                      backward=not args.forward, template=args.template)
+                                      backward=not args.forward, template=args.template, drop=args.drop)
     print(f"kinect_paper: isometric depth in {time.perf_counter() - start:.0f} s")
     start = time.perf_counter()
-    video, cloth_truth, cloth = phisft_inputs(args.points[0], args.neighbours[0], args.far, args.reach, args.window, not args.forward, args.template)
+    video, cloth_truth, cloth = phisft_inputs(args.points[0], args.neighbours[0], args.far, args.reach, args.window, not args.forward, args.template, args.drop)
     print(f"phisft_R1: isometric depth in {time.perf_counter() - start:.0f} s")
     scored = np.isfinite(cloth_truth)
     networks = {region: cached_network(f"kinect_{region[0]}_{region[1]}", frames[:, region[1] : region[1] + region[3], region[0] : region[0] + region[2]], args.cache)
@@ -136,7 +137,7 @@ def grid(args) -> None:
     from nrdepth.tracks import densify
 
     for points in args.points:
-        xy = isometric.track_grid(frames, print_area, points, args.window, not args.forward)
+        xy = isometric.track_grid(frames, print_area, points, args.window, not args.forward, args.drop)
         for neighbours in args.neighbours:
             for factor in args.focal_factors:
                 start = time.perf_counter()
@@ -183,6 +184,7 @@ def main() -> None:
     parser.add_argument("--forward", action="store_true", help="the forward flow alone, not both ways (isometric.track_grid)")
     parser.add_argument("--template", default="joint", choices=isometric.TEMPLATES,
                         help="mdh_depths's template distances: over keyframes, refined by least squares, or the first frame as a flat sheet facing the camera")
+    parser.add_argument("--drop", type=float, default=0.0, help="the share of points whose flows both ways disagree most, left out (isometric.track_grid)")
     parser.add_argument("--far", type=int, default=0, help="far pairs of each point (isometric.neighbour_pairs)")
     parser.add_argument("--reach", type=int, default=0, help="the far pairs' largest rank")
     parser.add_argument("--scales", type=numbers(float), default=[0, 0.05, 0.1, 0.2, 0.3, 0.5])

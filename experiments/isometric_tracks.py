@@ -12,14 +12,17 @@ frame's GBR) at the truth's points:
   with each tracker's median distance from the truth's positions, to frame 184;
 - followed from frame 8 to the end by ``track_points``'s flow both ways
   (``isometric_depth``'s tracker), every frame read with 24 keyframes as
-  ``isometric_depth`` reads them, scored in the 23 frames with truth.
+  ``isometric_depth`` reads them, scored in the 23 frames with truth;
+  ``--drop``: also without each share of the points whose two flows
+  disagree most over the video (``track_grid``'s ``drop``), scored at the
+  points kept, beside the truth's positions of those points.
 
 ``--template``: ``mdh_depths``'s template distances, each read in turn
 (``joint``, ``refined``). ``--noise``: also at the truth's positions plus
 independent Gaussian noise of each standard deviation given (pixels, seed
 0): noise of no spatial pattern, beside a tracker's drift.
 
-    python experiments/isometric_tracks.py [--template joint,refined] [--noise 0.25,0.5,1]
+    python experiments/isometric_tracks.py [--template joint,refined] [--noise 0.25,0.5,1] [--drop 0,0.1,0.2]
 """
 
 from __future__ import annotations
@@ -70,6 +73,8 @@ def main() -> None:
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--template", type=lambda text: text.split(","), default=["joint"], help="mdh_depths's template distances, each read in turn")
+    parser.add_argument("--drop", type=lambda text: [float(v) for v in text.split(",")], default=[0.0],
+                        help="shares of the points whose flows both ways disagree most, left out of the last reading (track_grid's drop)")
     parser.add_argument("--noise", type=lambda text: [float(v) for v in text.split(",")], default=[], help="standard deviations in pixels")
     args = parser.parse_args()
     truth = kinect_truth()
@@ -96,12 +101,16 @@ def main() -> None:
                   f"{score(read(tracked, len(span), template), uv[span], truth['z'][span]):.2f} mm (the truth's positions: "
                   f"{score(read(uv[span], len(span), template), uv[span], truth['z'][span]):.2f}); "
                   f"median drift from the truth's positions {drift.mean():.2f} px over the frames, {drift[-1]:.2f} at the last")
-    followed = track_points(video[frames_with_truth[0] :], uv[0])
+    followed, disagreement = track_points(video[frames_with_truth[0] :], uv[0], disagreement=True)
     seen = np.array(frames_with_truth) - frames_with_truth[0]
-    drift = np.median(np.linalg.norm(followed[seen] - uv, axis=2), axis=1)
-    for template in args.template:
-        print(f"{template}, the flow both ways, frames {frames_with_truth[0]}–{len(video) - 1}, 24 keyframes: "
-              f"{score(read(followed, 24, template)[seen], uv, truth['z']):.2f} mm; median drift {drift.mean():.2f} px over the 23 frames, {drift[-1]:.2f} at the last")
+    for drop in args.drop:
+        kept = np.sort(np.argsort(disagreement, kind="stable")[: len(disagreement) - int(round(drop * len(disagreement)))])  # track_grid's drop
+        drift = np.median(np.linalg.norm(followed[seen][:, kept] - uv[:, kept], axis=2), axis=1)
+        for template in args.template:
+            print(f"{template}, the flow both ways, frames {frames_with_truth[0]}–{len(video) - 1}, 24 keyframes, {len(kept)} points (drop {drop:g}): "
+                  f"{score(read(followed[:, kept], 24, template)[seen], uv[:, kept], truth['z'][:, kept]):.2f} mm "
+                  f"(at the truth's positions: {score(read(uv[:, kept], len(uv), template), uv[:, kept], truth['z'][:, kept]):.2f}); "
+                  f"median drift {drift.mean():.2f} px over the 23 frames, {drift[-1]:.2f} at the last", flush=True)
 
 
 if __name__ == "__main__":

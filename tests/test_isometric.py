@@ -135,6 +135,42 @@ def test_track_grid_follows_a_shift():
     np.testing.assert_allclose(isometric.track_points(video, anywhere)[-1] - anywhere, [[8.0, 4.0]] * 2, atol=0.15)
 
 
+def test_track_grid_drops_the_points_where_the_motion_breaks():
+    rng = np.random.default_rng(4)
+    from scipy.ndimage import gaussian_filter
+
+    def texture(size):
+        image = gaussian_filter(rng.random((size, size)), 1.5)
+        return np.rint(255 * (image - image.min()) / np.ptp(image)).astype(np.uint8)
+
+    background, sheet = texture(96), texture(40)
+    video = []
+    for t in range(6):  # a textured square slides +2 x a frame over a still textured background
+        frame = background.copy()
+        frame[28:68, 20 + 2 * t : 60 + 2 * t] = sheet
+        video.append(frame)
+    video = np.stack(video)
+    xy, apart = isometric.track_points(video, isometric.track_grid(video, points=144)[0], disagreement=True)
+    assert np.array_equal(xy, isometric.track_grid(video, points=144))  # the same tracks, with or without it
+    inside = (xy[0, :, 0] > 20) & (xy[0, :, 0] < 60) & (xy[0, :, 1] > 28) & (xy[0, :, 1] < 68)
+    truth = xy[0] + np.where(inside[:, None], [10.0, 0.0], [0.0, 0.0])
+    error = np.linalg.norm(xy[-1] - truth, axis=1)
+    kept = isometric.track_grid(video, points=144, drop=0.25)
+    rows = [int(np.flatnonzero((xy[0] == p).all(axis=1))[0]) for p in kept[0]]
+    assert kept.shape[1] == len(xy[0]) - round(0.25 * len(xy[0])) and rows == sorted(rows)
+    assert np.array_equal(kept, xy[:, rows])  # a subset of the tracks, in their order
+    left_out = np.setdiff1d(np.arange(len(xy[0])), rows)
+    assert error[left_out].mean() > 3 * error[rows].mean()  # the points left out are the ones the flow dragged
+    border = np.minimum.reduce([abs(xy[0, :, 0] - 20), abs(xy[0, :, 0] - 60), abs(xy[0, :, 1] - 28), abs(xy[0, :, 1] - 68)])
+    assert border[left_out].mean() < border[rows].mean()  # near where the motion breaks
+    with pytest.raises(ValueError, match="drop"):
+        isometric.track_grid(video, drop=1.0)
+    with pytest.raises(ValueError, match="drop"):
+        isometric.track_grid(video, drop=0.2, backward=False)
+    with pytest.raises(ValueError, match="disagreement"):
+        isometric.track_points(video, xy[0], backward=False, disagreement=True)
+
+
 def test_track_grid_is_the_same_at_any_thread_count():
     import cv2
 

@@ -80,32 +80,47 @@ def _check_mask(mask: Optional[np.ndarray], shape: Tuple[int, int]) -> np.ndarra
 
 
 def track_grid(video: np.ndarray, mask: Optional[np.ndarray] = None, points: int = 400, window: int = 21,
-               backward: bool = True) -> np.ndarray:
+               backward: bool = True, drop: float = 0.0) -> np.ndarray:
     """Tracks (T, n, 2) (column, row) of about ``points`` points on a square
     grid over ``mask`` (H, W) of the first frame (default: the whole frame),
     moved through ``video`` (T, H, W) uint8 by :func:`track_points`
-    (``window``, ``backward``)."""
+    (``window``, ``backward``). ``drop``: the share of the points left out,
+    those whose forward and backward flows disagree most over the video
+    (:func:`track_points`' ``disagreement``; needs ``backward``): points
+    at a boundary of the motion, where the flow bleeds from one side to
+    the other, whose tracks would read as stretch (docs/reconstruction.md)."""
     video = _check_video(video)
     mask = _check_mask(mask, video.shape[1:])
     if not (isinstance(points, (int, np.integer)) and points >= 4):
         raise ValueError(f"points: expected an int >= 4, got {points!r}")
+    if not (isinstance(drop, (int, float, np.floating)) and 0 <= drop < 1):
+        raise ValueError(f"drop: expected a share of the points in [0, 1), got {drop!r}")
+    if drop > 0 and not backward:
+        raise ValueError("drop: the points to leave out are found by the flow both ways: expected backward=True")
     spacing = max(1.0, float(np.sqrt(mask.sum() / points)))
     rows, cols = np.mgrid[spacing / 2 : video.shape[1] : spacing, spacing / 2 : video.shape[2] : spacing]
     grid = np.column_stack([cols.ravel(), rows.ravel()])
     grid = grid[mask[rows.astype(int).ravel(), cols.astype(int).ravel()]]
-    if len(grid) < 4:
-        raise ValueError(f"mask: expected room for at least 4 points at {points} points over its area, got {len(grid)}")
-    return track_points(video, grid, window, backward)
+    kept = len(grid) - int(round(drop * len(grid)))
+    if kept < 4:
+        raise ValueError(f"mask: expected room for at least 4 points at {points} points over its area (drop {drop:g}), got {kept}")
+    if drop == 0:
+        return track_points(video, grid, window, backward)
+    xy, disagreement = track_points(video, grid, window, backward, disagreement=True)
+    return xy[:, np.sort(np.argsort(disagreement, kind="stable")[:kept])]
 
 
-def track_points(video: np.ndarray, start: np.ndarray, window: int = 21, backward: bool = True) -> np.ndarray:
+def track_points(video: np.ndarray, start: np.ndarray, window: int = 21, backward: bool = True,
+                 disagreement: bool = False):
     """Tracks (T, n, 2) (column, row) of the points ``start`` (n, 2) of the
     first frame, moved through ``video`` (T, H, W) uint8 by Farneback optical
     flow (5 pyramid levels, ``window``-pixel windows) from each frame to the
     next: the mean of where the forward flow takes a point and where the
     backward flow says it came from (both real videos read better, generated
     sheets within 0.0005 per frame: docs/reconstruction.md), or with
-    ``backward`` False the forward flow alone (half the flow's cost)."""
+    ``backward`` False the forward flow alone (half the flow's cost). With
+    ``disagreement`` (needs ``backward``), also (n,): each point's distance
+    between where the two flows take it, summed over the video (pixels)."""
     from scipy.ndimage import map_coordinates
 
     cv2 = _cv2()
@@ -115,6 +130,8 @@ def track_points(video: np.ndarray, start: np.ndarray, window: int = 21, backwar
         raise ValueError(f"start: expected finite points (n, 2) (column, row), got shape {start.shape}")
     if not (isinstance(window, (int, np.integer)) and window >= 3):
         raise ValueError(f"window: expected an int >= 3 (pixels), got {window!r}")
+    if disagreement and not backward:
+        raise ValueError("disagreement: the forward and backward flows' disagreement needs backward=True")
 
     def flow(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return cv2.calcOpticalFlowFarneback(a, b, None, 0.5, 5, window, 5, 7, 1.5, 0)
@@ -124,6 +141,7 @@ def track_points(video: np.ndarray, start: np.ndarray, window: int = 21, backwar
 
     xy = np.empty((len(video), len(start), 2))
     xy[0] = start
+    apart = np.zeros(len(start))
     for t in range(1, len(video)):
         xy[t] = ahead = xy[t - 1] + at(flow(video[t - 1], video[t]), xy[t - 1])
         if backward:
@@ -131,7 +149,8 @@ def track_points(video: np.ndarray, start: np.ndarray, window: int = 21, backwar
             for _ in range(3):  # the point p whose backward flow lands on xy[t − 1]: p = xy[t − 1] − field(p)
                 back = xy[t - 1] - at(field, back)
             xy[t] = (ahead + back) / 2
-    return xy
+            apart += np.linalg.norm(ahead - back, axis=1)
+    return (xy, apart) if disagreement else xy
 
 
 def neighbour_pairs(xy: np.ndarray, neighbours: int = 20, far: int = 0, reach: int = 0) -> np.ndarray:
@@ -351,13 +370,13 @@ def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None
 
 def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.ndarray] = None, points: int = 400,
                     neighbours: int = 20, keyframes: int = 24, far: int = 0, reach: int = 0, window: int = 21,
-                    backward: bool = True, template: str = "joint") -> np.ndarray:
+                    backward: bool = True, template: str = "joint", drop: float = 0.0) -> np.ndarray:
     """Dense depth (T, H, W) float64 of an inextensible sheet filmed by
     ``video`` (T, H, W) uint8 through a perspective camera of focal length
     ``focal`` pixels (one number or (f_x, f_y)) and principal point
     ``centre`` (default: the frame's centre): :func:`track_grid` over
     ``mask`` (the sheet in the first frame; default: the whole frame;
-    ``points``, ``window``, ``backward``), :func:`mdh_depths` (``neighbours``,
+    ``points``, ``window``, ``backward``, ``drop``), :func:`mdh_depths` (``neighbours``,
     ``keyframes``, ``far``, ``reach``, ``template``), then linear over the points' Delaunay triangles,
     nearest outside their hull. Units: the mean distance between
     neighbouring points is about 1."""
@@ -370,7 +389,7 @@ def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.nda
     if not isinstance(template, str):  # given distances need the pairs, which are drawn after tracking
         raise ValueError(f"template: expected one of {TEMPLATES} (given distances go to mdh_depths with their pairs), got {type(template).__name__}")
     _check_template(template)
-    xy = track_grid(video, mask, points, window, backward)
+    xy = track_grid(video, mask, points, window, backward, drop)
     depths = mdh_depths(xy, focal, centre, neighbours=neighbours, keyframes=keyframes, far=far, reach=reach, template=template)
     return densify(xy, depths, video.shape)
 
