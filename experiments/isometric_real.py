@@ -20,13 +20,14 @@ of the region's shorter side (0: the isometric depth alone); ``--relief``
 its relief scale, ``--template`` :func:`nrdepth.isometric.mdh_depths`'s
 template distances, ``--far``/``--reach`` the far pairs of
 :func:`nrdepth.isometric.neighbour_pairs`, ``--window`` and ``--forward``
-:func:`nrdepth.isometric.track_grid`'s flow, ``--drop`` the share of its points
-left out where the flow both ways disagrees most. ``--grid``
+:func:`nrdepth.isometric.track_grid`'s flow, ``--drop`` the shares of its points
+left out where the flow both ways disagrees most, each read in turn. ``--grid``
 reads the paper again at each number of points and neighbours given, and
 with a focal length off by each factor given (no network): how much the
 figure depends on them.
 
     python experiments/isometric_real.py [--csv docs/isometric_real.csv] [--plot docs/isometric_real.png]
+    python experiments/isometric_real.py --drop 0,0.1,0.2,0.3 [--template refined]
     python experiments/isometric_real.py --grid --points 200,400,800 --neighbours 8,12,20
     python experiments/isometric_real.py --grid --focal-factors 0.5,0.7,1.4,2
 
@@ -63,15 +64,20 @@ def kinect_inputs() -> tuple:
     return frames, (K[0, 0], K[1, 1]), (K[0, 2], K[1, 2]), print_area
 
 
-def phisft_inputs(points: int, neighbours: int, far: int, reach: int, window: int, backward: bool, template: str, drop: float) -> tuple:
-    """The binned crop the network reads, its truth, and the cloth's isometric depth on that crop."""
+def phisft_crop() -> tuple:
+    """The binned crop the network reads and its truth."""
+    data = np.load(DATA / "phisft_R1" / "derived_q4.npz")
+    top, bottom, left, right = CROP
+    return data["gray"][:, top:bottom, left:right], data["depth"][:, top:bottom, left:right]
+
+
+def phisft_isometric(shape: tuple, points: int, neighbours: int, far: int, reach: int, window: int, backward: bool, template: str, drop: float) -> np.ndarray:
+    """The cloth's isometric depth on the binned crop, of ``shape`` (T, H, W)."""
     from scipy.ndimage import binary_erosion
 
     from nrdepth.tracks import densify
 
-    data = np.load(DATA / "phisft_R1" / "derived_q4.npz")
     top, bottom, left, right = CROP
-    video, truth = data["gray"][:, top:bottom, left:right], data["depth"][:, top:bottom, left:right]
     full = read_video(DATA / "phisft_R1" / "rgbs").frames
     cloth = binary_erosion(full[0] > 10, iterations=8)
     inside = np.zeros_like(cloth)
@@ -79,7 +85,7 @@ def phisft_inputs(points: int, neighbours: int, far: int, reach: int, window: in
     xy = isometric.track_grid(full, cloth & inside, points, window, backward, drop)
     depths = isometric.mdh_depths(xy, FOCAL, CENTRE, neighbours=neighbours, far=far, reach=reach, template=template)
     binned = (xy + 0.5) / 4 - 0.5 - np.array([left, top])  # full-frame pixels to the binned crop's
-    return video, truth, densify(binned, depths, video.shape)
+    return densify(binned, depths, shape)
 
 
 def cached_network(name: str, video: np.ndarray, cache: Path) -> np.ndarray:
@@ -91,24 +97,27 @@ def cached_network(name: str, video: np.ndarray, cache: Path) -> np.ndarray:
 
 
 def read_all(args) -> list:
-    """Rows: one per reading, each figure of both videos."""
+    """Rows: one per reading (the network, then each ``--drop`` at each scale), each figure of both videos."""
     frames, focal, centre, print_area = kinect_inputs()
     truth = kinect_truth()
-    start = time.perf_counter()
-    paper = isometric.isometric_depth(frames, focal, centre, mask=print_area, points=args.points[0], neighbours=args.neighbours[0],
-                                      far=args.far, reach=args.reach, window=args.window,
-                                      backward=not args.forward, template=args.template, drop=args.drop)
-    print(f"kinect_paper: isometric depth in {time.perf_counter() - start:.0f} s")
-    start = time.perf_counter()
-    video, cloth_truth, cloth = phisft_inputs(args.points[0], args.neighbours[0], args.far, args.reach, args.window, not args.forward, args.template, args.drop)
-    print(f"phisft_R1: isometric depth in {time.perf_counter() - start:.0f} s")
+    video, cloth_truth = phisft_crop()
     scored = np.isfinite(cloth_truth)
     networks = {region: cached_network(f"kinect_{region[0]}_{region[1]}", frames[:, region[1] : region[1] + region[3], region[0] : region[0] + region[2]], args.cache)
                 for region in (KINECT_ROI, KINECT_INNER)}
     cloth_network = cached_network("phisft", video, args.cache)
     rows = []
-    for scale in [None] + args.scales:
-        row = {"reading": "network" if scale is None else ("isometric" if scale == 0 else f"fused at {scale:g}"), "scale": "" if scale is None else scale}
+    for drop, scale in [(None, None)] + [(drop, scale) for drop in args.drop for scale in args.scales]:
+        if drop is not None and scale == args.scales[0]:  # each share's isometric depths, once
+            start = time.perf_counter()
+            paper = isometric.isometric_depth(frames, focal, centre, mask=print_area, points=args.points[0], neighbours=args.neighbours[0],
+                                              far=args.far, reach=args.reach, window=args.window,
+                                              backward=not args.forward, template=args.template, drop=drop)
+            print(f"kinect_paper: isometric depth in {time.perf_counter() - start:.0f} s")
+            start = time.perf_counter()
+            cloth = phisft_isometric(video.shape, args.points[0], args.neighbours[0], args.far, args.reach, args.window, not args.forward, args.template, drop)
+            print(f"phisft_R1: isometric depth in {time.perf_counter() - start:.0f} s")
+        reading = "network" if scale is None else ("isometric" if scale == 0 else f"fused at {scale:g}") + (f", drop {drop:g}" if len(args.drop) > 1 else "")
+        row = {"reading": reading, "drop": "" if drop is None else drop, "scale": "" if scale is None else scale}
         for key, region in (("kinect_mm", KINECT_ROI), ("kinect_inner_mm", KINECT_INNER)):
             x, y, w, h = region
             net = networks[region]
@@ -121,11 +130,11 @@ def read_all(args) -> list:
         row["phisft_sign"] = sign_rates(depth, cloth_truth, mask=scored)["sign_correct"]
         rows.append(row)
         print(f"{row['reading']:>16s}: kinect_paper {row['kinect_mm']:.2f} / {row['kinect_inner_mm']:.2f} mm (sign {row['kinect_sign']:.2f}), "
-              f"phisft_R1 {row['phisft_frame']:.4f} / {row['phisft_first']:.4f} (sign {row['phisft_sign']:.2f})")
+              f"phisft_R1 {row['phisft_frame']:.4f} / {row['phisft_first']:.4f} (sign {row['phisft_sign']:.2f})", flush=True)
     whole, inner = kinect_references(truth, KINECT_ROI), kinect_references(truth, KINECT_INNER)
     base = dense_baselines(cloth_truth, mask=scored)
     for name in ("plane", "bowl", "quadratic"):
-        rows.append({"reading": name, "scale": "", "kinect_mm": whole[name], "kinect_inner_mm": inner[name],
+        rows.append({"reading": name, "drop": "", "scale": "", "kinect_mm": whole[name], "kinect_inner_mm": inner[name],
                      "phisft_frame": base[name], "phisft_first": flat_baseline(cloth_truth, "first", mask=scored) if name == "plane" else ""})
         print(f"{name:>16s}: kinect_paper {whole[name]:.2f} / {inner[name]:.2f} mm, phisft_R1 {base[name]:.4f} per frame")
     return rows
@@ -137,7 +146,7 @@ def grid(args) -> None:
     from nrdepth.tracks import densify
 
     for points in args.points:
-        xy = isometric.track_grid(frames, print_area, points, args.window, not args.forward, args.drop)
+        xy = isometric.track_grid(frames, print_area, points, args.window, not args.forward, args.drop[0])
         for neighbours in args.neighbours:
             for factor in args.focal_factors:
                 start = time.perf_counter()
@@ -153,15 +162,16 @@ def plot(rows: list, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    curve = [r for r in rows if r["scale"] != ""]
-    scales = [float(r["scale"]) for r in curve]
+    drops = sorted({r["drop"] for r in rows if r["drop"] != ""})
     network = next(r for r in rows if r["reading"] == "network")
     refs = {r["reading"]: r for r in rows if r["reading"] in ("plane", "bowl")}
     fig, axes = plt.subplots(1, 4, figsize=(16, 3.6))
     titles = {"kinect_mm": "kinect_paper, whole sheet (mm)", "kinect_inner_mm": "kinect_paper, crop inside (mm)",
               "phisft_frame": "phisft_R1, MAE-SN per frame", "phisft_first": "phisft_R1, from the first frame"}
     for ax, key in zip(axes, FIGURES):
-        ax.plot(scales, [r[key] for r in curve], "o-", label="isometric fused with the network")
+        for drop in drops:
+            curve = [r for r in rows if r["drop"] == drop]
+            ax.plot([r["scale"] for r in curve], [r[key] for r in curve], "o-", label=f"isometric fused with the network, drop {drop:g}")
         ax.axhline(network[key], color="k", label="network (shipped)")
         for name, style in (("plane", ":"), ("bowl", "--")):
             if refs[name][key] != "":
@@ -184,7 +194,8 @@ def main() -> None:
     parser.add_argument("--forward", action="store_true", help="the forward flow alone, not both ways (isometric.track_grid)")
     parser.add_argument("--template", default="joint", choices=isometric.TEMPLATES,
                         help="mdh_depths's template distances: over keyframes, refined by least squares, or the first frame as a flat sheet facing the camera")
-    parser.add_argument("--drop", type=float, default=0.0, help="the share of points whose flows both ways disagree most, left out (isometric.track_grid)")
+    parser.add_argument("--drop", type=numbers(float), default=[0.0],
+                        help="shares of the points whose flows both ways disagree most, left out (isometric.track_grid), each read in turn (the first is used with --grid)")
     parser.add_argument("--far", type=int, default=0, help="far pairs of each point (isometric.neighbour_pairs)")
     parser.add_argument("--reach", type=int, default=0, help="the far pairs' largest rank")
     parser.add_argument("--scales", type=numbers(float), default=[0, 0.05, 0.1, 0.2, 0.3, 0.5])
