@@ -145,7 +145,8 @@ def test_cli_reconstructs_an_image_folder(tmp_path, tiny_model):
         ("focal", ["--device", "cpu", "--focal", "0"], "--focal: expected the camera's focal length in pixels"),
         ("focal units", ["--device", "cpu", "--focal", "50", "--temporal-align"], "--focal: the isometric shape comes with units='standard' and temporal off only"),
         ("sheet", ["--device", "cpu", "--focal", "50", "--sheet", "30,0,20,20"], "--sheet: expected a box x, y, width, height inside the 40×48 frame"),
-        ("sheet without focal", ["--device", "cpu", "--sheet", "0,0,20,20"], "--focal: centre and sheet place the isometric shape's points"),
+        ("sheet without focal", ["--device", "cpu", "--sheet", "0,0,20,20"], "--focal: centre, sheet, isometric_template and isometric_drop shape"),
+        ("drop", ["--device", "cpu", "--focal", "50", "--isometric-drop", "1"], r"--isometric-drop: expected a share of the points in \[0, 1\)"),
     ],
 )
 def test_cli_bad_input_is_named_and_writes_nothing(tmp_path, tiny_model, capsys, case, args, message):
@@ -162,6 +163,7 @@ def test_cli_bad_input_is_named_and_writes_nothing(tmp_path, tiny_model, capsys,
         "focal units": tmp_path / "good.npy",
         "sheet": tmp_path / "good.npy",
         "sheet without focal": tmp_path / "good.npy",
+        "drop": tmp_path / "good.npy",
     }[case]
     (tmp_path / "bad.mp4").write_bytes(b"\x00\x00\x00\x18ftypmp42" + bytes(range(256)) * 8)
     (tmp_path / "empty.avi").write_bytes(b"")
@@ -238,6 +240,7 @@ def test_cli_default_output_folder_is_named_after_the_input(tmp_path, tiny_model
     (["--window", "triangle"], {"window": "triangle"}),
     (["--temporal-weight", "0"], {"temporal_weight": 0.0}),
     (["--focal", "60", "--isometric-scale", "0.1"], {"focal": 60.0, "isometric_scale": 0.1}),  # the sheet's shape from inextensibility
+    (["--focal", "60", "--isometric-template", "refined", "--isometric-drop", "0.3"], {"focal": 60.0, "isometric_template": "refined", "isometric_drop": 0.3}),
 ])
 def test_cli_stitching_options_reach_reconstruct(tmp_path, tiny_model, flags, options):
     frames = moving_texture(t=12, h=40, w=72)  # the field pass's windows of 3 frames agree too well for the temporal tie to act

@@ -11,7 +11,8 @@ from pathlib import Path
 from typing import Optional, Sequence
 
 from . import __version__
-from .reconstruct import FINE_PASSES, ISOMETRIC_SCALE, MAX_SIDE
+from .isometric import TEMPLATES
+from .reconstruct import FINE_PASSES, ISOMETRIC_DROP, ISOMETRIC_SCALE, MAX_SIDE
 from .stitch import ALIGNMENTS, COARSE_WEIGHT, TEMPORAL_WEIGHT, WINDOWS
 
 
@@ -228,11 +229,11 @@ def _reconstruct(args: argparse.Namespace) -> int:
                          window=args.window, temporal_weight=args.temporal_weight, fine=args.fine, max_side=args.max_side or None,
                          flip=args.flip, png16=args.png16, ply=args.ply, ply_relief=args.ply_relief, overwrite=args.overwrite,
                          viewer=not args.no_viewer, mask=args.mask, focal=args.focal, centre=args.centre, sheet=args.sheet,
-                         isometric_scale=args.isometric_scale)
+                         isometric_scale=args.isometric_scale, isometric_template=args.isometric_template, isometric_drop=args.isometric_drop)
     except ValueError as e:
         # The API names its arguments; the command line names its flags.
         name = str(e).split(":", 1)[0]
-        if name in ("out", "roi", "frames", "max_side", "mask", "focal", "centre", "sheet", "isometric_scale"):
+        if name in ("out", "roi", "frames", "max_side", "mask", "focal", "centre", "sheet", "isometric_scale", "isometric_template", "isometric_drop"):
             raise ValueError(f"--{name.replace('_', '-')}{str(e)[len(name):]}") from None
         raise
     finally:
@@ -451,6 +452,11 @@ def build_parser() -> argparse.ArgumentParser:
                    "the hands), where the points are spread (default: --roi, or the whole frame)")
     p.add_argument("--isometric-scale", type=float, default=ISOMETRIC_SCALE,
                    help=f"with --focal: the length below which the network's relief is kept, as a fraction of the frame's shorter side (default {ISOMETRIC_SCALE}; 0: the isometric depth alone)")
+    p.add_argument("--isometric-template", choices=TEMPLATES, default="joint",
+                   help="with --focal: the pairs' template distances (nrdepth.isometric.mdh_depths): joint (the default), refined (each pair held to "
+                   "its distance in every keyframe), first (the first frame a flat sheet facing the camera)")
+    p.add_argument("--isometric-drop", type=float, default=ISOMETRIC_DROP,
+                   help=f"with --focal: the share of the points left out where the flow's two directions disagree most (default {ISOMETRIC_DROP})")
     p.add_argument("--png16", action="store_true", help="also write 16-bit PNG depth frames (0: no depth; 1 … 65535 span depth.npz's png16_range)")
     p.add_argument("--ply", action="store_true", help="also write a PLY point cloud per frame")
     p.add_argument("--ply-relief", type=float, default=None,

@@ -7,9 +7,11 @@ away through perspective. Three steps:
 
 - :func:`track_grid`: points spread evenly over ``mask`` in the first frame,
   moved (:func:`track_points`) from each frame to the next by OpenCV's Farneback dense optical flow
-  (sampled bilinearly at each point), forward and backward. No point is dropped: a point that a
-  sparse tracker would lose in a fast or blurred frame is carried by the
-  flow of its neighbourhood.
+  (sampled bilinearly at each point), forward and backward. No point is lost to a fast or
+  blurred frame: the flow of its neighbourhood carries it, where a sparse
+  tracker would lose it. The share ``drop`` of the points whose two flows
+  disagree most over the video is left out: points where the motion
+  breaks (near a border), which the flow drags.
 - :func:`mdh_depths`: the depth of every point in every frame by the
   maximum-depth heuristic of inextensible NRSfM (Chhatkuli, Pizarro,
   Collins and Bartoli, TPAMI 2018): maximise the sum of the depths subject
@@ -50,6 +52,13 @@ from typing import Optional, Tuple
 import numpy as np
 
 __all__ = ["track_grid", "track_points", "neighbour_pairs", "mdh_depths", "isometric_depth", "fuse"]
+
+DROP = 0.2
+""":func:`isometric_depth`'s and ``reconstruct(focal=...)``'s share of the
+tracked points left out: those whose forward and backward flows disagree
+most (:func:`track_grid`'s ``drop``). Both real videos gain per frame at
+every fusion scale, and the long generated sheets decided it by a rule
+fixed beforehand (docs/campaign.md)."""
 
 
 def _cv2():
@@ -370,13 +379,13 @@ def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None
 
 def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.ndarray] = None, points: int = 400,
                     neighbours: int = 20, keyframes: int = 24, far: int = 0, reach: int = 0, window: int = 21,
-                    backward: bool = True, template: str = "joint", drop: float = 0.0) -> np.ndarray:
+                    backward: bool = True, template: str = "joint", drop: float = DROP) -> np.ndarray:
     """Dense depth (T, H, W) float64 of an inextensible sheet filmed by
     ``video`` (T, H, W) uint8 through a perspective camera of focal length
     ``focal`` pixels (one number or (f_x, f_y)) and principal point
     ``centre`` (default: the frame's centre): :func:`track_grid` over
     ``mask`` (the sheet in the first frame; default: the whole frame;
-    ``points``, ``window``, ``backward``, ``drop``), :func:`mdh_depths` (``neighbours``,
+    ``points``, ``window``, ``backward``, ``drop``: :data:`DROP`), :func:`mdh_depths` (``neighbours``,
     ``keyframes``, ``far``, ``reach``, ``template``), then linear over the points' Delaunay triangles,
     nearest outside their hull. Units: the mean distance between
     neighbouring points is about 1."""

@@ -44,6 +44,7 @@ from typing import Any, Callable, Iterable, Iterator, Optional, Tuple, Union
 
 import numpy as np
 
+from .isometric import DROP
 from .stitch import COARSE_WEIGHT, PATCH, TEMPORAL_WEIGHT, PatchLayout, _check_stitching, _stitcher, patch_layout, temporal_align
 from .videoio import select, to_gray
 
@@ -409,17 +410,24 @@ generated sheets (docs/campaign.md); a long video of a sheet bent many ways,
 like ``kinect_paper``, reads better at 0.1 (docs/reconstruction.md)."""
 
 
-def _sheet_camera(focal: Any, centre: Any, scale: float, sheet: Any, frame: Tuple[int, int], roi: Any, units: str, temporal: bool) -> Optional[dict]:
+ISOMETRIC_DROP = DROP
+"""With a camera's ``focal`` length, the share of the tracked points left
+out of the isometric depth (:data:`nrdepth.isometric.DROP`)."""
+
+
+def _sheet_camera(focal: Any, centre: Any, scale: float, sheet: Any, frame: Tuple[int, int], roi: Any, units: str, temporal: bool,
+                  template: str = "joint", drop: float = ISOMETRIC_DROP) -> Optional[dict]:
     """``focal`` (pixels: one number or (f_x, f_y)), ``centre`` (the
     principal point; default the frame's centre) and ``sheet`` (where the
     points go in the first frame: bool (H, W), or a box (x, y, w, h);
     default the ``roi``, or the whole frame), all in the video's frame
-    ``frame`` (H, W), checked; None without ``focal``."""
+    ``frame`` (H, W), with the isometric depth's ``template`` and ``drop``,
+    checked; None without ``focal``."""
     if focal is None:
-        if centre is not None or sheet is not None:
-            raise ValueError("focal: centre and sheet place the isometric shape's points; they need the camera's focal length")
+        if centre is not None or sheet is not None or template != "joint" or drop != ISOMETRIC_DROP:
+            raise ValueError("focal: centre, sheet, isometric_template and isometric_drop shape the isometric depth; they need the camera's focal length")
         return None
-    from .isometric import _camera, _cv2
+    from .isometric import TEMPLATES, _camera, _cv2
 
     _cv2()  # the optional dependencies, before any work
     H, W = frame
@@ -428,6 +436,10 @@ def _sheet_camera(focal: Any, centre: Any, scale: float, sheet: Any, frame: Tupl
         raise ValueError(f"isometric_scale: expected a fraction of the frame's shorter side >= 0, got {scale!r}")
     if units != "standard" or temporal:
         raise ValueError("focal: the isometric shape comes with units='standard' and temporal off only")
+    if template not in TEMPLATES:
+        raise ValueError(f"isometric_template: expected one of {TEMPLATES}, got {template!r}")
+    if not (isinstance(drop, (int, float, np.floating)) and 0 <= drop < 1):
+        raise ValueError(f"isometric_drop: expected a share of the points in [0, 1), got {drop!r}")
     roi = (0, 0, W, H) if roi is None else tuple(roi)
     if sheet is None or (np.ndim(sheet) == 1 and len(sheet) == 4):
         x, y, w, h = roi if sheet is None else (int(v) for v in sheet)
@@ -440,7 +452,7 @@ def _sheet_camera(focal: Any, centre: Any, scale: float, sheet: Any, frame: Tupl
         if points.dtype != np.bool_ or points.shape != tuple(frame) or points.sum() < 16:
             raise ValueError(f"sheet: expected a box (x, y, w, h) or a bool array of the video's frame {tuple(frame)} with at least 16 pixels on "
                              f"the sheet, got {points.dtype} {points.shape}")
-    return {"focal": focal, "centre": centre, "scale": float(scale), "sheet": points, "roi": roi}
+    return {"focal": focal, "centre": centre, "scale": float(scale), "sheet": points, "roi": roi, "template": template, "drop": float(drop)}
 
 
 def _as_uint8(frames: np.ndarray) -> np.ndarray:
@@ -567,12 +579,13 @@ class _Pipeline:
         points over ``camera["sheet"]`` followed through ``video`` (T, H, W),
         the selected frames whole (not cut to the region: the points near
         its edge stay in view), their depths with the camera's intrinsics,
-        spread over the region's working frame (:mod:`nrdepth.isometric`)."""
+        spread over the region's working frame (:mod:`nrdepth.isometric`;
+        ``camera``'s ``drop`` and ``template``)."""
         from .isometric import fuse, mdh_depths, track_grid
         from .tracks import densify
 
-        xy = track_grid(_as_uint8(video), camera["sheet"])
-        depths = mdh_depths(xy, camera["focal"], camera["centre"])
+        xy = track_grid(_as_uint8(video), camera["sheet"], drop=camera["drop"])
+        depths = mdh_depths(xy, camera["focal"], camera["centre"], template=camera["template"])
         x, y, w_region, h_region = camera["roi"]
         (h, w) = self.work
         # Into the region's working frame: area-averaged resizes keep pixel centres' relative places.
@@ -710,6 +723,8 @@ def reconstruct(
     centre: Optional[Tuple[float, float]] = None,
     sheet: Union[None, np.ndarray, Tuple[int, int, int, int]] = None,
     isometric_scale: float = ISOMETRIC_SCALE,
+    isometric_template: str = "joint",
+    isometric_drop: float = ISOMETRIC_DROP,
 ) -> np.ndarray:
     """Depth video float32 (T, H, W) of a video (T, H, W) or colour video
     (T, H, W, 3) (uint8, or float in [0, 1]; colour becomes luma, ITU-R
@@ -761,7 +776,12 @@ def reconstruct(
       before ``roi``. On a long video that bends the sheet many ways it
       reads the sheet's bend and the relief's sign whatever the light; a
       short or barely bending clip reads as a dome (docs/reconstruction.md).
-      The selected frames are held whole; minutes for a few hundred frames.
+      ``isometric_template``: :func:`~nrdepth.isometric.mdh_depths`'s
+      template distances ("joint", or "refined": each pair held to its
+      distance in every keyframe); ``isometric_drop``
+      (:data:`ISOMETRIC_DROP`): the share of the points left out where the
+      flow's two directions disagree most. The selected frames are held
+      whole; minutes for a few hundred frames.
 
     Depth is defined up to one GBR per frame (one for the video with
     ``temporal``) and returned with zero mean over the video, in ``units``:
@@ -783,7 +803,7 @@ def reconstruct(
 
     gray = to_gray(video, "video")
     mask = _check_mask(mask, gray.shape, frames, roi, alignment, temporal, units)
-    camera = _sheet_camera(focal, centre, isometric_scale, sheet, gray.shape[1:3], roi, units, temporal)
+    camera = _sheet_camera(focal, centre, isometric_scale, sheet, gray.shape[1:3], roi, units, temporal, isometric_template, isometric_drop)
     video = select(gray, frames, roi)
     _check_options(batch_size, progress, units, fine, max_side, tile, alignment, coarse_weight, window, temporal_weight)
     dev = resolve_device(device)
@@ -825,6 +845,8 @@ def reconstruct_file(
     centre: Optional[Tuple[float, float]] = None,
     sheet: Union[None, np.ndarray, Tuple[int, int, int, int]] = None,
     isometric_scale: float = ISOMETRIC_SCALE,
+    isometric_template: str = "joint",
+    isometric_drop: float = ISOMETRIC_DROP,
 ) -> "Path":  # noqa: F821
     """:func:`reconstruct` a video file, image folder or array file
     (:class:`~nrdepth.videoio.VideoSource`) into the folder ``out``
@@ -858,7 +880,7 @@ def reconstruct_file(
     out = check_output_folder(out, overwrite, inputs=(input,))
     source = open_video(input, "input", frames, roi)
     mask = _file_mask(mask, source, frames, roi, alignment, temporal, units)
-    camera = _sheet_camera(focal, centre, isometric_scale, sheet, source.raw_size, roi, units, temporal)
+    camera = _sheet_camera(focal, centre, isometric_scale, sheet, source.raw_size, roi, units, temporal, isometric_template, isometric_drop)
     pipeline = _Pipeline(source.frame_size, lambda: source.chunks(CHUNK), net, dev, int(batch_size), fine, alignment, coarse_weight, window, temporal_weight, max_side, tile, mask)
     t = pipeline.shape[0]
     if ply_relief is None:
