@@ -1,4 +1,5 @@
-"""nrdepth.isometric: the flow tracker follows a known motion, MDH recovers
+"""nrdepth.isometric: the flow tracker follows a known motion and leaves
+out the points where the motion breaks, MDH recovers
 an exactly inextensible sheet under perspective, its two stages agree, its
 answer is reproducible, the fusion is GBR-invariant, and bad input names
 its argument."""
