@@ -35,7 +35,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from bench_real import DATA, kinect_truth  # noqa: E402
 
-from nrdepth.isometric import mdh_depths, track_points  # noqa: E402
+from nrdepth.isometric import least_disagreeing, mdh_depths, track_points  # noqa: E402
 from nrdepth.videoio import read_video  # noqa: E402
 
 NEIGHBOURS = 10
@@ -104,7 +104,7 @@ def main() -> None:
     followed, disagreement = track_points(video[frames_with_truth[0] :], uv[0], disagreement=True)
     seen = np.array(frames_with_truth) - frames_with_truth[0]
     for drop in args.drop:
-        kept = np.sort(np.argsort(disagreement, kind="stable")[: len(disagreement) - int(round(drop * len(disagreement)))])  # track_grid's drop
+        kept = least_disagreeing(disagreement, drop)  # track_grid's drop
         drift = np.median(np.linalg.norm(followed[seen][:, kept] - uv[:, kept], axis=2), axis=1)
         for template in args.template:
             print(f"{template}, the flow both ways, frames {frames_with_truth[0]}–{len(video) - 1}, 24 keyframes, {len(kept)} points (drop {drop:g}): "

@@ -11,7 +11,7 @@ pytest.importorskip("cv2")
 pytest.importorskip("clarabel")
 
 from nrdepth import isometric  # noqa: E402
-from nrdepth.isometric import _rays, _refine, _socp  # noqa: E402
+from nrdepth.isometric import _rays, _refine, _socp, least_disagreeing  # noqa: E402
 
 FOCAL = 500.0
 
@@ -162,6 +162,7 @@ def test_track_grid_drops_the_points_where_the_motion_breaks():
     assert np.array_equal(kept, xy[:, rows])  # a subset of the tracks, in their order
     left_out = np.setdiff1d(np.arange(len(xy[0])), rows)
     assert apart[left_out].min() >= apart[rows].max()  # the flows disagree most on the points left out
+    assert least_disagreeing(np.array([3.0, 1.0, 3.0, 0.0]), 0.25).tolist() == [0, 1, 3]  # of two equal, the later goes
     assert error[left_out].mean() > 3 * error[rows].mean()  # the points left out are the ones the flow dragged
     border = np.minimum.reduce([abs(xy[0, :, 0] - 20), abs(xy[0, :, 0] - 60), abs(xy[0, :, 1] - 28), abs(xy[0, :, 1] - 68)])
     assert border[left_out].mean() < border[rows].mean()  # near where the motion breaks

@@ -51,14 +51,14 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-__all__ = ["track_grid", "track_points", "neighbour_pairs", "mdh_depths", "isometric_depth", "fuse"]
+__all__ = ["track_grid", "track_points", "least_disagreeing", "neighbour_pairs", "mdh_depths", "isometric_depth", "fuse"]
 
 DROP = 0.2
 """:func:`isometric_depth`'s and ``reconstruct(focal=...)``'s share of the
 tracked points left out: those whose forward and backward flows disagree
-most (:func:`track_grid`'s ``drop``). Both real videos gain per frame at
-every fusion scale, and the long generated sheets decided it by a rule
-fixed beforehand (docs/campaign.md)."""
+most (:func:`track_grid`'s ``drop``). At every fusion scale the paper
+and the cloth per frame gain, and the long generated sheets decided it
+by a rule fixed beforehand (docs/campaign.md)."""
 
 
 def _cv2():
@@ -105,7 +105,7 @@ def track_grid(video: np.ndarray, mask: Optional[np.ndarray] = None, points: int
     if not (isinstance(drop, (int, float, np.floating)) and 0 <= drop < 1):
         raise ValueError(f"drop: expected a share of the points in [0, 1), got {drop!r}")
     if drop > 0 and not backward:
-        raise ValueError("drop: the points to leave out are found by the flow both ways: expected backward=True")
+        raise ValueError("drop: the points to leave out are found by the flow both ways: expected backward=True, or drop=0")
     spacing = max(1.0, float(np.sqrt(mask.sum() / points)))
     rows, cols = np.mgrid[spacing / 2 : video.shape[1] : spacing, spacing / 2 : video.shape[2] : spacing]
     grid = np.column_stack([cols.ravel(), rows.ravel()])
@@ -116,7 +116,15 @@ def track_grid(video: np.ndarray, mask: Optional[np.ndarray] = None, points: int
     if drop == 0:
         return track_points(video, grid, window, backward)
     xy, disagreement = track_points(video, grid, window, backward, disagreement=True)
-    return xy[:, np.sort(np.argsort(disagreement, kind="stable")[:kept])]
+    return xy[:, least_disagreeing(disagreement, drop)]
+
+
+def least_disagreeing(disagreement: np.ndarray, drop: float) -> np.ndarray:
+    """Indices, ascending, of the points kept when the share ``drop`` of
+    them whose ``disagreement`` (n,) (:func:`track_points`) is largest is
+    left out (ties: the later point goes)."""
+    kept = len(disagreement) - int(round(drop * len(disagreement)))
+    return np.sort(np.argsort(disagreement, kind="stable")[:kept])
 
 
 def track_points(video: np.ndarray, start: np.ndarray, window: int = 21, backward: bool = True,
