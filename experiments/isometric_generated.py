@@ -17,7 +17,7 @@ true image positions in every frame, ``generate_clips(vertices=True)``
 and ``image_points``; no tracking error, so what is left is the
 heuristic's and the video's; with it, each video's flow drift: the flow
 both ways from those vertices' first positions, its median distance from
-their true positions in the last frame), ``--drop`` (with the flow both ways: the shares of points
+their true positions in the last frame, over the points still in view), ``--drop`` (with the flow both ways: the shares of points
 whose flows disagree most, left out, ``track_grid``'s ``drop``, each read as a tracker), ``--flat-start`` (every sheet starts unbent,
 ``GeneratorConfig.sheet_flat_start``), ``--template`` (``mdh_depths``'s
 template distances: ``joint`` over keyframes, ``refined``, those
@@ -127,7 +127,7 @@ def main() -> None:
             for tracker in trackers:
                 if tracker == "truth":
                     xy, flat = true_tracks(clips.vertices[k], params, config.size)
-                    drift = float(np.median(np.linalg.norm(isometric.track_points(video, xy[0])[-1] - xy[-1], axis=1)))
+                    drift = float(np.nanmedian(np.linalg.norm(isometric.track_points(video, xy[0])[-1] - xy[-1], axis=1)))  # over the points still in view
                 else:
                     xy = isometric.track_grid(video, backward=tracker != "forward", drop=float(tracker.partition("drop ")[2] or 0))
                 for pairs in args.pairs:

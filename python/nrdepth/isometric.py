@@ -61,6 +61,11 @@ and the cloth per frame gain, and the long generated sheets decided it
 by a rule fixed beforehand (docs/campaign.md)."""
 
 
+BORDER = 0.0
+""":func:`track_points`' and :func:`track_grid`'s margin in pixels: a
+point this close to the frame's edge is lost for good (docs/reconstruction.md)."""
+
+
 def _cv2():
     """OpenCV, after checking that both optional dependencies are there."""
     try:
@@ -89,11 +94,13 @@ def _check_mask(mask: Optional[np.ndarray], shape: Tuple[int, int]) -> np.ndarra
 
 
 def track_grid(video: np.ndarray, mask: Optional[np.ndarray] = None, points: int = 400, window: int = 21,
-               backward: bool = True, drop: float = 0.0) -> np.ndarray:
+               backward: bool = True, drop: float = 0.0, border: float = BORDER) -> np.ndarray:
     """Tracks (T, n, 2) (column, row) of about ``points`` points on a square
-    grid over ``mask`` (H, W) of the first frame (default: the whole frame),
-    moved through ``video`` (T, H, W) uint8 by :func:`track_points`
-    (``window``, ``backward``). ``drop``: the share of the points left out,
+    grid over ``mask`` (H, W) of the first frame (default: the whole frame)
+    at least ``border`` pixels inside the frame's edge, moved through
+    ``video`` (T, H, W) uint8 by :func:`track_points` (``window``,
+    ``backward``, ``border``: NaN from the frame where a point leaves the
+    view). ``drop``: the share of the points left out,
     those whose forward and backward flows disagree most over the video
     (:func:`track_points`' ``disagreement``; needs ``backward``): points
     at a boundary of the motion, where the flow bleeds from one side to
@@ -109,13 +116,13 @@ def track_grid(video: np.ndarray, mask: Optional[np.ndarray] = None, points: int
     spacing = max(1.0, float(np.sqrt(mask.sum() / points)))
     rows, cols = np.mgrid[spacing / 2 : video.shape[1] : spacing, spacing / 2 : video.shape[2] : spacing]
     grid = np.column_stack([cols.ravel(), rows.ravel()])
-    grid = grid[mask[rows.astype(int).ravel(), cols.astype(int).ravel()]]
+    grid = grid[mask[rows.astype(int).ravel(), cols.astype(int).ravel()] & _inside(grid, video.shape[1:], border)]
     kept = len(grid) - int(round(drop * len(grid)))
     if kept < 4:
         raise ValueError(f"mask: expected room for at least 4 points at {points} points over its area (drop {drop:g}), got {kept}")
     if drop == 0:
-        return track_points(video, grid, window, backward)
-    xy, disagreement = track_points(video, grid, window, backward, disagreement=True)
+        return track_points(video, grid, window, backward, border=border)
+    xy, disagreement = track_points(video, grid, window, backward, disagreement=True, border=border)
     return xy[:, least_disagreeing(disagreement, drop)]
 
 
@@ -128,16 +135,20 @@ def least_disagreeing(disagreement: np.ndarray, drop: float) -> np.ndarray:
 
 
 def track_points(video: np.ndarray, start: np.ndarray, window: int = 21, backward: bool = True,
-                 disagreement: bool = False):
+                 disagreement: bool = False, border: float = BORDER):
     """Tracks (T, n, 2) (column, row) of the points ``start`` (n, 2) of the
     first frame, moved through ``video`` (T, H, W) uint8 by Farneback optical
     flow (5 pyramid levels, ``window``-pixel windows) from each frame to the
     next: the mean of where the forward flow takes a point and where the
     backward flow says it came from (both real videos read better, generated
     sheets within 0.0005 per frame: docs/reconstruction.md), or with
-    ``backward`` False the forward flow alone (half the flow's cost). With
-    ``disagreement`` (needs ``backward``), also (n,): each point's distance
-    between where the two flows take it, summed over the video (pixels)."""
+    ``backward`` False the forward flow alone (half the flow's cost). A
+    point is lost for good (NaN) from the first frame after the start where
+    it lies within ``border`` pixels of the frame's edge or beyond it: the
+    flow cannot follow what leaves the view, and would hold it at the edge.
+    With ``disagreement`` (needs ``backward``), also (n,): each point's
+    distance between where the two flows take it, its mean over the steps
+    it stays in view (pixels; 0 for a point lost at once)."""
     from scipy.ndimage import map_coordinates
 
     cv2 = _cv2()
@@ -147,6 +158,8 @@ def track_points(video: np.ndarray, start: np.ndarray, window: int = 21, backwar
         raise ValueError(f"start: expected finite points (n, 2) (column, row), got shape {start.shape}")
     if not (isinstance(window, (int, np.integer)) and window >= 3):
         raise ValueError(f"window: expected an int >= 3 (pixels), got {window!r}")
+    if not (isinstance(border, (int, float, np.integer, np.floating)) and 0 <= border < min(video.shape[1:]) / 2):
+        raise ValueError(f"border: expected pixels in [0, {min(video.shape[1:]) / 2:g}) (half the frame's shorter side), got {border!r}")
     if disagreement and not backward:
         raise ValueError("disagreement: the forward and backward flows' disagreement needs backward=True")
 
@@ -156,18 +169,33 @@ def track_points(video: np.ndarray, start: np.ndarray, window: int = 21, backwar
     def at(field: np.ndarray, where: np.ndarray) -> np.ndarray:  # bilinear
         return np.stack([map_coordinates(field[..., c], [where[:, 1], where[:, 0]], order=1, mode="nearest") for c in (0, 1)], axis=1)
 
-    xy = np.empty((len(video), len(start), 2))
+    xy = np.full((len(video), len(start), 2), np.nan)
     xy[0] = start
-    apart = np.zeros(len(start))
+    alive = np.arange(len(start))
+    apart, steps = np.zeros(len(start)), np.zeros(len(start))
     for t in range(1, len(video)):
-        xy[t] = ahead = xy[t - 1] + at(flow(video[t - 1], video[t]), xy[t - 1])
+        if not len(alive):
+            break
+        was = xy[t - 1, alive]
+        ahead = was + at(flow(video[t - 1], video[t]), was)
+        now = ahead
         if backward:
             field, back = flow(video[t], video[t - 1]), ahead
             for _ in range(3):  # the point p whose backward flow lands on xy[t − 1]: p = xy[t − 1] − field(p)
-                back = xy[t - 1] - at(field, back)
-            xy[t] = (ahead + back) / 2
-            apart += np.linalg.norm(ahead - back, axis=1)
-    return (xy, apart) if disagreement else xy
+                back = was - at(field, back)
+            now = (ahead + back) / 2
+        stays = _inside(now, video.shape[1:], border)
+        alive, now = alive[stays], now[stays]
+        xy[t, alive] = now
+        if backward:
+            apart[alive] += np.linalg.norm(ahead[stays] - back[stays], axis=1)
+            steps[alive] += 1
+    return (xy, apart / np.maximum(steps, 1)) if disagreement else xy
+
+
+def _inside(xy: np.ndarray, shape: Tuple[int, int], border: float) -> np.ndarray:
+    """Which points (n, 2) lie at least ``border`` pixels inside a frame of ``shape`` (H, W)."""
+    return (xy[:, 0] >= border) & (xy[:, 0] <= shape[1] - 1 - border) & (xy[:, 1] >= border) & (xy[:, 1] <= shape[0] - 1 - border)
 
 
 def neighbour_pairs(xy: np.ndarray, neighbours: int = 20, far: int = 0, reach: int = 0) -> np.ndarray:
@@ -198,8 +226,21 @@ def neighbour_pairs(xy: np.ndarray, neighbours: int = 20, far: int = 0, reach: i
     return pairs[pairs[:, 0] != pairs[:, 1]]
 
 
-def _socp(rays: np.ndarray, pairs: np.ndarray, distances: Optional[np.ndarray]) -> Tuple[np.ndarray, np.ndarray]:
-    """Depths (M, n) maximising their sum under the pairs' cones, and the
+def _active(seen: np.ndarray, pairs: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """Each frame's pairs (M, E) with both points in view, and the points
+    in view (M, n) that keep at least one of them: a point tied to nothing
+    would have no bound on its depth."""
+    active = seen[:, pairs[:, 0]] & seen[:, pairs[:, 1]]
+    tied = np.zeros_like(seen)
+    t, e = np.nonzero(active)
+    tied[t, pairs[e, 0]] = tied[t, pairs[e, 1]] = True
+    return active, seen & tied
+
+
+def _socp(rays: np.ndarray, pairs: np.ndarray, distances: Optional[np.ndarray],
+          seen: Optional[np.ndarray] = None) -> Tuple[np.ndarray, np.ndarray]:
+    """Depths (M, n) maximising their sum under the cones of the pairs in
+    view (``seen`` (M, n), default every point; NaN where not), and the
     template distances (E,): variables (their sum the number of pairs)
     unless given."""
     import clarabel
@@ -207,12 +248,14 @@ def _socp(rays: np.ndarray, pairs: np.ndarray, distances: Optional[np.ndarray]) 
 
     M, n, _ = rays.shape
     E = len(pairs)
-    depths = M * n
+    active, seen = _active(np.ones((M, n), bool) if seen is None else seen, pairs)
+    variable = np.full((M, n), -1)
+    variable[seen] = np.arange(np.count_nonzero(seen))  # a depth variable for each point in view
+    depths = int(np.count_nonzero(seen))
     free = distances is None
     variables = depths + (E if free else 0)
-    cones = M * E
-    t = np.repeat(np.arange(M), E)
-    e = np.tile(np.arange(E), M)
+    t, e = np.nonzero(active)
+    cones = len(t)
     i, j = pairs[e, 0], pairs[e, 1]
     offset = depths + (1 if free else 0)
     first = offset + 4 * np.arange(cones)  # each cone's first row: its norm bound
@@ -227,7 +270,7 @@ def _socp(rays: np.ndarray, pairs: np.ndarray, distances: Optional[np.ndarray]) 
         b[first] = distances[e]
     for axis in range(3):  # the cone's vector: Z_i r_i − Z_j r_j
         rows += [first + 1 + axis, first + 1 + axis]
-        columns += [t * n + i, t * n + j]
+        columns += [variable[t, i], variable[t, j]]
         values += [-rays[t, i, axis], rays[t, j, axis]]
     A = sparse.csc_matrix((np.concatenate(values), (np.concatenate(rows), np.concatenate(columns))), shape=(len(b), variables))
     q = np.zeros(variables)
@@ -239,14 +282,17 @@ def _socp(rays: np.ndarray, pairs: np.ndarray, distances: Optional[np.ndarray]) 
     if str(solution.status) not in ("Solved", "AlmostSolved"):
         raise RuntimeError(f"the MDH cone program was not solved: {solution.status}")
     x = np.asarray(solution.x)
-    return x[:depths].reshape(M, n), (x[depths:] if free else distances)
+    out = np.full((M, n), np.nan)
+    out[seen] = x[:depths]
+    return out, (x[depths:] if free else distances)
 
 
 def _refine(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distances: np.ndarray,
             evaluations: int) -> Tuple[np.ndarray, np.ndarray]:
-    """Depths (M, n) and template distances (E,), from ``depths`` and
-    ``distances``, that make each pair's distance ``‖Z_i r_i − Z_j r_j‖``
-    equal to its ``D_ij`` in every frame: least squares of the strains
+    """Depths (M, n) and template distances (E,), from ``depths`` (NaN:
+    not in view) and ``distances``, that make each pair's distance
+    ``‖Z_i r_i − Z_j r_j‖`` equal to its ``D_ij`` in every frame where
+    both are in view: least squares of the strains
     ``‖Z_i r_i − Z_j r_j‖ / D_ij − 1`` (relative, so that shrinking the
     sheet towards the camera gains nothing), depths and distances kept
     positive, ``Σ D = E`` kept by one more residual; trust-region
@@ -257,35 +303,42 @@ def _refine(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distances: 
 
     M, n, _ = rays.shape
     E = len(pairs)
-    t = np.repeat(np.arange(M), E)
-    e = np.tile(np.arange(E), M)
+    seen = np.isfinite(depths)
+    variable = np.full((M, n), -1)
+    N = int(np.count_nonzero(seen))
+    variable[seen] = np.arange(N)
+    t, e = np.nonzero(seen[:, pairs[:, 0]] & seen[:, pairs[:, 1]])
+    K = len(t)
     i, j = pairs[e, 0], pairs[e, 1]
     ray_i, ray_j = rays[t, i], rays[t, j]
-    weight = np.sqrt(M * E)  # the scale's residual weighs as much as all strains
+    depth_i, depth_j = variable[t, i], variable[t, j]
+    weight = np.sqrt(K)  # the scale's residual weighs as much as all strains
 
     def chords(x: np.ndarray) -> np.ndarray:
-        depth = x[: M * n].reshape(M, n)
-        return depth[t, i, None] * ray_i - depth[t, j, None] * ray_j
+        return x[depth_i, None] * ray_i - x[depth_j, None] * ray_j
 
     def residuals(x: np.ndarray) -> np.ndarray:
-        return np.append(np.linalg.norm(chords(x), axis=1) / x[M * n + e] - 1, (x[M * n :].sum() / E - 1) * weight)
+        return np.append(np.linalg.norm(chords(x), axis=1) / x[N + e] - 1, (x[N:].sum() / E - 1) * weight)
 
-    rows = np.arange(M * E)
+    rows = np.arange(K)
 
     def jacobian(x: np.ndarray) -> sparse.csr_matrix:
         chord = chords(x)
         length = np.linalg.norm(chord, axis=1)
         unit = chord / length[:, None]
-        distance = x[M * n + e]
+        distance = x[N + e]
         values = [np.einsum("ka,ka->k", unit, ray_i) / distance, -np.einsum("ka,ka->k", unit, ray_j) / distance,
                   -length / distance**2, np.full(E, weight / E)]
-        return sparse.csr_matrix((np.concatenate(values), (np.concatenate([rows, rows, rows, np.full(E, M * E)]),
-                                                           np.concatenate([t * n + i, t * n + j, M * n + e, M * n + np.arange(E)]))),
-                                 shape=(M * E + 1, M * n + E))
+        return sparse.csr_matrix((np.concatenate(values), (np.concatenate([rows, rows, rows, np.full(E, K)]),
+                                                           np.concatenate([depth_i, depth_j, N + e, N + np.arange(E)]))),
+                                 shape=(K + 1, N + E))
 
-    x = least_squares(residuals, np.append(depths.ravel(), distances), jac=jacobian, bounds=(0, np.inf), method="trf",
+    start = np.maximum(np.append(depths[seen], distances), 0.0)  # the cone program's answer may sit a rounding below a bound
+    x = least_squares(residuals, start, jac=jacobian, bounds=(0, np.inf), method="trf",
                       tr_solver="lsmr", x_scale="jac", max_nfev=evaluations).x
-    return x[: M * n].reshape(M, n), x[M * n :]
+    out = np.full((M, n), np.nan)
+    out[seen] = x[:N]
+    return out, x[N:]
 
 
 def _camera(focal, centre) -> Tuple[Tuple[float, float], Tuple[float, float]]:
@@ -325,7 +378,9 @@ def _rays(xy: np.ndarray, focal, centre) -> np.ndarray:
 def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None, neighbours: int = 20,
                keyframes: int = 24, far: int = 0, reach: int = 0, template="joint", evaluations: int = 100) -> np.ndarray:
     """Depths (T, n) of tracked points ``xy`` (T, n, 2) by the maximum-depth
-    heuristic (module docstring). ``focal``: the focal length in pixels, one
+    heuristic (module docstring); NaN where ``xy`` is NaN, a point out of
+    view in that frame (:func:`track_points`), whose pairs bind nothing
+    there. ``focal``: the focal length in pixels, one
     number or (f_x, f_y); ``centre``: the principal point (c_x, c_y);
     ``pairs`` (E, 2): the neighbours tied by inextensibility (default:
     :func:`neighbour_pairs` of the first frame with ``neighbours``, ``far``
@@ -344,8 +399,8 @@ def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None
     the sheet gives them (shape from template): the depths come out in
     their units."""
     xy = np.asarray(xy, np.float64)
-    if xy.ndim != 3 or xy.shape[2] != 2 or xy.shape[0] < 2 or xy.shape[1] < 3 or not np.isfinite(xy).all():
-        raise ValueError(f"xy: expected finite tracks (T, n, 2) with T >= 2 and n >= 3, got shape {xy.shape}")
+    if xy.ndim != 3 or xy.shape[2] != 2 or xy.shape[0] < 2 or xy.shape[1] < 3 or not np.isfinite(xy[0]).all() or np.isinf(xy).any():
+        raise ValueError(f"xy: expected tracks (T, n, 2) with T >= 2 and n >= 3, finite in the first frame (NaN: out of view), got shape {xy.shape}")
     if not (isinstance(keyframes, (int, np.integer)) and keyframes >= 2):
         raise ValueError(f"keyframes: expected an int >= 2, got {keyframes!r}")
     if not (isinstance(evaluations, (int, np.integer)) and evaluations >= 1):
@@ -358,6 +413,11 @@ def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None
     if pairs.ndim != 2 or pairs.shape[1] != 2 or len(pairs) < 1 or pairs.min() < 0 or pairs.max() >= xy.shape[1]:
         raise ValueError(f"pairs: expected (E, 2) indices of the {xy.shape[1]} points, got shape {pairs.shape}")
     rays = _rays(xy, focal, centre)
+    seen = np.isfinite(rays).all(axis=2)
+    rays[~seen] = 0.0
+    few = np.flatnonzero(_active(seen, pairs)[1].sum(axis=1) < 3)
+    if len(few):
+        raise ValueError(f"xy: expected at least 3 points in view and tied to a pair in every frame, got fewer in frames {few[:5].tolist()}")
     T = len(xy)
     depths = np.empty(xy.shape[:2])
     if not isinstance(template, str):
@@ -367,7 +427,7 @@ def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None
             raise ValueError(f"template: expected one of {TEMPLATES} or the {len(pairs)} pairs' distances, positive, got shape {distances.shape}")
     elif template in ("joint", "refined"):
         keys = np.unique(np.rint(np.linspace(0, T - 1, min(keyframes, T))).astype(int))
-        depths[keys], distances = _socp(rays[keys], pairs, None)
+        depths[keys], distances = _socp(rays[keys], pairs, None, seen[keys])
         if template == "refined":
             depths[keys], distances = _refine(rays[keys], pairs, depths[keys], distances, evaluations)
     else:
@@ -380,7 +440,7 @@ def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None
     # With the distances fixed the frames are independent: one small program each (ten times faster than
     # several frames in one), in threads (Clarabel releases the GIL; each frame's answer is the same in any thread).
     with ThreadPoolExecutor(max_workers=max(1, min(len(rest), os.cpu_count() or 1))) as pool:
-        for t, solved in zip(rest, pool.map(lambda t: _socp(rays[t : t + 1], pairs, distances)[0][0], rest)):
+        for t, solved in zip(rest, pool.map(lambda t: _socp(rays[t : t + 1], pairs, distances, seen[t : t + 1])[0][0], rest)):
             depths[t] = solved
     return depths
 

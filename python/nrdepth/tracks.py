@@ -101,17 +101,21 @@ def nrsfm_depth(shapes: np.ndarray, cameras: np.ndarray) -> np.ndarray:
 def densify(xy: np.ndarray, values: np.ndarray, shape: tuple) -> np.ndarray:
     """Dense (T, H, W) from values (T, n) at points xy (T, n, 2) (column,
     row): linear over the points' Delaunay triangles, nearest outside their
-    convex hull."""
+    convex hull. A point whose value or position is NaN in a frame (out of
+    view) takes no part in it; each frame needs 3 points that do."""
     from scipy.interpolate import griddata
 
     T, H, W = shape
     rows, cols = np.mgrid[0:H, 0:W]
     out = np.empty(shape)
     for t in range(T):
-        linear = griddata(xy[t], values[t], (cols, rows), method="linear")
+        seen = np.isfinite(values[t]) & np.isfinite(xy[t]).all(axis=1)
+        if np.count_nonzero(seen) < 3:
+            raise ValueError(f"values: expected at least 3 points with a value in every frame, got {np.count_nonzero(seen)} in frame {t}")
+        linear = griddata(xy[t, seen], values[t, seen], (cols, rows), method="linear")
         hole = np.isnan(linear)
         if hole.any():
-            linear[hole] = griddata(xy[t], values[t], (cols[hole], rows[hole]), method="nearest")
+            linear[hole] = griddata(xy[t, seen], values[t, seen], (cols[hole], rows[hole]), method="nearest")
         out[t] = linear
     return out
 
