@@ -17,7 +17,10 @@ true image positions in every frame, ``generate_clips(vertices=True)``
 and ``image_points``; no tracking error, so what is left is the
 heuristic's and the video's; with it, each video's flow drift: the flow
 both ways from those vertices' first positions, its median distance from
-their true positions in the last frame, over the points still in view), ``--drop`` (with the flow both ways: the shares of points
+their true positions in the last frame, over the points still in view;
+``in view``: the same positions, each point lost from the first frame it
+leaves the view, as ``track_points`` loses it: what a tracker could
+hold at best), ``--drop`` (with the flow both ways: the shares of points
 whose flows disagree most, left out, ``track_grid``'s ``drop``, each read as a tracker), ``--flat-start`` (every sheet starts unbent,
 ``GeneratorConfig.sheet_flat_start``), ``--template`` (``mdh_depths``'s
 template distances: ``joint`` over keyframes, ``refined``, those
@@ -78,6 +81,14 @@ def true_tracks(vertices: np.ndarray, params: dict, size: int, points: int = 400
     return seen[:, index], np.column_stack([index % grid, index // grid]) * 2.0 / (grid - 1) - 1.0
 
 
+def in_view(xy: np.ndarray, size: int) -> np.ndarray:
+    """Which of the positions (T, n, 2) a tracker could still hold: in the
+    frame in every frame so far (``track_points`` loses a point for good
+    where it leaves the frame)."""
+    inside = ((xy >= isometric.BORDER) & (xy <= size - 1 - isometric.BORDER)).all(axis=2)
+    return np.logical_and.accumulate(inside, axis=0)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--videos", type=int, default=32)
@@ -88,7 +99,7 @@ def main() -> None:
     parser.add_argument("--pairs", type=lambda text: [tuple(int(v) for v in item.split(":")) for item in text.split(",")], default=[(20, 0, 0)],
                         help="neighbours:far:reach of each reading (isometric.neighbour_pairs)")
     parser.add_argument("--trackers", type=lambda text: text.split(","), default=["both"],
-                        help="isometric.track_grid's flow: forward, both (forward and backward), truth (the mesh's true positions), or a list")
+                        help="isometric.track_grid's flow: forward, both (forward and backward), truth (the mesh's true positions), 'in view' (those a tracker could hold), or a list")
     parser.add_argument("--drop", type=lambda text: [float(v) for v in text.split(",")], default=[0.0],
                         help="with --trackers both: the shares of points whose flows disagree most, left out (isometric.track_grid), each a tracker")
     parser.add_argument("--flat-start", action="store_true", help="every sheet starts unbent (GeneratorConfig.sheet_flat_start)")
@@ -100,9 +111,9 @@ def main() -> None:
     parser.add_argument("--textures", type=lambda text: tuple(text.split(",")), default=FAMILIES,
                         help="texture families (default: bench_sheets.py's)")
     args = parser.parse_args()
-    if not set(args.trackers) <= {"forward", "both", "truth"} or not set(args.relief) <= {"frame", "video"} or not set(args.template) <= {*isometric.TEMPLATES, "truth"} or not set(args.lights) <= {"below", "above"}:
-        parser.error("--trackers takes forward, both and truth, --relief frame and video, --template joint, refined, first and truth, --lights below and above")
-    if "truth" in args.template and args.trackers != ["truth"]:
+    if not set(args.trackers) <= {"forward", "both", "truth", "in view"} or not set(args.relief) <= {"frame", "video"} or not set(args.template) <= {*isometric.TEMPLATES, "truth"} or not set(args.lights) <= {"below", "above"}:
+        parser.error("--trackers takes forward, both, truth and 'in view', --relief frame and video, --template joint, refined, first and truth, --lights below and above")
+    if "truth" in args.template and not set(args.trackers) <= {"truth", "in view"}:
         parser.error("--template truth (the flat sheet's distances between the mesh's vertices) needs --trackers truth")
     if args.drop != [0.0] and "both" not in args.trackers:
         parser.error("--drop finds the points to leave out by the flow both ways: it needs --trackers both")
@@ -118,7 +129,7 @@ def main() -> None:
             continue
         extra = {} if azimuth is None else {"light_azimuth": azimuth}
         config = GeneratorConfig(frames=args.frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=args.phases, sheet_flat_start=args.flat_start, texture_families=args.textures, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
-        clips = generate_clips(args.videos, seed=SEED, config=config, vertices="truth" in args.trackers)
+        clips = generate_clips(args.videos, seed=SEED, config=config, vertices=bool({"truth", "in view"} & set(args.trackers)))
         rows, start = [], time.perf_counter()
         for k, (video, truth, params) in enumerate(zip(clips.video, clips.depth, clips.params)):
             focal, centre = camera(params, config.size)
@@ -128,6 +139,9 @@ def main() -> None:
                 if tracker == "truth":
                     xy, flat = true_tracks(clips.vertices[k], params, config.size)
                     drift = float(np.nanmedian(np.linalg.norm(isometric.track_points(video, xy[0])[-1] - xy[-1], axis=1)))  # over the points still in view
+                elif tracker == "in view":
+                    xy, flat = true_tracks(clips.vertices[k], params, config.size)
+                    xy[~in_view(xy, config.size)] = np.nan
                 else:
                     xy = isometric.track_grid(video, backward=tracker != "forward", drop=float(tracker.partition("drop ")[2] or 0))
                 for pairs in args.pairs:

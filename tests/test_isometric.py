@@ -1,5 +1,6 @@
-"""nrdepth.isometric: the flow tracker follows a known motion and leaves
-out the points where the motion breaks, MDH recovers
+"""nrdepth.isometric: the flow tracker follows a known motion, loses the
+points that leave the frame and leaves out the points where the motion
+breaks, MDH recovers
 an exactly inextensible sheet under perspective, its two stages agree, its
 answer is reproducible, the fusion is GBR-invariant, and bad input names
 its argument."""
@@ -12,6 +13,7 @@ pytest.importorskip("clarabel")
 
 from nrdepth import isometric  # noqa: E402
 from nrdepth.isometric import _rays, _refine, _socp, least_disagreeing  # noqa: E402
+from nrdepth.tracks import densify  # noqa: E402
 
 FOCAL = 500.0
 
@@ -135,6 +137,51 @@ def test_track_grid_follows_a_shift():
     anywhere = np.array([[37.3, 41.9], [55.5, 33.1]])
     np.testing.assert_allclose(isometric.track_points(video, anywhere)[-1] - anywhere, [[8.0, 4.0]] * 2, atol=0.15)
 
+
+
+def test_track_points_loses_a_point_that_leaves_the_frame():
+    rng = np.random.default_rng(6)
+    from scipy.ndimage import gaussian_filter
+
+    texture = gaussian_filter(rng.random((100, 140)), 2.0)
+    texture = np.rint(255 * (texture - texture.min()) / np.ptp(texture)).astype(np.uint8)
+    video = np.stack([texture[:, 40 - 4 * t : 140 - 4 * t] for t in range(7)])  # content moves +4 x a frame
+    start = np.array([[30.0, 50.0], [81.0, 40.0], [81.0, 60.0]])  # the last two at 85, 89, 93, 97, then out at 101
+    xy, apart = isometric.track_points(video, start, disagreement=True)
+    np.testing.assert_allclose(xy[:, 0] - start[0], [[4.0 * t, 0.0] for t in range(7)], atol=0.15)  # the one inside follows
+    np.testing.assert_allclose(xy[:5, 1:, 0] - 81.0, np.broadcast_to(4.0 * np.arange(5)[:, None], (5, 2)), atol=0.25)
+    assert np.isnan(xy[5:, 1:]).all() and np.isfinite(xy[:5]).all()  # lost for good from the frame it leaves
+    assert np.isfinite(apart).all()  # the flows' disagreement over the steps in view
+    near = isometric.track_points(video, start, border=5.0)  # within 5 pixels of the edge counts as gone
+    assert np.isfinite(near[:4, 1:]).all() and np.isnan(near[4:, 1:]).all()
+    with pytest.raises(ValueError, match="border"):
+        isometric.track_points(video, start, border=-1.0)
+    # Out of view the point binds nothing: the frame reads as if it had never been tracked.
+    sheet, _ = rolled_sheet(frames=6, side=7)
+    pairs = isometric.neighbour_pairs(sheet[0], 6)
+    distances = np.linalg.norm(_rays(sheet, FOCAL, (0.0, 0.0))[0, pairs[:, 0]] - _rays(sheet, FOCAL, (0.0, 0.0))[0, pairs[:, 1]], axis=1)
+    gone = np.array([0, 1, 7])  # a corner of the sheet, out of view from frame 3
+    lost = sheet.copy()
+    lost[3:, gone] = np.nan
+    depth = isometric.mdh_depths(lost, FOCAL, (0.0, 0.0), pairs=pairs, template=distances)
+    assert np.isnan(depth[3:, gone]).all() and np.isfinite(np.delete(depth, gone, axis=1)).all() and np.isfinite(depth[:3]).all()
+    rest = np.setdiff1d(np.arange(sheet.shape[1]), gone)
+    ties = ~np.isin(pairs, gone).any(axis=1)
+    renumbered = np.searchsorted(rest, pairs[ties])
+    without = isometric.mdh_depths(sheet[:, rest], FOCAL, (0.0, 0.0), pairs=renumbered, template=distances[ties])
+    np.testing.assert_allclose(depth[3:, rest], without[3:], rtol=1e-5)
+    joint = isometric.mdh_depths(lost, FOCAL, (0.0, 0.0), neighbours=6, keyframes=3, template="refined")
+    assert np.array_equal(np.isnan(joint), np.isnan(lost[..., 0]))
+    dense = densify(lost, depth, (6, 40, 40))
+    np.testing.assert_array_equal(dense[4], densify(sheet[:, rest], depth[:, rest], (6, 40, 40))[4])
+    few = sheet.copy()
+    few[2:, 2:] = np.nan  # two points left in view from frame 2
+    with pytest.raises(ValueError, match=r"xy: expected at least 3 points in view .* frames \[2, 3, 4, 5\]"):
+        isometric.mdh_depths(few, FOCAL, (0.0, 0.0), neighbours=6)
+    with pytest.raises(ValueError, match="finite in the first frame"):
+        isometric.mdh_depths(few[2:], FOCAL, (0.0, 0.0), neighbours=6)
+    with pytest.raises(ValueError, match="values"):
+        densify(lost, np.where(np.arange(sheet.shape[1]) > 1, np.nan, depth), (6, 40, 40))
 
 def test_track_grid_drops_the_points_where_the_motion_breaks():
     rng = np.random.default_rng(4)

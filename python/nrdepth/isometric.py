@@ -9,14 +9,15 @@ away through perspective. Three steps:
   moved (:func:`track_points`) from each frame to the next by OpenCV's Farneback dense optical flow
   (sampled bilinearly at each point), forward and backward. No point is lost to a fast or
   blurred frame: the flow of its neighbourhood carries it, where a sparse
-  tracker would lose it. The share ``drop`` of the points whose two flows
-  disagree most over the video is left out: points where the motion
-  breaks (near a border), which the flow drags.
+  tracker would lose it; one that leaves the frame is lost from there on
+  (NaN). The share ``drop`` of the points whose two flows disagree most
+  over the video is left out: points where the motion breaks (near a
+  border), which the flow drags.
 - :func:`mdh_depths`: the depth of every point in every frame by the
   maximum-depth heuristic of inextensible NRSfM (Chhatkuli, Pizarro,
   Collins and Bartoli, TPAMI 2018): maximise the sum of the depths subject
   to ``‖Z_i r_i − Z_j r_j‖ ≤ D_ij`` in every frame for each pair of
-  neighbours (``r``: the point's ray, ``(x − c_x)/f_x, (y − c_y)/f_y, 1``),
+  neighbours in view (``r``: the point's ray, ``(x − c_x)/f_x, (y − c_y)/f_y, 1``),
   with the pairs' template distances ``D_ij`` shared by all frames and
   ``Σ D_ij`` fixed to the number of pairs (the video fixes no scale). The
   sheet is pulled as far from the camera as its inextensible threads allow,
