@@ -138,7 +138,6 @@ def test_track_grid_follows_a_shift():
     np.testing.assert_allclose(isometric.track_points(video, anywhere)[-1] - anywhere, [[8.0, 4.0]] * 2, atol=0.15)
 
 
-
 def test_track_points_loses_a_point_that_leaves_the_frame():
     rng = np.random.default_rng(6)
     from scipy.ndimage import gaussian_filter
@@ -182,6 +181,7 @@ def test_track_points_loses_a_point_that_leaves_the_frame():
         isometric.mdh_depths(few[2:], FOCAL, (0.0, 0.0), neighbours=6)
     with pytest.raises(ValueError, match="values"):
         densify(lost, np.where(np.arange(sheet.shape[1]) > 1, np.nan, depth), (6, 40, 40))
+
 
 def test_track_grid_drops_the_points_where_the_motion_breaks():
     rng = np.random.default_rng(4)

@@ -64,7 +64,9 @@ by a rule fixed beforehand (docs/campaign.md)."""
 
 BORDER = 0.0
 """:func:`track_points`' and :func:`track_grid`'s margin in pixels: a
-point this close to the frame's edge is lost for good (docs/reconstruction.md)."""
+point closer than this to the frame's edge, or beyond it, is lost for
+good. 0: a point is lost where it leaves the frame (8 lost more points
+and read generated sheets worse: docs/reconstruction.md)."""
 
 
 def _cv2():
@@ -381,7 +383,7 @@ def mdh_depths(xy: np.ndarray, focal, centre, pairs: Optional[np.ndarray] = None
     """Depths (T, n) of tracked points ``xy`` (T, n, 2) by the maximum-depth
     heuristic (module docstring); NaN where ``xy`` is NaN, a point out of
     view in that frame (:func:`track_points`), whose pairs bind nothing
-    there. ``focal``: the focal length in pixels, one
+    there, and where a point is paired with none in view. ``focal``: the focal length in pixels, one
     number or (f_x, f_y); ``centre``: the principal point (c_x, c_y);
     ``pairs`` (E, 2): the neighbours tied by inextensibility (default:
     :func:`neighbour_pairs` of the first frame with ``neighbours``, ``far``
