@@ -114,7 +114,7 @@ def main() -> None:
     if not set(args.trackers) <= {"forward", "both", "truth", "in view"} or not set(args.relief) <= {"frame", "video"} or not set(args.template) <= {*isometric.TEMPLATES, "truth"} or not set(args.lights) <= {"below", "above"}:
         parser.error("--trackers takes forward, both, truth and 'in view', --relief frame and video, --template joint, refined, first and truth, --lights below and above")
     if "truth" in args.template and not set(args.trackers) <= {"truth", "in view"}:
-        parser.error("--template truth (the flat sheet's distances between the mesh's vertices) needs --trackers truth")
+        parser.error("--template truth (the flat sheet's distances between the mesh's vertices) needs --trackers truth or 'in view'")
     if args.drop != [0.0] and "both" not in args.trackers:
         parser.error("--drop finds the points to leave out by the flow both ways: it needs --trackers both")
     trackers = [name for tracker in args.trackers for name in ([tracker] if tracker != "both" else [f"both, drop {d:g}" if d else "both" for d in args.drop])]
