@@ -5,6 +5,11 @@ an exactly inextensible sheet under perspective, its two stages agree, its
 answer is reproducible, the fusion is GBR-invariant, and bad input names
 its argument."""
 
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -115,6 +120,18 @@ def test_mdh_is_reproducible_at_any_thread_count(monkeypatch):
     assert first.tobytes() == isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=6, keyframes=3).tobytes()
     monkeypatch.setattr(isometric.os, "cpu_count", lambda: 1)  # the frames outside the keyframes one after another
     assert first.tobytes() == isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=6, keyframes=3).tobytes()
+
+
+def test_mdh_refined_is_the_same_at_one_and_two_blas_threads():
+    # The refinement's solver takes norms and dot products of long vectors (here 20,000 strains), which a
+    # threaded BLAS sums in an order set by its thread count: the same tracks must give the same bytes.
+    script = (f"import sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); import hashlib; "
+              "from test_isometric import rolled_sheet, FOCAL; from nrdepth import isometric; "
+              "xy, _ = rolled_sheet(frames=8, side=14, start=0.5); "
+              "print(hashlib.sha1(isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), keyframes=8, template='refined').tobytes()).hexdigest())")
+    digests = {subprocess.run([sys.executable, "-c", script], env=dict(os.environ, OPENBLAS_NUM_THREADS=threads, OMP_NUM_THREADS=threads),
+                              capture_output=True, text=True, check=True).stdout for threads in ("1", "2")}
+    assert len(digests) == 1, digests
 
 
 def test_track_grid_follows_a_shift():

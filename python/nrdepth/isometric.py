@@ -303,6 +303,7 @@ def _refine(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distances: 
     ``evaluations`` evaluations (it stops where it got to)."""
     from scipy import sparse
     from scipy.optimize import least_squares
+    from threadpoolctl import threadpool_limits
 
     M, n, _ = rays.shape
     E = len(pairs)
@@ -337,8 +338,11 @@ def _refine(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distances: 
                                  shape=(K + 1, N + E))
 
     start = np.maximum(np.append(depths[seen], distances), 0.0)  # the cone program's answer may sit a rounding below a bound
-    x = least_squares(residuals, start, jac=jacobian, bounds=(0, np.inf), method="trf",
-                      tr_solver="lsmr", x_scale="jac", max_nfev=evaluations).x
+    # One BLAS thread: a threaded BLAS sums the solver's long dot products in an order that depends on its
+    # thread count, and a hundred Gauss–Newton steps carry that rounding into the answer's third digit.
+    with threadpool_limits(limits=1, user_api="blas"):
+        x = least_squares(residuals, start, jac=jacobian, bounds=(0, np.inf), method="trf",
+                          tr_solver="lsmr", x_scale="jac", max_nfev=evaluations).x
     out = np.full((M, n), np.nan)
     out[seen] = x[:N]
     return out, x[N:]
