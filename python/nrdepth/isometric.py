@@ -339,7 +339,7 @@ def _refine(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distances: 
 
     start = np.maximum(np.append(depths[seen], distances), 0.0)  # the cone program's answer may sit a rounding below a bound
     # One BLAS thread: a threaded BLAS sums the solver's long dot products in an order that depends on its
-    # thread count, and a hundred Gauss–Newton steps carry that rounding into the answer's third digit.
+    # thread count, and a hundred Gauss–Newton steps carry that rounding into the answer's fourth digit.
     with threadpool_limits(limits=1, user_api="blas"):
         x = least_squares(residuals, start, jac=jacobian, bounds=(0, np.inf), method="trf",
                           tr_solver="lsmr", x_scale="jac", max_nfev=evaluations).x
