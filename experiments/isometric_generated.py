@@ -85,7 +85,7 @@ def in_view(xy: np.ndarray, size: int) -> np.ndarray:
     """Which of the positions (T, n, 2) a tracker could still hold: in the
     frame in every frame so far (``track_points`` loses a point for good
     where it leaves the frame)."""
-    inside = ((xy >= isometric.BORDER) & (xy <= size - 1 - isometric.BORDER)).all(axis=2)
+    inside = isometric._inside(xy.reshape(-1, 2), (size, size), isometric.BORDER).reshape(xy.shape[:2])
     return np.logical_and.accumulate(inside, axis=0)
 
 
