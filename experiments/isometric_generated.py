@@ -34,7 +34,7 @@ given, each paired against the network and against the first combination.
 ``--lights``: the sheets lit from below, from above, or both (the default;
 each light its own ``--videos``).
 
-    python experiments/isometric_generated.py [--videos 32] [--frames 16] [--phases 1] [--textures print] [--scales 0,0.05,0.1,0.2,0.3] [--trackers forward,both,truth] [--drop 0,0.2] [--flat-start] [--template joint,refined,first] [--pairs 20:0:0,10:10:80] [--relief frame,video] [--lights below,above]
+    python experiments/isometric_generated.py [--videos 32] [--start 0] [--frames 16] [--phases 1] [--textures print] [--scales 0,0.05,0.1,0.2,0.3] [--trackers forward,both,truth] [--drop 0,0.2] [--flat-start] [--template joint,refined,first] [--pairs 20:0:0,10:10:80] [--relief frame,video] [--lights below,above]
 """
 
 from __future__ import annotations
@@ -92,6 +92,7 @@ def in_view(xy: np.ndarray, size: int) -> np.ndarray:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--videos", type=int, default=32)
+    parser.add_argument("--start", type=int, default=0, help="the first video's index in the held-out seed's draws (a fresh set of sheets: past those read before)")
     parser.add_argument("--frames", type=int, default=16, help="frames of each video")
     parser.add_argument("--phases", type=int, default=1, help="spans of each video, each bending the sheet a new way")
     parser.add_argument("--scales", type=lambda text: [float(v) for v in text.split(",")], default=[0, 0.05, 0.1, 0.2, 0.3],
@@ -129,7 +130,7 @@ def main() -> None:
             continue
         extra = {} if azimuth is None else {"light_azimuth": azimuth}
         config = GeneratorConfig(frames=args.frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=args.phases, sheet_flat_start=args.flat_start, texture_families=args.textures, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
-        clips = generate_clips(args.videos, seed=SEED, config=config, vertices=bool({"truth", "in view"} & set(args.trackers)))
+        clips = generate_clips(args.videos, seed=SEED, config=config, start=args.start, vertices=bool({"truth", "in view"} & set(args.trackers)))
         rows, start = [], time.perf_counter()
         for k, (video, truth, params) in enumerate(zip(clips.video, clips.depth, clips.params)):
             focal, centre = camera(params, config.size)
@@ -169,7 +170,7 @@ def main() -> None:
             writer = csv.writer(out)
             writer.writerow(["light", "clip"] + [f"{n} per frame" for n in columns] + [f"{n} sign right" for n in names] + ["flow drift px"])
             for k, (light, row) in enumerate(zip(lights, every)):
-                writer.writerow([light, k % args.videos] + [f"{row[n][0]:.5f}" for n in columns] + [f"{row[n][1]:.3f}" for n in names] + [f"{row['drift']:.2f}"])
+                writer.writerow([light, args.start + k % args.videos] + [f"{row[n][0]:.5f}" for n in columns] + [f"{row[n][1]:.3f}" for n in names] + [f"{row['drift']:.2f}"])
         print(f"wrote {args.csv}")
 
 
