@@ -454,7 +454,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"with --focal: the length below which the network's relief is kept, as a fraction of the frame's shorter side (default {ISOMETRIC_SCALE}; 0: the isometric depth alone)")
     p.add_argument("--isometric-template", choices=TEMPLATES, default="joint",
                    help="with --focal: the pairs' template distances (nrdepth.isometric.mdh_depths): joint (the default), refined (each pair held to "
-                   "its distance in every keyframe), first (the first frame a flat sheet facing the camera)")
+                   "its distance in every keyframe; for a long video of a sheet bent many ways, with --isometric-drop 0.3 --isometric-scale 0.2), first "
+                   "(the first frame a flat sheet facing the camera)")
     p.add_argument("--isometric-drop", type=float, default=ISOMETRIC_DROP,
                    help=f"with --focal: the share of the points left out where the flow's two directions disagree most (default {ISOMETRIC_DROP})")
     p.add_argument("--png16", action="store_true", help="also write 16-bit PNG depth frames (0: no depth; 1 … 65535 span depth.npz's png16_range)")

@@ -780,7 +780,10 @@ def reconstruct(
       template distances ("joint", or "refined": each pair held to its
       distance in every keyframe); ``isometric_drop``
       (:data:`ISOMETRIC_DROP`): the share of the points left out where the
-      flow's two directions disagree most. The selected frames are held
+      flow's two directions disagree most. For a long video (64 frames or
+      more) of a sheet bent many ways, "refined" with ``isometric_drop=0.3``
+      and ``isometric_scale=0.2`` reads both real videos best and costs
+      short clips (docs/reconstruction.md). The selected frames are held
       whole; minutes for a few hundred frames.
 
     Depth is defined up to one GBR per frame (one for the video with
