@@ -21,10 +21,15 @@ from pathlib import Path
 import numpy as np
 
 
+def read(path: Path) -> list:
+    """``path``'s rows, one a video."""
+    with open(path, newline="") as file:
+        return list(csv.DictReader(file))
+
+
 def column(path: Path, name: str) -> dict:
     """``name``'s values in ``path``, keyed by (light, clip)."""
-    with open(path, newline="") as file:
-        rows = list(csv.DictReader(file))
+    rows = read(path)
     if not rows or name not in rows[0]:
         raise SystemExit(f"{path}: no column {name!r}; its columns: {list(rows[0]) if rows else []}")
     return {(row["light"], row["clip"]): float(row[name]) for row in rows}
@@ -34,8 +39,7 @@ def best(paths: list) -> None:
     """Each video's lowest reading per frame among every reading of ``paths``, averaged, beside the plane."""
     readings, plane = {}, {}
     for path in paths:
-        with open(path, newline="") as file:
-            rows = list(csv.DictReader(file))
+        rows = read(path)
         names = [n for n in rows[0] if n.endswith(" per frame") and n not in ("plane per frame", "bowl per frame")]
         for row in rows:
             video = (row["light"], row["clip"])
