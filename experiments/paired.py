@@ -21,17 +21,19 @@ from pathlib import Path
 import numpy as np
 
 
-def read(path: Path) -> list:
-    """``path``'s rows, one a video."""
+def read(path: Path, *names: str) -> list:
+    """``path``'s rows, one a video, checked to have ``light``, ``clip`` and ``names``."""
     with open(path, newline="") as file:
-        return list(csv.DictReader(file))
+        rows = list(csv.DictReader(file))
+    missing = [n for n in ("light", "clip", *names) if not rows or n not in rows[0]]
+    if missing:
+        raise SystemExit(f"{path}: expected a row per video with the columns {missing}; its columns: {list(rows[0]) if rows else []}")
+    return rows
 
 
 def column(path: Path, name: str) -> dict:
     """``name``'s values in ``path``, keyed by (light, clip)."""
-    rows = read(path)
-    if not rows or name not in rows[0]:
-        raise SystemExit(f"{path}: no column {name!r}; its columns: {list(rows[0]) if rows else []}")
+    rows = read(path, name)
     return {(row["light"], row["clip"]): float(row[name]) for row in rows}
 
 
@@ -39,7 +41,7 @@ def best(paths: list) -> None:
     """Each video's lowest reading per frame among every reading of ``paths``, averaged, beside the plane."""
     readings, plane = {}, {}
     for path in paths:
-        rows = read(path)
+        rows = read(path, "plane per frame")
         names = [n for n in rows[0] if n.endswith(" per frame") and n not in ("plane per frame", "bowl per frame")]
         for row in rows:
             video = (row["light"], row["clip"])
