@@ -19,7 +19,7 @@ import torch
 from torch.utils.flop_counter import FlopCounterMode
 
 import nrdepth
-from nrdepth.losses import get_loss
+from nrdepth.learning.losses import get_loss
 from nrdepth.model import build_model, count_parameters
 
 REFERENCE = ("unet3d", {"base": 16})

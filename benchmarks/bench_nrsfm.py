@@ -1,7 +1,7 @@
 """The classic motion-capture NRSfM benchmark: PTA (from the files) beside
-CSF2 and KSTA (nrdepth.nrsfm; KSTA in our reading of its paper) on drink,
+CSF2 and KSTA (nrdepth.baselines.nrsfm; KSTA in our reading of its paper) on drink,
 pickup, yoga, stretch and dance, with the benchmark's 3-D error
-(nrdepth.nrsfm.error_3d; see shared/data/nrsfm/README.md).
+(nrdepth.baselines.nrsfm.error_3d; see shared/data/nrsfm/README.md).
 
 Given several K or d fractions, every setting is run and printed, then a
 table of each method's best setting per sequence: the selection is made on
@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from scipy.io import loadmat
 
-from nrdepth.nrsfm import cameras, csf2, error_3d, ksta
+from nrdepth.baselines.nrsfm import cameras, csf2, error_3d, ksta
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "nrsfm"
 SEQUENCES = ("drink", "pickup", "yoga", "stretch", "dance")

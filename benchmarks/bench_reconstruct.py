@@ -23,26 +23,17 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import time
 
 import numpy as np
 import torch
 
 import nrdepth
-from nrdepth.evaluate import TEST_SEED
+from nrdepth.learning.evaluate import TEST_SEED
 from nrdepth import _core
 from nrdepth.reconstruct import coarse_depth, inference_model, patch_depths
-from nrdepth.stitch import COARSE_WEIGHT, TEMPORAL_WEIGHT, temporal_align
-
-
-def out_of_range(config: nrdepth.GeneratorConfig) -> nrdepth.GeneratorConfig:
-    """Each of the four shape parameters drawn above its training range:
-    from the training maximum to 1.6× it (constraint is left alone: it only
-    confines motion to the centre)."""
-    s = config.surface
-    beyond = {k: (getattr(s, k)[1], 1.6 * getattr(s, k)[1]) for k in ("intensity", "folding", "flexibility", "speed")}
-    return dataclasses.replace(config, surface=dataclasses.replace(s, **beyond))
+from nrdepth.scores.generated import out_of_range
+from nrdepth.reconstruct.stitch import COARSE_WEIGHT, TEMPORAL_WEIGHT, temporal_align
 
 
 def timing(model, device: str, repeats: int) -> None:

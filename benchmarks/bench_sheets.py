@@ -37,8 +37,6 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import os
-import sys
 import time
 from pathlib import Path
 
@@ -46,19 +44,19 @@ import numpy as np
 import torch
 
 import nrdepth
-from nrdepth.evaluate import TEST_SEED, evaluate
-from nrdepth.generate import GeneratorConfig, generate_clips
-from nrdepth.metrics import dense_baselines, flat_baseline, mae_sn, sign_rates
+from nrdepth.learning.evaluate import TEST_SEED, evaluate
+from nrdepth.engine.generate import GeneratorConfig, generate_clips
+from nrdepth.scores.metrics import dense_baselines, flat_baseline, mae_sn, sign_rates
 from nrdepth.model.io import DEFAULT_MODEL
 from nrdepth.reconstruct import inference_model
-from nrdepth.videoio import read_video
+from nrdepth.io import read_video
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_real import DATA, KINECT_INNER, KINECT_ROI, kinect_references, kinect_score, kinect_truth, phisft_regions, region_errors  # noqa: E402
+from nrdepth.scores.generated import SHEET_FAMILIES
+from nrdepth.scores.real import DATA, KINECT_INNER, KINECT_ROI, kinect_references, kinect_score, kinect_truth, phisft_regions, region_errors
 
 SHEETS_SEED = TEST_SEED + 41
 PHISFT_CROP = (110, 218, 106, 214)
-FAMILIES = ("fractal", "stripes", "plaid", "cells", "weave", "print")
+FAMILIES = SHEET_FAMILIES
 
 
 def sheet_config(backdrops: bool = False) -> GeneratorConfig:

@@ -31,7 +31,7 @@ def run(stitch: str, shape: tuple) -> None:
     """Stitch in this process; print seconds and peak RSS in GB."""
     from scipy.ndimage import gaussian_filter
 
-    from nrdepth.stitch import COARSE_WEIGHT, TEMPORAL_WEIGHT, _stitcher, patch_layout
+    from nrdepth.reconstruct.stitch import COARSE_WEIGHT, TEMPORAL_WEIGHT, make_stitcher, patch_layout
 
     alignment, window, nu = STITCHES[stitch]
     layout = patch_layout(shape)
@@ -40,7 +40,7 @@ def run(stitch: str, shape: tuple) -> None:
     block = gaussian_filter(rng.standard_normal((32, 96, 96), dtype=np.float32), (2, 6, 6), mode="wrap")
     origins = np.asarray(layout.origins)
     start = time.perf_counter()
-    stitcher = _stitcher(coarse, layout.patch, alignment, COARSE_WEIGHT, window, TEMPORAL_WEIGHT if nu is None else nu)
+    stitcher = make_stitcher(coarse, layout.patch, alignment, COARSE_WEIGHT, window, TEMPORAL_WEIGHT if nu is None else nu)
     for i in range(0, len(origins), 64):
         chunk = origins[i : i + 64]
         shifts = [((t // 8 * 3) % 16, (y // 32 * 7) % 32, (x // 32 * 11) % 32) for t, y, x in chunk]
@@ -68,7 +68,7 @@ def main() -> None:
         run(args.run, shape)
         return
     env = dict(os.environ, **({"RAYON_NUM_THREADS": str(args.threads)} if args.threads else {}))
-    from nrdepth.stitch import patch_layout
+    from nrdepth.reconstruct.stitch import patch_layout
 
     print(f"stitching a {shape[2]}×{shape[1]}×{shape[0]} video from {len(patch_layout(shape).origins)} patches of 16×64×64, "
           f"{args.threads or os.cpu_count()} thread(s); each stitch in its own process")

@@ -2,10 +2,10 @@
 training ranges (as ``bench_reconstruct.py``: intensity, folding,
 flexibility and speed from the training maximum to 1.6× it), each
 reconstructed by nrdepth (the shipped model unless --model), by CSF2 from
-exact tracks of up to 33×33 mesh vertices (nrdepth.tracks; optional pixel
+exact tracks of up to 33×33 mesh vertices (nrdepth.baselines.tracks; optional pixel
 noise) interpolated to every pixel, and by a flat plane; MAE-SN mean ± std
 for both alignments beside the paper's figures; KSTA (our reading of its
-paper, nrdepth.nrsfm.ksta) from the same tracks.
+paper, nrdepth.baselines.nrsfm.ksta) from the same tracks.
 
     python benchmarks/bench_table2.py [--videos 100] [--K 2] [--d 4] [--noise 0] [--picture docs/table2.png]
     # split over processes, then one table from their rows:
@@ -26,11 +26,11 @@ import numpy as np
 
 import nrdepth
 import nrdepth.model
-from nrdepth.evaluate import TEST_SEED
-from nrdepth.nrsfm import cameras, csf2, ksta
-from nrdepth.tracks import clip_tracks, densify, measurement_matrix, nrsfm_depth
+from nrdepth.learning.evaluate import TEST_SEED
+from nrdepth.baselines.nrsfm import cameras, csf2, ksta
+from nrdepth.baselines.tracks import clip_tracks, densify, measurement_matrix, nrsfm_depth
 
-from bench_reconstruct import out_of_range  # the same ranges (this script's folder is on sys.path)
+from nrdepth.scores.generated import out_of_range
 
 PAPER = {"nrdepth": (0.5907, 0.4536), "CSF2": (0.8746, 0.6372), "KSTA": (0.8738, 0.6369)}
 """The paper's Table 2 (per-frame MAE-SN, mean ± std over 1,000 videos)."""
@@ -113,9 +113,9 @@ def main() -> None:
             writer.writerow(row)
             handle.flush()
         if i == args.start and args.picture is not None:
-            from nrdepth.figures import ColourBar, labelled
-            from nrdepth.preview import save_png
-            from nrdepth.videoio import colorize_depth, depth_range
+            from nrdepth.io.figures import ColourBar, labelled
+            from nrdepth.engine.preview import save_png
+            from nrdepth.io import colorize_depth, depth_range
 
             value_range = depth_range(truth)
             columns = [np.repeat(video[..., None], 3, axis=-1)] + [colorize_depth(nrdepth.gbr_align(d, truth), value_range) for d in (truth, depths["nrdepth"], depths["CSF2"], depths["KSTA"])]

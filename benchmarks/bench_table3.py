@@ -1,16 +1,16 @@
 """The paper's Table 3 in its shape, on real video: nrdepth against CSF2 and
-KSTA (nrdepth.nrsfm) fed by a maintained tracker, and a flat plane.
+KSTA (nrdepth.baselines.nrsfm) fed by a maintained tracker, and a flat plane.
 
 phisft_R1 (a real cloth video with per-frame depth ground truth; its README):
 points are tracked on the full-resolution frames (luma of the RGB, 1920×1080)
 inside the cloth's silhouette common to all frames, eroded by 12 pixels
 (Shi–Tomasi corners + pyramidal Lucas–Kanade with a forward–backward check,
-``nrdepth.tracks.track_video``), moved to the 4×-reduced grid of
+``nrdepth.baselines.tracks.track_video``), moved to the 4×-reduced grid of
 ``derived_q4.npz`` (a q4 pixel's centre is full-resolution (4i + 1.5)), run
 through CSF2 and KSTA (K, d below; the cameras are orthographic, the Kinect's
 is not: f ≈ 970 px at 1.2–1.5 m) and interpolated over the crop
 ``bench_real.py`` scores (rows 110–218, columns 106–214 of that grid) by
-``nrdepth.tracks.densify``. nrdepth reconstructs the crop's video itself.
+``nrdepth.baselines.tracks.densify``. nrdepth reconstructs the crop's video itself.
 Every method is scored over the crop's pixels with a ground-truth value: MAE
 in millimetres after each frame's least-squares GBR alignment to the truth,
 and MAE-SN per frame and from the first frame.
@@ -32,14 +32,15 @@ import numpy as np
 
 import nrdepth
 import nrdepth.model
-from nrdepth.metrics import flat_baseline, gbr_align, mae_sn
-from nrdepth.nrsfm import cameras, csf2, ksta
-from nrdepth.preview import save_png
-from nrdepth.tracks import densify, measurement_matrix, nrsfm_depth, track_video
-from nrdepth.videoio import colorize_depth, depth_range, read_video
+from nrdepth.scores.metrics import flat_baseline, gbr_align, mae_sn
+from nrdepth.baselines.nrsfm import cameras, csf2, ksta
+from nrdepth.engine.preview import save_png
+from nrdepth.baselines.tracks import densify, measurement_matrix, nrsfm_depth, track_video
+from nrdepth.io import colorize_depth, depth_range, read_video
 
-from nrdepth.figures import ColourBar
-from bench_real import DATA, picture  # the same data folder and layout (this script's folder is on sys.path)
+from nrdepth.io.figures import ColourBar
+from nrdepth.io.figures import frame_rows
+from nrdepth.scores.real import DATA
 
 PHISFT_CROP = (110, 218, 106, 214)
 """Rows and columns of derived_q4.npz's grid scored, as bench_real.py."""
@@ -103,7 +104,7 @@ def phisft(model, K: int, d_fraction: float, out: Path) -> None:
     for name in ("nrdepth", "CSF2", "KSTA"):
         aligned = np.where(mask, gbr_align(depths[name][0], truth, "frame", mask=mask), value_range[1])
         columns.append(colorize_depth(aligned, value_range))
-    save_png(out / "table3_phisft_R1.png", picture(columns, ["frames", "truth", "nrdepth", "CSF2", "KSTA"], ColourBar(*value_range, "Kinect depth (m)")))
+    save_png(out / "table3_phisft_R1.png", frame_rows(columns, ["frames", "truth", "nrdepth", "CSF2", "KSTA"], ColourBar(*value_range, "Kinect depth (m)")))
     print(f"wrote {out / 'table3_phisft_R1.png'}: frames | ground truth | nrdepth | CSF2 | KSTA (GBR-aligned per frame; far = blue)")
 
 
@@ -121,7 +122,7 @@ def kinect(model, K: int, d_fraction: float, out: Path) -> None:
         columns.append(colorize_depth(depth, depth_range(depth)))
     print(f"kinect_paper: {len(video)} frames of {video.shape[2]}×{video.shape[1]} (rows {top}–{bottom}, columns {left}–{right}), "
           f"{xy.shape[1]} points tracked; CSF2/KSTA with K={K}, d={d}")
-    save_png(out / "table3_kinect_paper.png", picture(columns, ["frames", "nrdepth", "CSF2", "KSTA"]))
+    save_png(out / "table3_kinect_paper.png", frame_rows(columns, ["frames", "nrdepth", "CSF2", "KSTA"]))
     print(f"wrote {out / 'table3_kinect_paper.png'}: frames | nrdepth | CSF2 | KSTA (each its own colour range for the video; "
           "NRSfM's reflection chosen to agree with nrdepth's; near = yellow)")
 

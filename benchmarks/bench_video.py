@@ -52,21 +52,20 @@ import torch
 
 import nrdepth
 from nrdepth.reconstruct import MARGIN, PATCH, TILE, coarse_depth, field_frames, field_windows, inference_model, patch_depths, tile_plan
-from nrdepth.stitch import COARSE_WEIGHT, TEMPORAL_WEIGHT, _stitcher
+from nrdepth.reconstruct.stitch import COARSE_WEIGHT, TEMPORAL_WEIGHT, make_stitcher
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_real import DATA, KINECT_ROI, kinect_score, kinect_truth  # noqa: E402
-from bench_reconstruct import out_of_range  # noqa: E402
+from nrdepth.scores.real import DATA, KINECT_ROI, kinect_score, kinect_truth
+from nrdepth.scores.generated import out_of_range
 
 PATCH_VOXELS = int(np.prod(PATCH))
 
 
 def load(name: str) -> np.ndarray:
     if name == "generated":
-        from nrdepth.evaluate import TEST_SEED
+        from nrdepth.learning.evaluate import TEST_SEED
 
         return nrdepth.generate_clips(1, seed=TEST_SEED, config=nrdepth.GeneratorConfig(size=256)).video[0]
-    from nrdepth.videoio import read_video
+    from nrdepth.io import read_video
 
     return read_video(DATA / "kinect_paper").frames
 
@@ -109,7 +108,7 @@ def run(video: np.ndarray, net: torch.nn.Module, fine: str) -> dict:
     start = time.perf_counter()
     coarse = coarse_depth(video, net, 8, dev)
     seconds["coarse pass"] = time.perf_counter() - start
-    stitcher = _stitcher(coarse, layout.patch, "joint", COARSE_WEIGHT, "hann", TEMPORAL_WEIGHT)
+    stitcher = make_stitcher(coarse, layout.patch, "joint", COARSE_WEIGHT, "hann", TEMPORAL_WEIGHT)
     del coarse
     network = {"seconds": 0.0}
 
@@ -211,8 +210,8 @@ def accuracy(videos: int, seed: int) -> None:
 
 
 def real() -> None:
-    from nrdepth.metrics import flat_baseline as flat, mae_sn
-    from nrdepth.videoio import read_video
+    from nrdepth.scores.metrics import flat_baseline as flat, mae_sn
+    from nrdepth.io import read_video
 
     net = inference_model(None, torch.device("cpu"))
     data = np.load(DATA / "phisft_R1" / "derived_q4.npz")
@@ -232,10 +231,10 @@ def real() -> None:
 
 
 def resolution() -> None:
-    from nrdepth.metrics import flat_baseline as flat, mae_sn, sparse_baselines
-    from nrdepth.videoio import read_video
+    from nrdepth.scores.metrics import flat_baseline as flat, mae_sn, sparse_baselines
+    from nrdepth.io import read_video
 
-    from bench_real import phisft_at_bin
+    from nrdepth.scores.real import phisft_at_bin
 
     net = inference_model(None, torch.device("cpu"))
     video, truth = phisft_at_bin(2)
@@ -274,7 +273,7 @@ def rippling_frames(frames: int = 300, size: tuple = (1080, 1920)):
 
 def write_long_video(path: Path, frames: int = 300, size: tuple = (1080, 1920)) -> None:
     """:func:`rippling_frames` as an H.264 file."""
-    from nrdepth.videoio import Mp4Writer
+    from nrdepth.io import Mp4Writer
 
     with Mp4Writer(path, size[0], size[1], 30.0) as writer:
         for frame in rippling_frames(frames, size):

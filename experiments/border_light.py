@@ -22,8 +22,8 @@ import torch
 from scipy.ndimage import distance_transform_edt
 
 import nrdepth
-from nrdepth.evaluate import TEST_SEED
-from nrdepth.metrics import gbr_align, mae_sn, sign_rates
+from nrdepth.learning.evaluate import TEST_SEED
+from nrdepth.scores.metrics import gbr_align, mae_sn, sign_rates
 from nrdepth.model import DEFAULT_MODEL
 from nrdepth.model.io import load_model, predict_depth
 

@@ -28,17 +28,14 @@ The truth's mean depth is printed too: the cloth recedes over the video.
 from __future__ import annotations
 
 import argparse
-import os
-import sys
 
 import numpy as np
 import torch
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # the benchmarks' data loaders
-from bench_real import CROP, DATA, PHISFT_BORDER, phisft_regions, region_errors, scaled_error  # noqa: E402
+from nrdepth.scores.real import CROP, DATA, PHISFT_BORDER, phisft_regions, region_errors, scaled_error
 
 import nrdepth  # noqa: E402
-from nrdepth.metrics import gbr_align, gbr_fit, mae_sn  # noqa: E402
+from nrdepth.scores.metrics import gbr_align, gbr_fit, mae_sn  # noqa: E402
 from nrdepth.reconstruct import coarse_depth, inference_model  # noqa: E402
 
 THIRDS = (slice(0, 17), slice(17, 34), slice(34, 50))

@@ -18,17 +18,15 @@ into the border and the inside (``bench_real.phisft_regions``).
 
 from __future__ import annotations
 
-import os
 import sys
 
 import numpy as np
 from scipy.ndimage import distance_transform_edt, gaussian_filter
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # the benchmarks' data loaders
-from bench_real import phisft_at_bin, phisft_regions, region_errors  # noqa: E402
+from nrdepth.scores.real import phisft_at_bin, phisft_regions, region_errors
 
 import nrdepth  # noqa: E402
-from nrdepth.metrics import flat_baseline, mae_sn  # noqa: E402
+from nrdepth.scores.metrics import flat_baseline, mae_sn  # noqa: E402
 
 
 def fill_nearest(frame: np.ndarray, on: np.ndarray) -> np.ndarray:

@@ -13,16 +13,14 @@ matte) and the inside.
 
 from __future__ import annotations
 
-import os
 import sys
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # the benchmarks' data loaders
-from bench_real import CROP, DATA, phisft_regions, region_errors  # noqa: E402
+from nrdepth.scores.real import CROP, DATA, phisft_regions, region_errors
 
 import nrdepth  # noqa: E402
-from nrdepth.metrics import flat_baseline, mae_sn  # noqa: E402
+from nrdepth.scores.metrics import flat_baseline, mae_sn  # noqa: E402
 
 
 def main() -> None:

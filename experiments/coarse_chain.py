@@ -32,18 +32,16 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
-import os
 import sys
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # the benchmarks' data loaders
-from bench_real import phisft_at_bin  # noqa: E402
+from nrdepth.scores.real import phisft_at_bin
 
 import nrdepth  # noqa: E402
-from nrdepth.evaluate import TEST_SEED  # noqa: E402
-from nrdepth.generate import observable_depth  # noqa: E402
-from nrdepth.metrics import flat_baseline, mae_sn  # noqa: E402
+from nrdepth.learning.evaluate import TEST_SEED  # noqa: E402
+from nrdepth.engine.generate import observable_depth  # noqa: E402
+from nrdepth.scores.metrics import flat_baseline, mae_sn  # noqa: E402
 from nrdepth.model.io import predict_depth  # noqa: E402
 
 pipeline = sys.modules["nrdepth.reconstruct"]  # the module: nrdepth.reconstruct is the function
@@ -94,8 +92,9 @@ def trend_coupling(model, videos: int, frames: int) -> None:
     """:func:`main`'s last part: does the coarse windows' offset trend know the relief's sign?"""
     import torch
 
-    from nrdepth.metrics import sign_rates
-    from nrdepth.reconstruct import _as_unit_float, _resize, inference_model
+    from nrdepth.scores.metrics import sign_rates
+    from nrdepth.reconstruct import inference_model
+    from nrdepth.reconstruct.frames import as_unit_float, resize
 
     cpu = torch.device("cpu")
     net = inference_model(model, cpu)
@@ -104,9 +103,9 @@ def trend_coupling(model, videos: int, frames: int) -> None:
     clips = nrdepth.generate_clips(videos, seed=TEST_SEED, config=config)
     agree, signs = [], []
     for video, depth in zip(clips.video, clips.depth):
-        half = windows_half(_resize(_as_unit_float(video), (2 * SIDE, 2 * SIDE)), net, 8, cpu).astype(np.float64)
+        half = windows_half(resize(as_unit_float(video), (2 * SIDE, 2 * SIDE)), net, 8, cpu).astype(np.float64)
         slope = [np.polyfit(np.arange(LENGTH), d[a : a + LENGTH].mean(axis=(1, 2)), 1)[0] for a in range(0, frames - LENGTH + 1, LENGTH) for d in (half, depth)]
-        read_right = sign_rates(_resize(half, depth.shape[1:]), depth)["sign_correct"] > 0.5
+        read_right = sign_rates(resize(half, depth.shape[1:]), depth)["sign_correct"] > 0.5
         signs.append(read_right)
         agree.append(np.sign(np.sum(slope[0::2])) * (1 if read_right else -1) == np.sign(np.sum(slope[1::2])))
     print(f"{videos} generated 128²×{frames} videos through a pinhole, lights from every side: relief read right in {np.mean(signs):.2f} of them; "

@@ -21,12 +21,9 @@ import numpy as np
 import torch
 
 import nrdepth
-import os
-import sys
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # the benchmarks' data loaders
-from bench_reconstruct import out_of_range
-from nrdepth.evaluate import TEST_SEED
+from nrdepth.scores.generated import out_of_range
+from nrdepth.learning.evaluate import TEST_SEED
 from nrdepth.reconstruct import coarse_depth, inference_model, patch_depths
 
 

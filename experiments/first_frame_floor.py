@@ -20,8 +20,8 @@ import numpy as np
 import torch
 
 import nrdepth
-from nrdepth.evaluate import TEST_SEED
-from nrdepth.metrics import gbr_fit
+from nrdepth.learning.evaluate import TEST_SEED
+from nrdepth.scores.metrics import gbr_fit
 
 
 def with_offsets(pred: np.ndarray, truth: np.ndarray, visible: np.ndarray) -> np.ndarray:

@@ -41,19 +41,17 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from bench_sheets import FAMILIES  # noqa: E402
+from nrdepth.scores.generated import SHEET_FAMILIES as FAMILIES
 
 import nrdepth  # noqa: E402
 from nrdepth import GeneratorConfig, generate_clips, image_points, isometric  # noqa: E402
-from nrdepth.metrics import dense_baselines, mae_sn, sign_rates  # noqa: E402
-from nrdepth.tracks import densify  # noqa: E402
+from nrdepth.scores.metrics import dense_baselines, mae_sn, sign_rates  # noqa: E402
+from nrdepth.baselines.tracks import densify  # noqa: E402
 
 SEED = 4141
 """A seed no training run or other benchmark draws from."""
@@ -85,7 +83,7 @@ def in_view(xy: np.ndarray, size: int) -> np.ndarray:
     """Which of the positions (T, n, 2) a tracker could still hold: in the
     frame in every frame so far (``track_points`` loses a point for good
     where it leaves the frame)."""
-    inside = isometric._inside(xy.reshape(-1, 2), (size, size), isometric.BORDER).reshape(xy.shape[:2])
+    inside = isometric.inside(xy.reshape(-1, 2), (size, size), isometric.BORDER).reshape(xy.shape[:2])
     return np.logical_and.accumulate(inside, axis=0)
 
 

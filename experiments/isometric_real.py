@@ -38,19 +38,17 @@ from __future__ import annotations
 
 import argparse
 import csv
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from bench_real import CENTRE, CROP, DATA, FOCAL, KINECT_INNER, KINECT_ROI, kinect_references, kinect_score, kinect_truth  # noqa: E402
+from nrdepth.scores.real import CENTRE, CROP, DATA, FOCAL, KINECT_INNER, KINECT_ROI, kinect_references, kinect_score, kinect_truth
 
 import nrdepth  # noqa: E402
 from nrdepth import isometric  # noqa: E402
-from nrdepth.metrics import dense_baselines, flat_baseline, mae_sn, sign_rates  # noqa: E402
-from nrdepth.videoio import read_video  # noqa: E402
+from nrdepth.scores.metrics import dense_baselines, flat_baseline, mae_sn, sign_rates  # noqa: E402
+from nrdepth.io import read_video  # noqa: E402
 
 FIGURES = ("kinect_mm", "kinect_inner_mm", "phisft_frame", "phisft_first")
 
@@ -75,7 +73,7 @@ def phisft_isometric(shape: tuple, points: int, neighbours: int, far: int, reach
     """The cloth's isometric depth on the binned crop, of ``shape`` (T, H, W)."""
     from scipy.ndimage import binary_erosion
 
-    from nrdepth.tracks import densify
+    from nrdepth.baselines.tracks import densify
 
     top, bottom, left, right = CROP
     full = read_video(DATA / "phisft_R1" / "rgbs").frames
@@ -143,7 +141,7 @@ def read_all(args) -> list:
 def grid(args) -> None:
     frames, focal, centre, print_area = kinect_inputs()
     truth = kinect_truth()
-    from nrdepth.tracks import densify
+    from nrdepth.baselines.tracks import densify
 
     for points in args.points:
         xy = isometric.track_grid(frames, print_area, points, args.window, not args.forward, args.drop[0])

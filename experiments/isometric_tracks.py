@@ -27,16 +27,13 @@ independent Gaussian noise of each standard deviation given (pixels, seed
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from bench_real import DATA, kinect_truth  # noqa: E402
+from nrdepth.scores.real import DATA, kinect_truth
 
 from nrdepth.isometric import least_disagreeing, mdh_depths, track_points  # noqa: E402
-from nrdepth.videoio import read_video  # noqa: E402
+from nrdepth.io import read_video  # noqa: E402
 
 NEIGHBOURS = 10
 

@@ -12,18 +12,15 @@ truth's own best quadratic scores 2.84 and 2.73 mm).
 from __future__ import annotations
 
 import argparse
-import os
-import sys
 
 import numpy as np
 import torch
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # the benchmarks' data loaders
-from bench_real import DATA, KINECT_INNER, KINECT_ROI, kinect_score, kinect_truth  # noqa: E402
+from nrdepth.scores.real import DATA, KINECT_INNER, KINECT_ROI, kinect_score, kinect_truth
 
 import nrdepth  # noqa: E402
 from nrdepth.reconstruct import coarse_depth, inference_model  # noqa: E402
-from nrdepth.videoio import read_video  # noqa: E402
+from nrdepth.io import read_video  # noqa: E402
 
 
 def quadratic(depth: np.ndarray) -> np.ndarray:

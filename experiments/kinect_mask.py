@@ -13,16 +13,13 @@ whole sheet (``bench_real.KINECT_ROI``).
 from __future__ import annotations
 
 import argparse
-import os
-import sys
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # the benchmarks' data loaders
-from bench_real import DATA, KINECT_ROI, kinect_references, kinect_score, kinect_truth  # noqa: E402
+from nrdepth.scores.real import DATA, KINECT_ROI, kinect_references, kinect_score, kinect_truth
 
 import nrdepth  # noqa: E402
-from nrdepth.videoio import read_video  # noqa: E402
+from nrdepth.io import read_video  # noqa: E402
 
 
 def hull_masks(truth: dict, frames: int, shape: tuple, margin: int) -> np.ndarray:

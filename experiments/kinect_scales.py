@@ -11,18 +11,15 @@ relief scale for the video, each frame's plane its own), scored in mm on
 from __future__ import annotations
 
 import argparse
-import os
-import sys
 
 import numpy as np
 import torch
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # the benchmarks' data loaders
-from bench_real import DATA, KINECT_INNER, KINECT_ROI, kinect_score, kinect_truth  # noqa: E402
+from nrdepth.scores.real import DATA, KINECT_INNER, KINECT_ROI, kinect_score, kinect_truth
 
 import nrdepth  # noqa: E402
 from nrdepth.reconstruct import MAX_SIDE, inference_model  # noqa: E402
-from nrdepth.videoio import read_video  # noqa: E402
+from nrdepth.io import read_video  # noqa: E402
 
 SIDES = (96, 128, 192, 256, MAX_SIDE)
 AVERAGES = ((128, MAX_SIDE), (96, 128, 192), SIDES)

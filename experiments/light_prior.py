@@ -31,8 +31,8 @@ import numpy as np
 import torch
 
 import nrdepth
-from nrdepth.evaluate import TEST_SEED
-from nrdepth.metrics import mae_sn, sign_rates
+from nrdepth.learning.evaluate import TEST_SEED
+from nrdepth.scores.metrics import mae_sn, sign_rates
 from nrdepth.model import load_model, predict_depth
 
 BIN_DEGREES = 15

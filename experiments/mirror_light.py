@@ -23,8 +23,8 @@ import math
 
 import numpy as np
 
-from nrdepth.render import CAMERA_Z, Light, Material, procedural_texture, render
-from nrdepth.surface import grid_triangles, sample_surface_params, synthesize_surface
+from nrdepth.engine.render import CAMERA_Z, Light, Material, procedural_texture, render
+from nrdepth.engine.surface import grid_triangles, sample_surface_params, synthesize_surface
 
 GRID, SIZE = 64, 64
 WINDOW = (-0.8, -0.8, 0.8, 0.8)  # inside the patch [-1, 1]² (a border view would show black on both sides alike)

@@ -40,15 +40,14 @@ import sys
 import numpy as np
 import torch
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # the benchmarks' data loaders
-from bench_real import DATA, KINECT_INNER, KINECT_ROI, kinect_score, kinect_truth, phisft_at_bin, phisft_regions, region_errors  # noqa: E402
+from nrdepth.scores.real import DATA, KINECT_INNER, KINECT_ROI, kinect_score, kinect_truth, phisft_at_bin, phisft_regions, region_errors
 from coarse_chain import CAMERAS  # noqa: E402  (a sibling script: experiments/ is on the path when one runs)
 
 import nrdepth  # noqa: E402
-from nrdepth.evaluate import TEST_SEED  # noqa: E402
-from nrdepth.generate import observable_depth  # noqa: E402
-from nrdepth.metrics import mae_sn  # noqa: E402
-from nrdepth.videoio import read_video  # noqa: E402
+from nrdepth.learning.evaluate import TEST_SEED  # noqa: E402
+from nrdepth.engine.generate import observable_depth  # noqa: E402
+from nrdepth.scores.metrics import mae_sn  # noqa: E402
+from nrdepth.io import read_video  # noqa: E402
 
 pipeline = sys.modules["nrdepth.reconstruct"]  # the module: nrdepth.reconstruct is the function
 original_coarse_half, original_field_windows = pipeline.coarse_half, pipeline.field_windows

@@ -43,16 +43,13 @@ import numpy as np
 import torch
 
 import nrdepth
-from nrdepth.metrics import flat_baseline, mae_sn, relief_signs
+from nrdepth.scores.metrics import flat_baseline, mae_sn, relief_signs
 from nrdepth.model import DEFAULT_MODEL, load_model, predict_depth
 from nrdepth.reconstruct import coarse_depth, inference_model, patch_depths
-from nrdepth.stitch import patch_layout
+from nrdepth.reconstruct.stitch import patch_layout
 
-import os
-import sys
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # the benchmarks' data loaders
-from bench_real import crop_at_bin, phisft_at_bin
+from nrdepth.scores.real import crop_at_bin, phisft_at_bin
 
 def patches(video: np.ndarray, truth: np.ndarray) -> tuple:
     """27 clips (uint8; 3 origins spread evenly over each image axis) and

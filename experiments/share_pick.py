@@ -19,22 +19,19 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
-import sys
 
 import numpy as np
 import torch
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))
-from bench_real import DATA, KINECT_INNER, KINECT_ROI, kinect_score, kinect_truth, phisft_at_bin  # noqa: E402
+from nrdepth.scores.real import DATA, KINECT_INNER, KINECT_ROI, kinect_score, kinect_truth, phisft_at_bin
 from coarse_chain import CAMERAS  # noqa: E402
 from real_cross import coarse_reading, fine_pass_once, original_coarse_half, original_field_windows, pipeline  # noqa: E402
 
 import nrdepth  # noqa: E402
-from nrdepth.evaluate import TEST_SEED  # noqa: E402
-from nrdepth.generate import observable_depth  # noqa: E402
-from nrdepth.metrics import mae_sn  # noqa: E402
-from nrdepth.videoio import read_video  # noqa: E402
+from nrdepth.learning.evaluate import TEST_SEED  # noqa: E402
+from nrdepth.engine.generate import observable_depth  # noqa: E402
+from nrdepth.scores.metrics import mae_sn  # noqa: E402
+from nrdepth.io import read_video  # noqa: E402
 
 
 def detrended(block: np.ndarray, design: np.ndarray) -> np.ndarray:

@@ -27,15 +27,12 @@ import scipy.sparse.linalg as spl
 import torch
 
 import nrdepth
-import os
-import sys
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # the benchmarks' data loaders
-from bench_reconstruct import out_of_range
-from nrdepth.evaluate import TEST_SEED
+from nrdepth.scores.generated import out_of_range
+from nrdepth.learning.evaluate import TEST_SEED
 from nrdepth.reconstruct import coarse_depth, inference_model, patch_depths
-from nrdepth.stitch import COARSE_WEIGHT, patch_layout
-from bench_real import phisft_at_bin
+from nrdepth.reconstruct.stitch import COARSE_WEIGHT, patch_layout
+from nrdepth.scores.real import phisft_at_bin
 
 
 def tied_stitch(patches: np.ndarray, coarse: np.ndarray, mu: float, nu: float, scale: float | None, lag: int | None = None) -> np.ndarray:

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from nrdepth.cli import main
-from nrdepth.dataset import ClipStore
-from nrdepth.generate import window_widths
+from nrdepth.engine.dataset import ClipStore
+from nrdepth.engine.generate import window_widths
 
 
 def png_size(path):
@@ -44,8 +44,8 @@ def test_unwritable_destination_is_a_clear_error(tmp_path, capsys):
 def test_pictures_carry_titles_and_a_colour_bar_with_values():
     import numpy as np
 
-    from nrdepth.figures import ColourBar, labelled
-    from nrdepth.videoio import colorize_depth
+    from nrdepth.io.figures import ColourBar, labelled
+    from nrdepth.io import colorize_depth
 
     depth = np.linspace(1.0, 2.0, 60 * 90).reshape(1, 60, 90)
     mosaic = colorize_depth(depth, (1.0, 2.0))[0]
@@ -94,7 +94,7 @@ def test_generate_passes_the_window_width_to_the_generator(tmp_path, capsys):
 
 
 def test_evaluate_passes_the_readings_to_the_scores(tmp_path, capsys):
-    from nrdepth.evaluate import evaluate
+    from nrdepth.learning.evaluate import evaluate
     from nrdepth.model import DEFAULT_MODEL
 
     assert main(["evaluate", str(DEFAULT_MODEL), "--clips", "2", "--device", "cpu", "--readings", "4", "-o", str(tmp_path)]) == 0
@@ -106,7 +106,7 @@ def test_evaluate_passes_the_readings_to_the_scores(tmp_path, capsys):
 
 
 def test_train_defaults_to_the_recommended_recipe_and_the_paper_is_one_flag_away(tmp_path, capsys):
-    from nrdepth.train import PAPER, RECOMMENDED
+    from nrdepth.learning import PAPER, RECOMMENDED
 
     tiny = ["--epochs", "1", "--steps", "1", "--batch-size", "1", "--validation-clips", "1", "--workers", "0", "--device", "cpu",
             "--base", "4", "--frames", "4", "--quiet"]

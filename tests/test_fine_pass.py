@@ -12,12 +12,13 @@ import torch
 
 import nrdepth
 import nrdepth.model
-from nrdepth.reconstruct import MARGIN, _spans, field_frames, field_windows, inference_model, reconstruct_file, tile_plan, working_shape
+from nrdepth.reconstruct.fine import axis_spans
+from nrdepth.reconstruct import MARGIN, field_frames, field_windows, inference_model, reconstruct_file, tile_plan, working_shape
 
 
 @pytest.mark.parametrize("length, core, margin, align", [(480, 320, 64, 8), (640, 320, 64, 8), (16, 32, 8, 1), (191, 32, 8, 1), (200, 64, 0, 4), (8, 8, 8, 8)])
 def test_tile_cores_partition_the_axis_on_the_alignment_grid(length, core, margin, align):
-    spans = _spans(length, core, margin, align)
+    spans = axis_spans(length, core, margin, align)
     kept = [(a, b) for _, _, a, b in spans]
     assert kept[0][0] == 0 and kept[-1][1] == length and all(b == c for (_, b), (c, _) in zip(kept, kept[1:]))
     for lo, hi, a, b in spans:
@@ -135,10 +136,10 @@ def test_a_mask_file_streamed_to_a_folder_matches_the_in_memory_masked_reconstru
     import av
 
     from nrdepth.cli import main
-    from nrdepth.preview import save_png
-    from nrdepth.train import save_model
-    from nrdepth.videoio import read_video, select
-    from nrdepth.viewer import HOLE, ViewerFrames, _block_mean
+    from nrdepth.engine.preview import save_png
+    from nrdepth.model import save_model
+    from nrdepth.io import read_video, select
+    from nrdepth.io.viewer import HOLE, ViewerFrames, _block_mean
 
     torch.manual_seed(0)
     model = nrdepth.model.UNet3D(base=2)

@@ -17,7 +17,7 @@ import pytest
 
 import nrdepth
 from nrdepth import GeneratorConfig
-from nrdepth.dataset import ClipStore, write_dataset
+from nrdepth.engine.dataset import ClipStore, write_dataset
 
 SMALL = GeneratorConfig(frames=4, size=24, grid=24, texture_size=64)
 
@@ -167,7 +167,7 @@ def test_backdrops_show_the_border_over_a_background_and_mask_the_depth_off_the_
     assert len(first_tries) >= 3
     for a, b in first_tries:
         assert {k: v for k, v in a.items() if k not in ("backdrop", "window")} == {k: v for k, v in b.items() if k not in ("backdrop", "window")}
-    widths = nrdepth.generate.window_widths(shown.params)
+    widths = nrdepth.engine.generate.window_widths(shown.params)
     assert ((widths >= config.backdrop_window_width[0] - 1e-6) & (widths <= config.backdrop_window_width[1] + 1e-6)).all()
     on_sheet = np.isfinite(shown.depth).mean(axis=(2, 3))
     assert (on_sheet >= config.backdrop_min_cover).all() and on_sheet.min() < 1
@@ -268,7 +268,7 @@ def test_generation_works_in_a_forked_child_after_the_parent_used_threads():
 
 
 def test_textures_from_a_folder(tmp_path):
-    from nrdepth.preview import save_png
+    from nrdepth.engine.preview import save_png
 
     for k in range(2):
         rng = np.random.default_rng(k)

@@ -16,9 +16,11 @@ import pytest
 pytest.importorskip("cv2")
 pytest.importorskip("clarabel")
 
+import nrdepth  # noqa: E402
 from nrdepth import isometric  # noqa: E402
-from nrdepth.isometric import _rays, _refine, _socp, least_disagreeing  # noqa: E402
-from nrdepth.tracks import densify  # noqa: E402
+from nrdepth.isometric import least_disagreeing
+from nrdepth.isometric.mdh import _refine, _socp  # noqa: E402
+from nrdepth.baselines.tracks import densify  # noqa: E402
 
 FOCAL = 500.0
 
@@ -90,7 +92,7 @@ def test_mdh_refined_reads_a_rolled_sheet_the_joint_program_domes():
     refined = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, template="refined")
     assert relief_error(refined, truth, xy).max() < 0.03 < 0.2 < relief_error(joint, truth, xy).mean()
     # A sheet moved rigidly keeps every chord: its depths and distances are a zero of the residuals, kept.
-    points = (_rays(xy, FOCAL, (0.0, 0.0)) * truth[..., None])[3]
+    points = (nrdepth.Camera(FOCAL, (0.0, 0.0)).rays(xy) * truth[..., None])[3]
     moved = np.stack([points @ np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]]) + [0.1 * a, 0, a] for a in (0, 0.3, 0.6)])
     pairs = isometric.neighbour_pairs(moved[0, :, :2] / moved[0, :, 2:], 8)
     distances = np.linalg.norm(points[pairs[:, 0]] - points[pairs[:, 1]], axis=1)
@@ -106,7 +108,7 @@ def test_mdh_refined_reads_a_rolled_sheet_the_joint_program_domes():
 def test_mdh_fixed_distances_give_back_the_joint_solution():
     xy, _ = rolled_sheet(frames=6, side=7)
     pairs = isometric.neighbour_pairs(xy[0], 6)
-    rays = _rays(xy, FOCAL, (0.0, 0.0))
+    rays = nrdepth.Camera(FOCAL, (0.0, 0.0)).rays(xy)
     joint, distances = _socp(rays, pairs, None)
     assert np.isclose(distances.sum(), len(pairs), rtol=1e-6)
     for t in (0, 3, 5):  # given the template distances, the frames are independent
@@ -118,7 +120,7 @@ def test_mdh_is_reproducible_at_any_thread_count(monkeypatch):
     xy, _ = rolled_sheet(frames=6, side=7)
     first = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=6, keyframes=3)
     assert first.tobytes() == isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=6, keyframes=3).tobytes()
-    monkeypatch.setattr(isometric.os, "cpu_count", lambda: 1)  # the frames outside the keyframes one after another
+    monkeypatch.setattr(isometric.mdh.os, "cpu_count", lambda: 1)  # the frames outside the keyframes one after another
     assert first.tobytes() == isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=6, keyframes=3).tobytes()
 
 
@@ -175,7 +177,7 @@ def test_track_points_loses_a_point_that_leaves_the_frame():
     # Out of view the point binds nothing: the frame reads as if it had never been tracked.
     sheet, _ = rolled_sheet(frames=6, side=7)
     pairs = isometric.neighbour_pairs(sheet[0], 6)
-    distances = np.linalg.norm(_rays(sheet, FOCAL, (0.0, 0.0))[0, pairs[:, 0]] - _rays(sheet, FOCAL, (0.0, 0.0))[0, pairs[:, 1]], axis=1)
+    distances = np.linalg.norm(nrdepth.Camera(FOCAL, (0.0, 0.0)).rays(sheet)[0, pairs[:, 0]] - nrdepth.Camera(FOCAL, (0.0, 0.0)).rays(sheet)[0, pairs[:, 1]], axis=1)
     gone = np.array([0, 1, 7])  # a corner of the sheet, out of view from frame 3
     lost = sheet.copy()
     lost[3:, gone] = np.nan
@@ -255,7 +257,7 @@ def test_track_grid_is_the_same_at_any_thread_count():
 
 
 def test_fuse_is_gbr_invariant_and_spans_its_inputs():
-    from nrdepth.metrics import _design, gbr_fit
+    from nrdepth.scores.metrics import gbr_design, gbr_fit
 
     rng = np.random.default_rng(0)
     depth, iso = rng.normal(size=(2, 3, 24, 32))
@@ -272,7 +274,7 @@ def test_fuse_is_gbr_invariant_and_spans_its_inputs():
     # far above the frame's size the fusion is the network's depth fitted to the isometric one
     each = [gbr_fit(d, i) for d, i in zip(depth, iso)]
     shared = np.median([fit[2] for fit in each])
-    by_frame = np.stack([(_design(d) @ fit).reshape(d.shape) for d, fit in zip(depth, each)])
+    by_frame = np.stack([(gbr_design(d) @ fit).reshape(d.shape) for d, fit in zip(depth, each)])
     np.testing.assert_allclose(isometric.fuse(depth, iso, 1e4), by_frame, atol=1e-6)
     video = isometric.fuse(depth, iso, 1e4, relief="video") - shared * depth  # one λ, the median of the frames': a plane per frame is left
     for frame in video:
@@ -283,7 +285,7 @@ def test_fuse_is_gbr_invariant_and_spans_its_inputs():
 
     mask = np.ones(depth.shape, bool)
     mask[:, :6, :10] = False
-    aligned = [(_design(d) @ gbr_fit(d, i, m)).reshape(d.shape) for d, i, m in zip(depth, iso, mask)]
+    aligned = [(gbr_design(d) @ gbr_fit(d, i, m)).reshape(d.shape) for d, i, m in zip(depth, iso, mask)]
     smooth = lambda a: gaussian_filter(a, 2.0, mode="constant", truncate=8.0)  # noqa: E731
     brute = [a + smooth(np.where(m, i - a, 0.0)) / smooth(m.astype(float)) for a, i, m in zip(aligned, iso, mask)]
     np.testing.assert_allclose(isometric.fuse(depth, iso, 2.0, mask=mask), brute, atol=1e-6)  # the FFT pads by 4σ

@@ -5,7 +5,7 @@ import pytest
 import torch
 
 import nrdepth
-from nrdepth.losses import (
+from nrdepth.learning.losses import (
     aligned_both_offsets_signed_loss,
     aligned_both_signed_loss,
     aligned_clip_loss,
@@ -21,7 +21,7 @@ from nrdepth.losses import (
     get_loss,
     tr_sc_loss,
 )
-from nrdepth.metrics import flat_baseline, mae_sn, relief_signs, sign_rates
+from nrdepth.scores.metrics import flat_baseline, mae_sn, relief_signs, sign_rates
 from nrdepth.model import UNet2p1D, UNet2p1DDeep, UNet2p1DGlobal, UNet3D, count_parameters
 
 
@@ -392,7 +392,7 @@ def test_a_mask_scores_only_its_pixels():
 
 
 def test_the_relief_amplitude_term_sees_the_relief_scale_and_nothing_else():
-    from nrdepth.losses import AMPLITUDE_FLOOR, relief_amplitude_loss, relief_rms
+    from nrdepth.learning.losses import AMPLITUDE_FLOOR, relief_amplitude_loss, relief_rms
 
     z = smooth_depth(3)
     relief = 0.05 * z
@@ -417,7 +417,7 @@ def test_averaged_readings_commute_with_the_symmetries_they_average():
     upside down and negated, so turning the input upside down turns the
     depth upside down and negates it; whatever the network. One reading of
     a random network has neither symmetry."""
-    from nrdepth.evaluate import evaluate
+    from nrdepth.learning.evaluate import evaluate
     from nrdepth.model import predict_depth
 
     torch.manual_seed(0)

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from nrdepth.nrsfm import _spaces, cameras, csf2, dct_basis, error_3d, kernel_basis, ksta
+from nrdepth.baselines.nrsfm import _spaces, cameras, csf2, dct_basis, error_3d, kernel_basis, ksta
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "nrsfm"
 PTA = {"drink": 0.0250, "pickup": 0.2369, "yoga": 0.1625, "stretch": 0.1088, "dance": 0.2956}
@@ -97,7 +97,7 @@ def test_the_csf2_gradient_matches_finite_differences():
             e[i, k] = 1e-6
             numeric[i, k] = (f(X + e) - f(X - e)) / 2e-6
     # The gradient csf2's descent uses, from its own helper.
-    from nrdepth import nrsfm
+    from nrdepth.baselines import nrsfm
 
     Ms, pinvs, Ss, Rk = _spaces(X, B, Rs, Wc)
     Bnr = np.concatenate([np.repeat(B[:, i], 2)[:, None] * Rs for i in range(d)], axis=1).reshape(2 * T, d, 3)
@@ -126,7 +126,7 @@ def test_bad_input_is_named(kwargs, name):
 
 def test_tracks_follow_the_vertices_and_dense_exact_depths_come_back():
     import nrdepth
-    from nrdepth.tracks import clip_tracks, densify
+    from nrdepth.baselines.tracks import clip_tracks, densify
 
     config = nrdepth.GeneratorConfig(size=64, frames=4, grid=32, texture_size=64)
     clip = nrdepth.generate_clips(1, seed=4, config=config)
@@ -170,7 +170,7 @@ def moving_texture_video(frames: int = 6, size: int = 96):
 
 def test_tracked_corners_follow_a_known_motion_and_lost_points_are_dropped():
     pytest.importorskip("cv2")
-    from nrdepth.tracks import track_video
+    from nrdepth.baselines.tracks import track_video
 
     video, truth = moving_texture_video()
     xy = track_video(video, max_points=200, mask=np.pad(np.ones((64, 64), bool), 16))

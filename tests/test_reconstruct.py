@@ -14,9 +14,9 @@ import torch
 
 import nrdepth
 from nrdepth.cli import main
-from nrdepth.preview import save_png
-from nrdepth.train import DEFAULT_MODEL, load_model, save_model
-from nrdepth.videoio import PLY_RELIEF, read_video, save_reconstruction, write_mp4
+from nrdepth.engine.preview import save_png
+from nrdepth.model import DEFAULT_MODEL, load_model, save_model
+from nrdepth.io import PLY_RELIEF, read_video, save_reconstruction, write_mp4
 
 
 def moving_texture(t=12, h=48, w=40, seed=0) -> np.ndarray:
@@ -177,7 +177,7 @@ def test_cli_bad_input_is_named_and_writes_nothing(tmp_path, tiny_model, capsys,
 
 
 def test_interrupted_save_leaves_nothing(tmp_path, monkeypatch):
-    import nrdepth.videoio as videoio
+    import nrdepth.io.folder as videoio
 
     def fail(*_args, **_kwargs):
         raise KeyboardInterrupt

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from nrdepth.metrics import _bilinear, dense_baselines, sparse_baselines, sparse_mae, sparse_sign_rate
+from nrdepth.scores.metrics import _bilinear, dense_baselines, sparse_baselines, sparse_mae, sparse_sign_rate
 
 
 def scene(frames=3, points=50, seed=0):

@@ -10,8 +10,8 @@ import torch
 
 import nrdepth
 import nrdepth.model
-from nrdepth.metrics import grid_contrast
-from nrdepth.stitch import PATCH, TEMPORAL_WEIGHT
+from nrdepth.scores.metrics import grid_contrast
+from nrdepth.reconstruct.stitch import PATCH, TEMPORAL_WEIGHT
 
 
 def smooth_video(shape, seed=0):
@@ -338,13 +338,13 @@ def test_streaming_stitcher_refuses_misshapen_chunks_and_reuse():
 
 
 def test_relief_scale_undoes_a_shrunk_relief_whatever_each_frames_plane():
-    from nrdepth.reconstruct import _relief_scale
+    from nrdepth.reconstruct.export import relief_scale
 
     reference = smooth_video((4, 40, 56), seed=2).astype(np.float64)
     y, x = np.mgrid[0:40, 0:56]
     shrunk = np.stack([0.4 * f + a * x + b * y + c for f, (a, b, c) in zip(reference, np.random.default_rng(0).normal(size=(4, 3)))])
-    assert _relief_scale(shrunk, reference) == pytest.approx(2.5, rel=1e-9)
-    assert _relief_scale(np.stack([x + y] * 4).astype(float), reference) == 1.0  # planes: no relief to scale
+    assert relief_scale(shrunk, reference) == pytest.approx(2.5, rel=1e-9)
+    assert relief_scale(np.stack([x + y] * 4).astype(float), reference) == 1.0  # planes: no relief to scale
 
 
 def _companion_pair(tmp_path, share, seeds=(0, 1)):

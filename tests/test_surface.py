@@ -2,7 +2,6 @@
 space and time, reproducible bit for bit, and bad input is refused by name."""
 
 import dataclasses
-import hashlib
 import math
 import os
 import subprocess

@@ -10,7 +10,9 @@ import pytest
 import torch
 
 import nrdepth
-from nrdepth.train import DEFAULT_MODEL, TrainConfig, load_model, predict_depth, train
+from nrdepth.learning import TrainConfig
+from nrdepth.learning.train import train
+from nrdepth.model import DEFAULT_MODEL, load_model, predict_depth
 
 TINY = dict(
     base=2, batch_size=2, steps_per_epoch=3, epochs=2, lr=3e-3, validation_clips=2, workers=0, device="cpu",
@@ -94,7 +96,7 @@ def test_bad_train_config_is_named(changes, name):
 
 
 def test_a_real_video_is_scored_every_epoch_by_the_weights_of_that_epoch(tmp_path):
-    from nrdepth.evaluate import load_real_video, score_real_video
+    from nrdepth.learning.evaluate import load_real_video, score_real_video
 
     clip = nrdepth.generate_clips(1, seed=9)
     depth = clip.depth[0].copy()
@@ -128,7 +130,7 @@ def test_a_real_video_is_scored_every_epoch_by_the_weights_of_that_epoch(tmp_pat
 
 
 def test_several_real_videos_dense_and_sparse_are_scored_in_their_own_columns(tmp_path):
-    from nrdepth.evaluate import load_real, score_real
+    from nrdepth.learning.evaluate import load_real, score_real
 
     clip = nrdepth.generate_clips(2, seed=9)
     np.savez(tmp_path / "cloth.npz", video=clip.video[0], depth=clip.depth[0])
@@ -181,7 +183,7 @@ def test_evaluate_writes_per_clip_scores_and_a_summary(tmp_path):
 
 
 def test_training_from_a_stored_dataset(tmp_path):
-    from nrdepth.dataset import write_dataset
+    from nrdepth.engine.dataset import write_dataset
 
     write_dataset(tmp_path / "data", 20, seed=2, config=TINY["generator"], shard_size=8, progress=False)
     config = TrainConfig(loss="gbr", data=str(tmp_path / "data"), **{**TINY, "epochs": 1})
@@ -253,7 +255,7 @@ def test_a_resume_may_change_workers_device_and_with_a_constant_schedule_epochs_
 
 
 def test_the_observable_target_is_the_depth_of_the_surface_that_never_moves_along_the_optical_axis():
-    from nrdepth.surface import SurfaceParams
+    from nrdepth.engine.surface import SurfaceParams
 
     config = nrdepth.GeneratorConfig(size=32, frames=4, grid=32, texture_size=64)
     clip = nrdepth.generate_clips(1, seed=5, config=config)
@@ -318,9 +320,9 @@ def test_the_anchor_pulls_every_step_back_toward_the_warm_start(tmp_path):
 
 
 def test_an_amplitude_run_trains_on_window_widths_and_its_warm_start_is_calibrated(tmp_path):
-    from nrdepth.evaluate import relief_ratio
-    from nrdepth.generate import window_widths
-    from nrdepth.train import CALIBRATION_CLIPS, VALIDATION_SEED_OFFSET, targets
+    from nrdepth.learning.evaluate import relief_ratio
+    from nrdepth.engine.generate import window_widths
+    from nrdepth.learning.train import CALIBRATION_CLIPS, VALIDATION_SEED_OFFSET, targets
 
     generator = TINY["generator"]
     clips = nrdepth.generate_clips(3, seed=1, config=generator)
@@ -344,7 +346,7 @@ def test_an_amplitude_run_trains_on_window_widths_and_its_warm_start_is_calibrat
     before = relief_ratio(predict_depth(load_model(tmp_path / "first"), check.video), truth)
     assert abs(before - 1) > 0.1 and abs(relief_ratio(predict_depth(model, check.video), truth) - 1) < 1e-3
     assert float(rows(tmp_path / "warm")[0]["val_relief_ratio"]) > 0
-    summary = nrdepth.evaluate.evaluate(tmp_path / "warm", clips=2, config=generator, device="cpu")
-    assert summary["relief_ratio"]["geometric_mean"] > 0 and "relief_ratio" not in nrdepth.evaluate.evaluate(tmp_path / "first", clips=2, config=generator, device="cpu")
+    summary = nrdepth.learning.evaluate.evaluate(tmp_path / "warm", clips=2, config=generator, device="cpu")
+    assert summary["relief_ratio"]["geometric_mean"] > 0 and "relief_ratio" not in nrdepth.learning.evaluate.evaluate(tmp_path / "first", clips=2, config=generator, device="cpu")
     with pytest.raises(ValueError, match="^amplitude:"):
         TrainConfig(amplitude=-1.0)

@@ -1,4 +1,4 @@
-"""The 3-D viewer page (``nrdepth.viewer``): its data round trip, decimation
+"""The 3-D viewer page (``nrdepth.io.viewer``): its data round trip, decimation
 and size, the files that write it, and the page itself in a real headless
 Chromium, offline: its script runs without errors, the canvas shows both
 the surface and the background, and moving the time slider changes the
@@ -17,7 +17,7 @@ import pytest
 
 import nrdepth
 import nrdepth.model
-from nrdepth.viewer import SAMPLES, ViewerFrames, view
+from nrdepth.io.viewer import SAMPLES, ViewerFrames, view
 
 
 def clip(size=96, seed=3):

@@ -15,13 +15,14 @@ import os as _os
 # allocation; a value the user set is kept.
 _os.environ.setdefault("THP_MEM_ALLOC_ENABLE", "1")
 
-from .generate import Clips, GeneratorConfig, generate_clips, image_points, observable_depth
-from .metrics import flat_baseline, gbr_align, grid_contrast, mae_sn, sign_rates
-from .stitch import PatchLayout, patch_layout, stitch, temporal_align
-from .reconstruct import reconstruct, reconstruct_file
-from .viewer import view
-from .render import CAMERA_Z, TEXTURE_FAMILIES, Light, Material, Render, procedural_texture, raycast_depth, render
-from .surface import (
+from .engine.generate import Clips, GeneratorConfig, generate_clips, image_points, observable_depth
+from .scores.metrics import flat_baseline, gbr_align, grid_contrast, mae_sn, sign_rates
+from .reconstruct.stitch import PatchLayout, patch_layout, stitch, temporal_align
+from .camera import Camera
+from .reconstruct import Options, reconstruct, reconstruct_file
+from .io import view
+from .engine.render import CAMERA_Z, TEXTURE_FAMILIES, Light, Material, Render, procedural_texture, raycast_depth, render
+from .engine.surface import (
     SurfaceConfig,
     SurfaceParams,
     grid_triangles,
@@ -31,6 +32,8 @@ from .surface import (
 )
 
 __all__ = [
+    "Camera",
+    "Options",
     "CAMERA_Z",
     "TEXTURE_FAMILIES",
     "Clips",

@@ -15,10 +15,10 @@ from typing import Any, Callable, Dict, Optional, Union
 
 import numpy as np
 
-from .evaluate import TEST_SEED
-from .generate import GeneratorConfig, generate_clips
-from .metrics import flat_baseline, gbr_align, mae_sn
-from .videoio import colorize_depth, depth_range
+from .learning.evaluate import TEST_SEED
+from .engine.generate import GeneratorConfig, generate_clips
+from .scores.metrics import flat_baseline, gbr_align, mae_sn
+from .io import colorize_depth, depth_range
 
 __all__ = ["run_demo", "demo_picture", "demo_page"]
 
@@ -62,7 +62,7 @@ def demo_picture(result: Dict[str, Any], frames_shown: int = 4) -> np.ndarray:
     alignment MAE-SN scores), both depths in the truth's colour range, under
     column titles and the scores, with a colour bar in the truth's units
     (near is yellow, far is blue); drawn by matplotlib."""
-    from .figures import ColourBar, labelled
+    from .io.figures import ColourBar, labelled
 
     video, truth = result["video"], result["truth"]
     aligned = gbr_align(result["depth"], truth, "frame")
@@ -83,7 +83,7 @@ def demo_page(result: Dict[str, Any], path: "Union[str, os.PathLike[str]]") -> "
     """The 3-D page (:mod:`nrdepth.viewer`) of a demo: the ground truth and
     the reconstruction mapped onto it by its per-frame GBR, side by side,
     each draped with the video, under one time slider."""
-    from .viewer import ViewerFrames, write_page
+    from .io.viewer import ViewerFrames, write_page
 
     video, truth = result["video"], result["truth"]
     videos = []

@@ -28,7 +28,7 @@ from typing import Dict, List, Optional, Sequence, Set, Tuple, Union
 import torch
 from torch import nn
 
-from .io import _unwrap, architecture_name, build_model, load_model
+from .io import unwrap, architecture_name, build_model, load_model
 
 __all__ = ["average_models"]
 
@@ -53,9 +53,9 @@ def average_models(models: Sequence[ModelLike], weights: Optional[Sequence[float
     units = {getattr(m, "depth_units", None) for m in loaded}
     if len(units) > 1:
         raise ValueError(f"models: expected one depth_units for all (a model with a relief scale and one without do not average), got {sorted(map(str, units))}")
-    states = [{k: v.detach().float().cpu() for k, v in _unwrap(m).state_dict().items()} for m in loaded]
+    states = [{k: v.detach().float().cpu() for k, v in unwrap(m).state_dict().items()} for m in loaded]
     largest = max(range(len(loaded)), key=lambda i: (len(states[i]), -i))
-    target = _unwrap(loaded[largest])
+    target = unwrap(loaded[largest])
     zero, free = _identity_start_parameters(target)
     reference = states[largest]
     for i, state in enumerate(states):
@@ -124,12 +124,12 @@ def _identity_start_parameters(model: nn.Module) -> Tuple[Set[str], Set[str]]:
 def _check_embedding(i: int, model: nn.Module, state: Dict[str, torch.Tensor], result: nn.Module) -> None:
     """ValueError unless ``model`` and its embedding ``state`` in ``result``'s
     architecture give the same depth for a fixed random patch."""
-    embedded = build_model(architecture_name(result), **_unwrap(result).config)
+    embedded = build_model(architecture_name(result), **unwrap(result).config)
     embedded.load_state_dict(state)
     patch = torch.rand((1, 1, 16, 64, 64), generator=torch.Generator().manual_seed(0))
     with torch.inference_mode():
-        want = copy.deepcopy(_unwrap(model)).float().cpu().eval()(patch)
+        want = copy.deepcopy(unwrap(model)).float().cpu().eval()(patch)
         got = embedded.eval()(patch)
     if not torch.allclose(got, want, rtol=1e-4, atol=1e-5 * float(want.abs().max())):
-        raise ValueError(f"models[{i}]: it does not compute the same function in {architecture_name(result)} {_unwrap(result).config} "
+        raise ValueError(f"models[{i}]: it does not compute the same function in {architecture_name(result)} {unwrap(result).config} "
                          "(its configuration differs in something other than identity-start modules)")

@@ -50,14 +50,15 @@ def build_model(architecture: str, **config: Any) -> nn.Module:
 
 def architecture_name(model: nn.Module) -> str:
     """The :data:`ARCHITECTURES` name of a model (unwrapping DDP and ``torch.compile``)."""
-    module = _unwrap(model)
+    module = unwrap(model)
     for name, cls in ARCHITECTURES.items():
         if type(module) is cls:
             return name
     raise ValueError(f"model: expected one of the architectures {sorted(ARCHITECTURES)}, got {type(module).__name__}")
 
 
-def _unwrap(model: nn.Module) -> nn.Module:
+def unwrap(model: nn.Module) -> nn.Module:
+    """The network inside a DistributedDataParallel or ``torch.compile`` wrapper (``model`` itself if it has none)."""
     module = getattr(model, "module", model)
     return getattr(module, "_orig_mod", module)
 
@@ -79,7 +80,7 @@ def save_model(model: nn.Module, path: Union[str, os.PathLike], extra: Optional[
     from safetensors.torch import save_file
 
     path = Path(path)
-    module = _unwrap(model)
+    module = unwrap(model)
     meta = {"architecture": architecture_name(module), "config": module.config, **(extra or {})}
     tmp = path.with_name(path.name + ".partial")
     save_file({k: v.detach().cpu().contiguous() for k, v in module.state_dict().items()}, str(tmp))

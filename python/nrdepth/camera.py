@@ -1,0 +1,78 @@
+"""The pinhole camera a video of a sheet was filmed with.
+
+Intrinsics only, in pixels of the video's frames as given (before ``roi``
+and the working resolution): focal lengths ``(f_x, f_y)`` and the principal
+point ``(c_x, c_y)``, x to the right and y down, pixel centres at integer
+coordinates. A point (X, Y, Z) in the camera's frame (Z along the optical
+axis, away from the camera) is seen at ``(f_x·X/Z + c_x, f_y·Y/Z + c_y)``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Optional, Tuple
+
+import numpy as np
+
+from .checks import is_number, option_error
+
+__all__ = ["Camera"]
+
+
+def _pair(value: Any, name: str, what: str, positive: bool) -> Tuple[float, float]:
+    """Two finite numbers (positive ones with ``positive``, where one number stands for both), not strings or bools."""
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value.item()
+    items = (value, value) if positive and is_number(value) else value
+    try:
+        items = tuple(items)
+    except TypeError:
+        items = ()
+    if len(items) != 2 or not all(is_number(v) and math.isfinite(v) and (v > 0 or not positive) for v in items):
+        raise option_error(name, f"expected {what}, got {value!r}")
+    return float(items[0]), float(items[1])
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A pinhole camera's intrinsics, checked once.
+
+    ``focal``: (f_x, f_y) in pixels, or one number for both; ``centre``:
+    the principal point (c_x, c_y) in pixels, or None for the centre of the
+    frame it is used with (:meth:`principal_point`)."""
+
+    focal: Tuple[float, float]
+    centre: Optional[Tuple[float, float]] = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "focal", _pair(self.focal, "focal", "the camera's focal length in pixels, one positive number or (f_x, f_y)", True))
+        if self.centre is not None:
+            object.__setattr__(self, "centre", _pair(self.centre, "centre", "the principal point (c_x, c_y) in pixels", False))
+
+    @classmethod
+    def from_matrix(cls, K: Any) -> "Camera":
+        """The camera of a 3×3 intrinsic matrix ``[[f_x, s, c_x], [0, f_y, c_y], [0, 0, 1]]`` (no skew)."""
+        K = np.asarray(K, np.float64)
+        if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 1] != 0 or K[1, 0] != 0 or not np.array_equal(K[2], [0, 0, 1]):
+            raise ValueError(f"K: expected a 3×3 intrinsic matrix [[f_x, 0, c_x], [0, f_y, c_y], [0, 0, 1]], got {K.tolist()}")
+        return cls((K[0, 0], K[1, 1]), (K[0, 2], K[1, 2]))
+
+    def principal_point(self, frame: Tuple[int, int]) -> Tuple[float, float]:
+        """(c_x, c_y): ``centre``, or the centre of a frame of ``frame`` (H, W) pixels."""
+        if self.centre is not None:
+            return self.centre
+        h, w = frame
+        return (w - 1) / 2, (h - 1) / 2
+
+    def at(self, frame: Tuple[int, int]) -> "Camera":
+        """This camera with its principal point fixed for frames of ``frame`` (H, W) pixels."""
+        return Camera(self.focal, self.principal_point(frame))
+
+    def rays(self, xy: np.ndarray, frame: Optional[Tuple[int, int]] = None) -> np.ndarray:
+        """The rays (…, 3) through image points ``xy`` (…, 2), scaled to z = 1
+        (``frame``: (H, W), for the default principal point)."""
+        if self.centre is None and frame is None:
+            raise ValueError("frame: the camera has no principal point; give the frame's (H, W)")
+        (fx, fy), (cx, cy) = self.focal, self.principal_point(frame)  # type: ignore[arg-type]
+        return np.stack([(xy[..., 0] - cx) / fx, (xy[..., 1] - cy) / fy, np.ones(xy.shape[:-1])], axis=-1)

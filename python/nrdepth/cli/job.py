@@ -1,0 +1,120 @@
+"""``nrdepth reconstruct``, ``view`` and ``demo``: the main job's commands."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from ..reconstruct.options import add_flags, flag_of, options_from_flags
+
+__all__ = ["add_commands"]
+
+
+def _reconstruct(args: argparse.Namespace) -> int:
+    from ..model.io import resolve_device
+    from ..reconstruct import reconstruct_file
+
+    out = Path(args.out) if args.out is not None else Path(Path(args.input).stem + "_depth")
+    bar = None
+
+    def progress(done: int, total: int) -> None:
+        nonlocal bar
+        if args.quiet:
+            return
+        if bar is None:  # once the input and output are accepted: a refusal is one line
+            from tqdm import tqdm
+
+            bar = tqdm(total=total, desc="frames", unit="frame")
+        bar.update(done - bar.n)
+
+    start = time.perf_counter()
+    try:
+        # Everything that can be refused is checked before any work or writing.
+        options = options_from_flags(args)
+        reconstruct_file(args.input, out, args.model, options, progress=progress)
+    except (ValueError, TypeError) as e:
+        # The API names its arguments (error.option); the command line names its flags.
+        option = getattr(e, "option", None)
+        if option is None or option == "input":
+            raise
+        raise type(e)(f"{flag_of(option)}: {e.detail}") from None
+    finally:
+        if bar is not None:
+            bar.close()
+    seconds = time.perf_counter() - start
+    t, h, w = _npz_shape(out / "depth.npz", "depth")
+    print(f"wrote {out}: depth of {t} frames of {w}×{h} in {seconds:.1f} s on {resolve_device(options.device)} "
+          f"(depth.npz, depth.mp4, side_by_side.mp4{', viewer.html' if options.viewer else ''}{', png16/' if options.png16 else ''}{', ply/' if options.ply else ''})")
+    return 0
+
+
+def _npz_shape(path: Path, name: str) -> tuple:
+    """The shape of array ``name`` in an .npz, read from its header alone."""
+    import zipfile
+
+    import numpy as np
+
+    with zipfile.ZipFile(path) as archive, archive.open(f"{name}.npy") as f:
+        version = np.lib.format.read_magic(f)
+        read = np.lib.format.read_array_header_2_0 if version == (2, 0) else np.lib.format.read_array_header_1_0
+        return read(f)[0]
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from ..demo import demo_page, demo_picture, run_demo
+    from ..learning.evaluate import TEST_SEED
+    from ..engine.preview import save_png
+
+    seed = TEST_SEED if args.seed is None else args.seed
+    with tqdm(total=16, desc="frames", unit="frame", disable=args.quiet) as bar:
+        result = run_demo(args.model, size=args.size, seed=seed, device=args.device, progress=lambda done, total: bar.update(done - bar.n))
+    save_png(args.out, demo_picture(result))
+    page = demo_page(result, Path(args.out).with_suffix(".html"))
+    m, f = result["mae_sn"], result["flat"]
+    t, h, w = result["video"].shape
+    print(f"demo: a generated {w}×{h}×{t} deforming-surface video (seed {seed}), reconstructed in "
+          f"{result['seconds']['reconstruct']:.1f} s")
+    print(f"{'MAE-SN':26s}{'nrdepth':>10s}{'flat baseline':>16s}")
+    print(f"{'align each frame':26s}{m['frame']:>10.4f}{f['frame']:>16.4f}")
+    print(f"{'alignment from 1st frame':26s}{m['first']:>10.4f}{f['first']:>16.4f}")
+    print(f"wrote {args.out}: frames | ground-truth depth | reconstruction (GBR-aligned per frame)")
+    print(f"wrote {page}: the truth and the reconstruction in 3-D, one time slider (open it in a browser)")
+    return 0
+
+
+def _view(args: argparse.Namespace) -> int:
+    from ..io.viewer import view
+
+    page = view(args.folder, path=args.out)
+    print(f"wrote {page}: the depth video in 3-D (open it in a browser; it needs no network)")
+    return 0
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("reconstruct", help="depth video of a video file, an image folder or a .npy/.npz array",
+                       description="Depth video of a video file, an image folder or a .npy/.npz array, streamed: memory does not grow with the "
+                       "video's length. The flags are the fields of nrdepth.reconstruct.Options; what a video costs: docs/benchmarks.md.")
+    p.add_argument("input", help="video file (mp4, avi, gif, …), folder of images, or .npy/.npz (T, H, W[, 3])")
+    p.add_argument("-o", "--out", default=None,
+                   help="output folder: depth.npz, depth.mp4, side_by_side.mp4 [, png16/, ply/] (default: INPUT_depth here)")
+    p.add_argument("--model", default=None, help="model.safetensors or run folder (default: the shipped model)")
+    add_flags(p)  # one flag per field of nrdepth.reconstruct.Options
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(run=_reconstruct)
+
+    p = sub.add_parser("view", help="write viewer.html, the 3-D page of a reconstruction folder (nrdepth reconstruct writes it by default)")
+    p.add_argument("folder", help="a folder written by nrdepth reconstruct (depth.npz, side_by_side.mp4)")
+    p.add_argument("-o", "--out", default=None, help="the page (default: FOLDER/viewer.html)")
+    p.set_defaults(run=_view)
+
+    p = sub.add_parser("demo", help="reconstruct a synthesised 256×256×16 video and score it against its true depth")
+    p.add_argument("out", nargs="?", default="demo.png", help="output PNG (default: demo.png); the 3-D page goes beside it (demo.html)")
+    p.add_argument("--model", default=None, help="model.safetensors or run folder (default: the shipped model)")
+    p.add_argument("--size", type=int, default=256, help="video side in pixels")
+    p.add_argument("--seed", type=int, default=None, help="generator seed (default: nrdepth.evaluate.TEST_SEED, held out)")
+    p.add_argument("--device", default="auto", help="auto | cpu | cuda | cuda:N")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(run=_demo)

@@ -1,0 +1,52 @@
+"""The large-scale shape of an inextensible sheet (paper, cloth) from its
+video, and its fusion with the network's depth.
+
+A network reads a frame's relief but little of its large-scale bend
+(docs/campaign.md); a sheet that bends without stretching gives that bend
+away through perspective. Three steps:
+
+- :func:`track_grid`: points spread evenly over ``mask`` in the first frame,
+  moved (:func:`track_points`) from each frame to the next by OpenCV's Farneback dense optical flow
+  (sampled bilinearly at each point), forward and backward. No point is lost to a fast or
+  blurred frame: the flow of its neighbourhood carries it, where a sparse
+  tracker would lose it; one that leaves the frame is lost from there on
+  (NaN). The share ``drop`` of the points whose two flows disagree most
+  over the video is left out: points where the motion breaks (near a
+  border), which the flow drags.
+- :func:`mdh_depths`: the depth of every point in every frame by the
+  maximum-depth heuristic of inextensible NRSfM (Chhatkuli, Pizarro,
+  Collins and Bartoli, TPAMI 2018): maximise the sum of the depths subject
+  to ``‖Z_i r_i − Z_j r_j‖ ≤ D_ij`` in every frame for each pair of
+  neighbours in view (``r``: the point's ray, ``(x − c_x)/f_x, (y − c_y)/f_y, 1``),
+  with the pairs' template distances ``D_ij`` shared by all frames and
+  ``Σ D_ij`` fixed to the number of pairs (the video fixes no scale). The
+  sheet is pulled as far from the camera as its inextensible threads allow,
+  which makes them taut: the true shape when the video shows it bent in
+  enough ways (a short or barely bending clip leaves the distances loose
+  and reads as a taut dome). A second-order cone program, solved by Clarabel over
+  ``keyframes`` frames spread over the video; every other frame is then
+  solved alone with those ``D_ij`` fixed, in parallel threads. The program
+  only bounds each pair's distance, and with the ``D_ij`` free it favours a
+  dome: it lengthens the pairs in the middle of the sheet and shortens those
+  at its edge. ``template="refined"`` then asks each pair's distance to
+  equal ``D_ij`` in every keyframe (isometry as an equality): a
+  least-squares refinement of the keyframes' depths and the ``D_ij``,
+  started from the program's answer (docs/reconstruction.md).
+- :func:`isometric_depth` runs both and spreads the depths over each frame
+  (linear over the points' Delaunay triangles, nearest outside their hull);
+  :func:`fuse` keeps the network's relief and takes the shape above a
+  length scale from the isometric depth.
+
+Frames and units: pixel coordinates (column x, row y, pixel centres at
+integers); depth is distance along the optical axis, growing away from the
+camera, in units of the mean template distance between neighbouring points
+(the scale is free: a video fixes none). Needs a perspective camera of known
+intrinsics, and the optional dependencies: ``pip install 'nrdepth[isometric]'``.
+"""
+
+from .fuse import fuse
+from .mdh import TEMPLATES, isometric_depth, mdh_depths, neighbour_pairs
+from .points import BORDER, DROP, inside, least_disagreeing, require_isometric, track_grid, track_points
+
+__all__ = ["track_grid", "track_points", "least_disagreeing", "inside", "neighbour_pairs", "mdh_depths", "isometric_depth", "fuse",
+           "require_isometric", "TEMPLATES", "DROP", "BORDER"]

@@ -1,0 +1,273 @@
+"""The maximum-depth heuristic of inextensible NRSfM (Chhatkuli, Pizarro,
+Collins and Bartoli, TPAMI 2018): the depths of tracked points on a sheet
+seen through a pinhole camera (:mod:`nrdepth.isometric` has the method).
+
+Frames and units: pixel coordinates; depth along the optical axis, in units
+of the mean template distance between neighbouring points.
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+from typing import Optional, Tuple, Union
+
+import numpy as np
+
+from ..baselines.tracks import densify
+from ..camera import Camera
+from .points import DROP, check_video, track_grid
+
+__all__ = ["neighbour_pairs", "mdh_depths", "isometric_depth", "TEMPLATES"]
+
+def neighbour_pairs(xy: np.ndarray, neighbours: int = 20, far: int = 0, reach: int = 0) -> np.ndarray:
+    """The pairs (E, 2), i < j, sorted, of each point (n, 2) with its
+    ``neighbours`` nearest, and with ``far`` more spread evenly in rank over
+    its nearest ``2 · neighbours`` to ``reach`` (0: none). Why far pairs: a
+    track's error is a smaller share of a longer distance, and a pair a few
+    points apart still bends little between them."""
+    from scipy.spatial import cKDTree
+
+    xy = np.asarray(xy, np.float64)
+    if xy.ndim != 2 or xy.shape[1] != 2 or len(xy) < 2:
+        raise ValueError(f"xy: expected points (n, 2) with n >= 2, got shape {xy.shape}")
+    if not (isinstance(neighbours, (int, np.integer)) and neighbours >= 1):
+        raise ValueError(f"neighbours: expected an int >= 1, got {neighbours!r}")
+    if not (isinstance(far, (int, np.integer)) and far >= 0):
+        raise ValueError(f"far: expected an int >= 0, got {far!r}")
+    if far and not (isinstance(reach, (int, np.integer)) and reach >= 2 * neighbours):
+        raise ValueError(f"reach: expected an int >= 2 · neighbours = {2 * neighbours} with far pairs, got {reach!r}")
+    ranks = np.arange(1, neighbours + 1)
+    if far:
+        ranks = np.union1d(ranks, np.rint(np.linspace(2 * neighbours, reach, far)).astype(int))
+    ranks = ranks[ranks < len(xy)]
+    _, nearest = cKDTree(xy).query(xy, ranks + 1)  # k as a list: those ranks only (1 is the nearest other point)
+    i = np.repeat(np.arange(len(xy)), len(ranks))
+    j = nearest.ravel()
+    pairs = np.unique(np.sort(np.column_stack([i, j]), axis=1), axis=0)
+    return pairs[pairs[:, 0] != pairs[:, 1]]
+
+
+def _active(seen: np.ndarray, pairs: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """Each frame's pairs (M, E) with both points in view, and the points
+    in view (M, n) that keep at least one of them: a point tied to nothing
+    would have no bound on its depth."""
+    active = seen[:, pairs[:, 0]] & seen[:, pairs[:, 1]]
+    tied = np.zeros_like(seen)
+    t, e = np.nonzero(active)
+    tied[t, pairs[e, 0]] = tied[t, pairs[e, 1]] = True
+    return active, seen & tied
+
+
+def _socp(rays: np.ndarray, pairs: np.ndarray, distances: Optional[np.ndarray],
+          seen: Optional[np.ndarray] = None) -> Tuple[np.ndarray, np.ndarray]:
+    """Depths (M, n) maximising their sum under the cones of the pairs in
+    view (``seen`` (M, n), default every point; NaN where not), and the
+    template distances (E,): variables (their sum the number of pairs)
+    unless given."""
+    import clarabel
+    from scipy import sparse
+
+    M, n, _ = rays.shape
+    E = len(pairs)
+    active, seen = _active(np.ones((M, n), bool) if seen is None else seen, pairs)
+    variable = np.full((M, n), -1)
+    variable[seen] = np.arange(np.count_nonzero(seen))  # a depth variable for each point in view
+    depths = int(np.count_nonzero(seen))
+    free = distances is None
+    variables = depths + (E if free else 0)
+    t, e = np.nonzero(active)
+    cones = len(t)
+    i, j = pairs[e, 0], pairs[e, 1]
+    offset = depths + (1 if free else 0)
+    first = offset + 4 * np.arange(cones)  # each cone's first row: its norm bound
+    b = np.zeros(offset + 4 * cones)
+    rows, columns, values = [np.arange(depths)], [np.arange(depths)], [-np.ones(depths)]  # depths >= 0
+    if free:
+        rows += [np.full(E, depths), first]  # Σ D <= E, and each cone's bound is its pair's D
+        columns += [depths + np.arange(E), depths + e]
+        values += [np.ones(E), -np.ones(cones)]
+        b[depths] = E
+    else:
+        b[first] = distances[e]
+    for axis in range(3):  # the cone's vector: Z_i r_i − Z_j r_j
+        rows += [first + 1 + axis, first + 1 + axis]
+        columns += [variable[t, i], variable[t, j]]
+        values += [-rays[t, i, axis], rays[t, j, axis]]
+    A = sparse.csc_matrix((np.concatenate(values), (np.concatenate(rows), np.concatenate(columns))), shape=(len(b), variables))
+    q = np.zeros(variables)
+    q[:depths] = -1.0
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    solution = clarabel.DefaultSolver(sparse.csc_matrix((variables, variables)), q, A, b,
+                                      [clarabel.NonnegativeConeT(offset)] + [clarabel.SecondOrderConeT(4)] * cones, settings).solve()
+    if str(solution.status) not in ("Solved", "AlmostSolved"):
+        raise RuntimeError(f"the MDH cone program was not solved: {solution.status}")
+    x = np.asarray(solution.x)
+    out = np.full((M, n), np.nan)
+    out[seen] = x[:depths]
+    return out, (x[depths:] if free else distances)
+
+
+def _refine(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distances: np.ndarray,
+            evaluations: int) -> Tuple[np.ndarray, np.ndarray]:
+    """Depths (M, n) and template distances (E,), from ``depths`` (NaN:
+    not in view) and ``distances``, that make each pair's distance
+    ``‖Z_i r_i − Z_j r_j‖`` equal to its ``D_ij`` in every frame where
+    both are in view: least squares of the strains
+    ``‖Z_i r_i − Z_j r_j‖ / D_ij − 1`` (relative, so that shrinking the
+    sheet towards the camera gains nothing), depths and distances kept
+    positive, ``Σ D = E`` kept by one more residual; trust-region
+    reflective Gauss–Newton with the sparse exact Jacobian, at most
+    ``evaluations`` evaluations (it stops where it got to)."""
+    from scipy import sparse
+    from scipy.optimize import least_squares
+    from threadpoolctl import threadpool_limits
+
+    M, n, _ = rays.shape
+    E = len(pairs)
+    seen = np.isfinite(depths)
+    variable = np.full((M, n), -1)
+    N = int(np.count_nonzero(seen))
+    variable[seen] = np.arange(N)
+    t, e = np.nonzero(seen[:, pairs[:, 0]] & seen[:, pairs[:, 1]])
+    K = len(t)
+    i, j = pairs[e, 0], pairs[e, 1]
+    ray_i, ray_j = rays[t, i], rays[t, j]
+    depth_i, depth_j = variable[t, i], variable[t, j]
+    weight = np.sqrt(K)  # the scale's residual weighs as much as all strains
+
+    def chords(x: np.ndarray) -> np.ndarray:
+        return x[depth_i, None] * ray_i - x[depth_j, None] * ray_j
+
+    def residuals(x: np.ndarray) -> np.ndarray:
+        return np.append(np.linalg.norm(chords(x), axis=1) / x[N + e] - 1, (x[N:].sum() / E - 1) * weight)
+
+    rows = np.arange(K)
+
+    def jacobian(x: np.ndarray) -> sparse.csr_matrix:
+        chord = chords(x)
+        length = np.linalg.norm(chord, axis=1)
+        unit = chord / length[:, None]
+        distance = x[N + e]
+        values = [np.einsum("ka,ka->k", unit, ray_i) / distance, -np.einsum("ka,ka->k", unit, ray_j) / distance,
+                  -length / distance**2, np.full(E, weight / E)]
+        return sparse.csr_matrix((np.concatenate(values), (np.concatenate([rows, rows, rows, np.full(E, K)]),
+                                                           np.concatenate([depth_i, depth_j, N + e, N + np.arange(E)]))),
+                                 shape=(K + 1, N + E))
+
+    start = np.maximum(np.append(depths[seen], distances), 0.0)  # the cone program's answer may sit a rounding below a bound
+    # One BLAS thread: a threaded BLAS sums the solver's long dot products in an order that depends on its
+    # thread count, and a hundred Gauss–Newton steps carry that rounding into the answer's fourth digit.
+    with threadpool_limits(limits=1, user_api="blas"):
+        x = least_squares(residuals, start, jac=jacobian, bounds=(0, np.inf), method="trf",
+                          tr_solver="lsmr", x_scale="jac", max_nfev=evaluations).x
+    out = np.full((M, n), np.nan)
+    out[seen] = x[:N]
+    return out, x[N:]
+
+
+TEMPLATES = ("joint", "refined", "first")
+"""Where :func:`mdh_depths` takes the template distances from, when it is not given them."""
+
+
+def _check_template(template: str) -> None:
+    if template not in TEMPLATES:
+        raise ValueError(f"template: expected one of {TEMPLATES} or the pairs' distances, got {template!r}")
+
+
+def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]], centre: Optional[Tuple[float, float]] = None, pairs: Optional[np.ndarray] = None, neighbours: int = 20,
+               keyframes: int = 24, far: int = 0, reach: int = 0, template="joint", evaluations: int = 100) -> np.ndarray:
+    """Depths (T, n) of tracked points ``xy`` (T, n, 2) by the maximum-depth
+    heuristic (module docstring); NaN where ``xy`` is NaN, a point out of
+    view in that frame (:func:`track_points`), whose pairs bind nothing
+    there, and where a point is paired with none in view. ``camera``: a
+    :class:`~nrdepth.Camera` with its principal point, or its focal length
+    in pixels (one number or (f_x, f_y)) with ``centre``, the principal
+    point (c_x, c_y);
+    ``pairs`` (E, 2): the neighbours tied by inextensibility (default:
+    :func:`neighbour_pairs` of the first frame with ``neighbours``, ``far``
+    and ``reach``). ``template``: where the pairs' template distances come
+    from. "joint": ``keyframes`` frames spread evenly over the video, solved
+    together, every other frame then solved with them fixed. "refined": the
+    same, with the keyframes' depths and the distances refined in between
+    so that each pair's distance equals its template distance in every
+    keyframe (least squares, at most ``evaluations`` evaluations; module
+    docstring): for tracks that do not drift. "first": the
+    first frame taken as a flat sheet facing the camera (the distances
+    between its points' rays at depth 1), every frame solved alone with
+    them: for a video that starts with the sheet flat and nearly
+    fronto-parallel (docs/reconstruction.md). Or the distances themselves,
+    (E,) positive, one for each of ``pairs`` (given), as a template of
+    the sheet gives them (shape from template): the depths come out in
+    their units."""
+    camera = camera if isinstance(camera, Camera) else Camera(camera, centre)
+    if camera.centre is None:
+        raise ValueError("centre: expected the principal point (c_x, c_y) in pixels, got None")
+    xy = np.asarray(xy, np.float64)
+    if xy.ndim != 3 or xy.shape[2] != 2 or xy.shape[0] < 2 or xy.shape[1] < 3 or not np.isfinite(xy[0]).all() or np.isinf(xy).any():
+        raise ValueError(f"xy: expected tracks (T, n, 2) with T >= 2 and n >= 3, finite in the first frame (NaN: out of view), got shape {xy.shape}")
+    if not (isinstance(keyframes, (int, np.integer)) and keyframes >= 2):
+        raise ValueError(f"keyframes: expected an int >= 2, got {keyframes!r}")
+    if not (isinstance(evaluations, (int, np.integer)) and evaluations >= 1):
+        raise ValueError(f"evaluations: expected an int >= 1, got {evaluations!r}")
+    if isinstance(template, str):
+        _check_template(template)
+    elif pairs is None:
+        raise ValueError("pairs: expected the pairs whose template distances are given (template)")
+    pairs = neighbour_pairs(xy[0], neighbours, far, reach) if pairs is None else np.asarray(pairs)
+    if pairs.ndim != 2 or pairs.shape[1] != 2 or len(pairs) < 1 or pairs.min() < 0 or pairs.max() >= xy.shape[1]:
+        raise ValueError(f"pairs: expected (E, 2) indices of the {xy.shape[1]} points, got shape {pairs.shape}")
+    rays = camera.rays(xy)
+    seen = np.isfinite(rays).all(axis=2)
+    rays[~seen] = 0.0
+    few = np.flatnonzero(_active(seen, pairs)[1].sum(axis=1) < 3)
+    if len(few):
+        raise ValueError(f"xy: expected at least 3 points in view and tied to a pair in every frame, got fewer in frames {few[:5].tolist()}")
+    T = len(xy)
+    depths = np.empty(xy.shape[:2])
+    if not isinstance(template, str):
+        keys = np.zeros(0, int)
+        distances = np.asarray(template, np.float64)
+        if distances.shape != (len(pairs),) or not np.all(np.isfinite(distances) & (distances > 0)):
+            raise ValueError(f"template: expected one of {TEMPLATES} or the {len(pairs)} pairs' distances, positive, got shape {distances.shape}")
+    elif template in ("joint", "refined"):
+        keys = np.unique(np.rint(np.linspace(0, T - 1, min(keyframes, T))).astype(int))
+        depths[keys], distances = _socp(rays[keys], pairs, None, seen[keys])
+        if template == "refined":
+            depths[keys], distances = _refine(rays[keys], pairs, depths[keys], distances, evaluations)
+    else:
+        keys = np.zeros(0, int)
+        distances = np.linalg.norm(rays[0, pairs[:, 0]] - rays[0, pairs[:, 1]], axis=1)
+        if not np.all(distances > 0):
+            raise ValueError("xy: two paired points share a position in the first frame")
+        distances *= len(pairs) / distances.sum()  # the joint program's units: Σ D = the number of pairs
+    rest = np.setdiff1d(np.arange(T), keys)
+    # With the distances fixed the frames are independent: one small program each (ten times faster than
+    # several frames in one), in threads (Clarabel releases the GIL; each frame's answer is the same in any thread).
+    with ThreadPoolExecutor(max_workers=max(1, min(len(rest), os.cpu_count() or 1))) as pool:
+        for t, solved in zip(rest, pool.map(lambda t: _socp(rays[t : t + 1], pairs, distances, seen[t : t + 1])[0][0], rest)):
+            depths[t] = solved
+    return depths
+
+
+def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.ndarray] = None, points: int = 400,
+                    neighbours: int = 20, keyframes: int = 24, far: int = 0, reach: int = 0, window: int = 21,
+                    backward: bool = True, template: str = "joint", drop: float = DROP) -> np.ndarray:
+    """Dense depth (T, H, W) float64 of an inextensible sheet filmed by
+    ``video`` (T, H, W) uint8 through a perspective camera of focal length
+    ``focal`` pixels (one number or (f_x, f_y)) and principal point
+    ``centre`` (default: the frame's centre): :func:`track_grid` over
+    ``mask`` (the sheet in the first frame; default: the whole frame;
+    ``points``, ``window``, ``backward``, ``drop``: :data:`DROP`), :func:`mdh_depths` (``neighbours``,
+    ``keyframes``, ``far``, ``reach``, ``template``), then linear over the points' Delaunay triangles,
+    nearest outside their hull. Units: the mean distance between
+    neighbouring points is about 1."""
+    video = check_video(video)
+    camera = Camera(focal, centre).at(video.shape[1:])  # checked before tracking
+    if not isinstance(template, str):  # given distances need the pairs, which are drawn after tracking
+        raise ValueError(f"template: expected one of {TEMPLATES} (given distances go to mdh_depths with their pairs), got {type(template).__name__}")
+    _check_template(template)
+    xy = track_grid(video, mask, points, window, backward, drop)
+    depths = mdh_depths(xy, camera, neighbours=neighbours, keyframes=keyframes, far=far, reach=reach, template=template)
+    return densify(xy, depths, video.shape)

@@ -1,0 +1,165 @@
+"""Points followed through a video of a sheet, for its shape from
+inextensibility (:mod:`nrdepth.isometric`): a grid over the sheet in the
+first frame, moved from frame to frame by OpenCV's Farneback dense optical
+flow, forward and backward; the points where the two flows disagree most
+left out.
+
+Frames and units: pixel coordinates (column x, row y, pixel centres at
+integers); NaN from the frame where a point leaves the view.
+"""
+
+from __future__ import annotations
+
+from typing import Optional, Tuple
+
+import numpy as np
+
+from ..checks import option_error
+
+__all__ = ["track_grid", "track_points", "least_disagreeing", "inside", "require_isometric", "check_video", "DROP", "BORDER"]
+
+DROP = 0.2
+""":func:`isometric_depth`'s and ``reconstruct(focal=...)``'s share of the
+tracked points left out: those whose forward and backward flows disagree
+most (:func:`track_grid`'s ``drop``). At every fusion scale the paper
+and the cloth per frame gain, and the long generated sheets decided it
+by a rule fixed beforehand (docs/campaign.md)."""
+
+
+BORDER = 0.0
+""":func:`track_points`' and :func:`track_grid`'s margin in pixels: a
+point closer than this to the frame's edge, or beyond it, is lost for
+good. 0: a point is lost where it leaves the frame (8 lost more points
+and read generated sheets worse: docs/reconstruction.md)."""
+
+
+def require_isometric():
+    """OpenCV, after checking that both optional dependencies are there."""
+    try:
+        import clarabel  # noqa: F401
+        import cv2
+    except ImportError as error:  # optional dependencies: say how to get them
+        raise ImportError("nrdepth.isometric needs OpenCV and Clarabel: pip install 'nrdepth[isometric]'") from error
+    return cv2
+
+
+def check_video(video: np.ndarray) -> np.ndarray:
+    video = np.asarray(video)
+    if video.ndim != 3 or video.dtype != np.uint8 or video.shape[0] < 2 or min(video.shape[1:]) < 8:
+        raise ValueError(f"video: expected a (T, H, W) uint8 grayscale video with T >= 2 and frames of at least 8×8, "
+                         f"got {video.dtype} {video.shape}")
+    return video
+
+
+def _check_mask(mask: Optional[np.ndarray], shape: Tuple[int, int]) -> np.ndarray:
+    if mask is None:
+        return np.ones(shape, bool)
+    mask = np.asarray(mask)
+    if mask.dtype != np.bool_ or mask.shape != shape:
+        raise ValueError(f"mask: expected a bool array of a frame's shape {shape}, got {mask.dtype} {mask.shape}")
+    return mask
+
+
+def track_grid(video: np.ndarray, mask: Optional[np.ndarray] = None, points: int = 400, window: int = 21,
+               backward: bool = True, drop: float = 0.0, border: float = BORDER) -> np.ndarray:
+    """Tracks (T, n, 2) (column, row) of about ``points`` points on a square
+    grid over ``mask`` (H, W) of the first frame (default: the whole frame)
+    at least ``border`` pixels inside the frame's edge, moved through
+    ``video`` (T, H, W) uint8 by :func:`track_points` (``window``,
+    ``backward``, ``border``: NaN from the frame where a point leaves the
+    view). ``drop``: the share of the points left out,
+    those whose forward and backward flows disagree most over the video
+    (:func:`track_points`' ``disagreement``; needs ``backward``): points
+    at a boundary of the motion, where the flow bleeds from one side to
+    the other, whose tracks would read as stretch (docs/reconstruction.md)."""
+    video = check_video(video)
+    mask = _check_mask(mask, video.shape[1:])
+    if not (isinstance(points, (int, np.integer)) and points >= 4):
+        raise ValueError(f"points: expected an int >= 4, got {points!r}")
+    if not (isinstance(drop, (int, float, np.floating)) and 0 <= drop < 1):
+        raise ValueError(f"drop: expected a share of the points in [0, 1), got {drop!r}")
+    if drop > 0 and not backward:
+        raise ValueError("drop: the points to leave out are found by the flow both ways: expected backward=True, or drop=0")
+    spacing = max(1.0, float(np.sqrt(mask.sum() / points)))
+    rows, cols = np.mgrid[spacing / 2 : video.shape[1] : spacing, spacing / 2 : video.shape[2] : spacing]
+    grid = np.column_stack([cols.ravel(), rows.ravel()])
+    grid = grid[mask[rows.astype(int).ravel(), cols.astype(int).ravel()] & inside(grid, video.shape[1:], border)]
+    kept = len(grid) - int(round(drop * len(grid)))
+    if kept < 4:
+        raise option_error("mask", f"expected room for at least 4 points at {points} points over its area (drop {drop:g}), got {kept}")
+    if drop == 0:
+        return track_points(video, grid, window, backward, border=border)
+    xy, disagreement = track_points(video, grid, window, backward, disagreement=True, border=border)
+    return xy[:, least_disagreeing(disagreement, drop)]
+
+
+def least_disagreeing(disagreement: np.ndarray, drop: float) -> np.ndarray:
+    """Indices, ascending, of the points kept when the share ``drop`` of
+    them whose ``disagreement`` (n,) (:func:`track_points`) is largest is
+    left out (ties: the later point goes)."""
+    kept = len(disagreement) - int(round(drop * len(disagreement)))
+    return np.sort(np.argsort(disagreement, kind="stable")[:kept])
+
+
+def track_points(video: np.ndarray, start: np.ndarray, window: int = 21, backward: bool = True,
+                 disagreement: bool = False, border: float = BORDER):
+    """Tracks (T, n, 2) (column, row) of the points ``start`` (n, 2) of the
+    first frame, moved through ``video`` (T, H, W) uint8 by Farneback optical
+    flow (5 pyramid levels, ``window``-pixel windows) from each frame to the
+    next: the mean of where the forward flow takes a point and where the
+    backward flow says it came from (both real videos read better, generated
+    sheets within 0.0005 per frame: docs/reconstruction.md), or with
+    ``backward`` False the forward flow alone (half the flow's cost). A
+    point is lost for good (NaN) from the first frame after the start where
+    it lies within ``border`` pixels of the frame's edge or beyond it: the
+    flow cannot follow what leaves the view, and would hold it at the edge.
+    With ``disagreement`` (needs ``backward``), also (n,): each point's
+    distance between where the two flows take it, its mean over the steps
+    it stays in view (pixels; 0 for a point lost at once)."""
+    from scipy.ndimage import map_coordinates
+
+    cv2 = require_isometric()
+    video = check_video(video)
+    start = np.asarray(start, np.float64)
+    if start.ndim != 2 or start.shape[1] != 2 or not np.isfinite(start).all():
+        raise ValueError(f"start: expected finite points (n, 2) (column, row), got shape {start.shape}")
+    if not (isinstance(window, (int, np.integer)) and window >= 3):
+        raise ValueError(f"window: expected an int >= 3 (pixels), got {window!r}")
+    if not (isinstance(border, (int, float, np.integer, np.floating)) and 0 <= border < min(video.shape[1:]) / 2):
+        raise ValueError(f"border: expected pixels in [0, {min(video.shape[1:]) / 2:g}) (half the frame's shorter side), got {border!r}")
+    if disagreement and not backward:
+        raise ValueError("disagreement: the forward and backward flows' disagreement needs backward=True")
+
+    def flow(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return cv2.calcOpticalFlowFarneback(a, b, None, 0.5, 5, window, 5, 7, 1.5, 0)
+
+    def at(field: np.ndarray, where: np.ndarray) -> np.ndarray:  # bilinear
+        return np.stack([map_coordinates(field[..., c], [where[:, 1], where[:, 0]], order=1, mode="nearest") for c in (0, 1)], axis=1)
+
+    xy = np.full((len(video), len(start), 2), np.nan)
+    xy[0] = start
+    alive = np.arange(len(start))
+    apart, steps = np.zeros(len(start)), np.zeros(len(start))
+    for t in range(1, len(video)):
+        if not len(alive):
+            break
+        was = xy[t - 1, alive]
+        ahead = was + at(flow(video[t - 1], video[t]), was)
+        now = ahead
+        if backward:
+            field, back = flow(video[t], video[t - 1]), ahead
+            for _ in range(3):  # the point p whose backward flow lands on xy[t − 1]: p = xy[t − 1] − field(p)
+                back = was - at(field, back)
+            now = (ahead + back) / 2
+        stays = inside(now, video.shape[1:], border)
+        alive, now = alive[stays], now[stays]
+        xy[t, alive] = now
+        if backward:
+            apart[alive] += np.linalg.norm(ahead[stays] - back[stays], axis=1)
+            steps[alive] += 1
+    return (xy, apart / np.maximum(steps, 1)) if disagreement else xy
+
+
+def inside(xy: np.ndarray, shape: Tuple[int, int], border: float) -> np.ndarray:
+    """Which points (n, 2) lie at least ``border`` pixels inside a frame of ``shape`` (H, W)."""
+    return (xy[:, 0] >= border) & (xy[:, 0] <= shape[1] - 1 - border) & (xy[:, 1] >= border) & (xy[:, 1] <= shape[0] - 1 - border)

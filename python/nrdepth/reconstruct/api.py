@@ -1,0 +1,154 @@
+"""The main job's two entry points: :func:`reconstruct` (an array in, its
+depth out) and :func:`reconstruct_file` (a file to a folder, streamed).
+Each checks everything it can before any work, then chains the stages:
+:class:`~.pipeline.Pipeline` (reading, statistic, coarse pass),
+:func:`~.stitching.stitched` (fine pass and stitch), the sheet stage
+(:mod:`.sheet`, with a focal length) and :mod:`.export` (units, resolution).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+from typing import Any, Callable, Optional, Union
+
+import numpy as np
+
+from ..io.decode import open_video, select, to_gray
+from ..io.folder import ReconstructionWriter, check_output_folder
+from ..io.writers import PLY_RELIEF
+from .export import final, units_of
+from .frames import CHUNK, DiskFrames
+from .mask import file_mask, video_mask
+from .network import load_net
+from .options import FILE_ONLY, Options
+from .pipeline import Pipeline
+from .sheet import sheet_depth, sheet_points
+from .stitching import stitched
+
+__all__ = ["reconstruct", "reconstruct_file"]
+
+Model = Union[None, str, "os.PathLike[str]", "torch.nn.Module"]  # noqa: F821
+Progress = Optional[Callable[[int, int], None]]
+
+
+def _prepared(model: Model, options: Optional[Options], progress: Progress, settings: dict) -> tuple:
+    """The options with ``settings`` applied, the device and the network, every one checked."""
+    from ..model.io import resolve_device
+
+    options = Options.of(options, **settings)
+    if progress is not None and not callable(progress):
+        raise TypeError(f"progress: expected a callable progress(done, total) or None, got {type(progress).__name__}")
+    device = resolve_device(options.device)
+    return options, device, load_net(model, options.units, device)
+
+
+def reconstruct(video: np.ndarray, model: Model = None, options: Optional[Options] = None, *, progress: Progress = None, **settings: Any) -> np.ndarray:
+    """The depth video of ``video`` (T, H, W[, 3]; uint8, or float in
+    [0, 1]; colour becomes luma): float32 (T', H', W') of the selected
+    frames and region.
+
+    ``model``: a path to ``model.safetensors`` or its run folder, a
+    ``torch.nn.Module``, or None for the shipped model. ``options``: an
+    :class:`~nrdepth.reconstruct.Options`, and/or any of its fields as
+    keywords (``roi=``, ``focal=``, ``device="cuda"``, …; they replace the
+    options' own). ``progress(done, total)`` is called as frames of the
+    fine pass are done.
+
+    The job: the selected frames and region at a working resolution
+    (``max_side``), the coarse pass (each whole frame through the network
+    at the patch size, :mod:`~nrdepth.reconstruct.coarse`), the fine pass
+    (:mod:`~nrdepth.reconstruct.fine`), its 16×64×64 windows aligned and
+    overlap-added (:mod:`~nrdepth.reconstruct.stitch`), with ``focal`` the
+    sheet's shape from inextensibility (:mod:`~nrdepth.reconstruct.sheet`),
+    then the depth's units and the video's resolution back.
+
+    Depth is defined up to one GBR per frame (one for the video with
+    ``temporal``) and returned with zero mean over the video, in
+    ``units``: ``"standard"`` (unit standard deviation) or ``"pixels"``
+    (depth in pixels of the video, for a model that learnt the relief's
+    scale: model.json's ``depth_units`` ``"window"``; without ``model``,
+    the shipped one that learnt it, :data:`nrdepth.model.SCALED_MODEL`).
+    Its overall sign (convex or concave) follows the training data's light
+    from above (within ±70° of image-up, row 0 the top): under an
+    orthographic camera a surface and its mirror image under mirrored
+    lights make the same video, so a video lit from below reads inverted,
+    and ``flip=True`` (or ``-depth``) is the other reading. With
+    ``focal``, a long video that bends a sheet many ways gets its shape
+    and the relief's sign from the sheet instead (docs/reconstruction.md).
+    To stream a long video from a file to a folder, see
+    :func:`reconstruct_file`."""
+    gray = to_gray(video, "video")
+    options, device, net = _prepared(model, options, progress, settings)
+    file_only = [name for name in FILE_ONLY if name in options.changed()]
+    if file_only:
+        raise ValueError(f"{file_only[0]}: says what reconstruct_file writes; reconstruct returns the depth")
+    mask = video_mask(options.mask, gray.shape, options.frames, options.roi)
+    points = None if options.focal is None else sheet_points(options, gray.shape[1:3])
+    video = select(gray, options.frames, options.roi)
+    chunks = lambda: (video[a : a + CHUNK] for a in range(0, len(video), CHUNK))  # noqa: E731
+    pipeline = Pipeline(video.shape[1:], chunks, net, device, options, mask)
+    raw = np.concatenate(list(stitched(pipeline, progress)))
+    if points is not None:
+        raw = sheet_depth(raw, pipeline.work, options, options.camera, points, select(gray, options.frames, None))
+    offset, scale = units_of(pipeline, raw, options.temporal, options.units)
+    return final(pipeline, raw, 0, len(raw), offset, -scale if options.flip else scale)
+
+
+def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.PathLike[str]"], model: Model = None,
+                     options: Optional[Options] = None, *, progress: Progress = None, **settings: Any) -> Path:
+    """:func:`reconstruct` a video file, image folder or array file
+    (:class:`~nrdepth.io.VideoSource`) into the folder ``out``
+    (:class:`~nrdepth.io.ReconstructionWriter`: ``depth.npz``,
+    ``depth.mp4``, ``side_by_side.mp4``, with ``viewer`` the 3-D page
+    ``viewer.html``, with ``png16`` and ``ply`` their frames; all or
+    nothing). ``model``, ``options``, ``progress`` and the keywords as
+    :func:`reconstruct`'s.
+
+    Streaming: the video is read a few frames at a time (three times:
+    statistic and coarse pass, fine pass, writing), the stitched depth
+    waits on disk in the output's temporary folder at the working
+    resolution, and memory does not grow with the video's length, except
+    by the coarse pass's 20 kB a frame (and with ``temporal``, which aligns
+    the whole video in memory, ``fine="patches"``, which holds it, or
+    ``focal``, which holds the selected frames, a byte a pixel). ``mask``
+    may also be a file: one image (for every frame) or a video, image
+    folder or array of the input's frame count, of the input's frame size;
+    pixels of 128 or more (of 255) are on the surface. ``ply_relief``: the
+    PLYs' depth scale (:func:`~nrdepth.io.write_ply`; default: the training
+    surfaces' for standard units, one frame width per pixel for pixel
+    units). Returns ``out``."""
+    options, device, net = _prepared(model, options, progress, settings)
+    out = check_output_folder(out, options.overwrite, inputs=(input,))
+    source = open_video(input, "input", options.frames, options.roi)
+    mask = file_mask(options.mask, source, options.frames, options.roi)
+    points = None if options.focal is None else sheet_points(options, source.raw_size)
+    pipeline = Pipeline(source.frame_size, lambda: source.chunks(CHUNK), net, device, options, mask)
+    t = pipeline.shape[0]
+    ply_relief = options.ply_relief
+    if ply_relief is None:
+        ply_relief = 1.0 / source.frame_size[1] if options.units == "pixels" else PLY_RELIEF  # pixels to frame widths, the PLY's x and y unit
+    with ReconstructionWriter(out, (t, *source.frame_size), source.fps, png16=options.png16, ply=options.ply, ply_relief=ply_relief,
+                              overwrite=options.overwrite, viewer=options.viewer) as writer:
+        raw = DiskFrames(writer.scratch("stitched.f32"), pipeline.shape[1:])
+        for chunk in stitched(pipeline, progress):
+            raw.append(chunk)
+        if points is not None:
+            whole = np.concatenate(list(open_video(input, "input", options.frames, None).chunks(CHUNK)))
+            raw[:] = sheet_depth(raw[:], pipeline.work, options, options.camera, points, whole)
+        offset, scale = units_of(pipeline, raw, options.temporal, options.units)
+        scale = -scale if options.flip else scale
+        # The ranges from the working resolution (bilinear resizing makes no new extremes), a chunk at a time.
+        stride = max(1, int(math.sqrt(raw.size / 4e6)))
+        sample = np.concatenate([raw[a : a + CHUNK][:, ::stride, ::stride].ravel() for a in range(0, t, CHUNK)])
+        lo, hi = np.nanpercentile((sample.astype(np.float64) - offset) * scale, [1.0, 99.0])  # NaN: off the mask
+        ends = sorted(((min(float(np.nanmin(raw[a : a + CHUNK])) for a in range(0, t, CHUNK)) - offset) * scale,
+                       (max(float(np.nanmax(raw[a : a + CHUNK])) for a in range(0, t, CHUNK)) - offset) * scale))
+        writer.set_ranges((float(lo), float(max(hi, lo + 1e-12))), (ends[0], ends[1]))
+        # A few frames a write at large sizes: the colour and side-by-side frames take 9 bytes a pixel.
+        step = max(1, min(CHUNK, 4_000_000 // (source.frame_size[0] * source.frame_size[1])))
+        for start, frames_in in zip(range(0, t, step), source.chunks(step)):
+            writer.write(frames_in, final(pipeline, raw, start, start + len(frames_in), offset, scale))
+        raw.remove()
+    return out

@@ -1,0 +1,292 @@
+"""The main job's options: one frozen dataclass, defined, defaulted,
+documented and checked here.
+
+:func:`~nrdepth.reconstruct` and :func:`~nrdepth.reconstruct_file` take an
+:class:`Options` and/or its fields as keywords; ``nrdepth reconstruct``
+builds its flags from the fields (:func:`add_flags`). Adding an option
+touches its field here and the stage that uses it.
+
+An error names the option the user set: the exception carries it as
+``error.option`` (:func:`~nrdepth.checks.option_error`), so the command
+line names its flag without reading the message.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import os
+from dataclasses import dataclass, field, fields
+from typing import Any, Dict, Optional, Tuple, Union
+
+import numpy as np
+
+from ..checks import is_number, option_error
+from ..isometric import DROP, TEMPLATES
+from ..camera import Camera
+from .fine import check_tile
+from .stitch import ALIGNMENTS, COARSE_WEIGHT, TEMPORAL_WEIGHT, WINDOWS
+
+__all__ = ["Options", "MAX_SIDE", "FINE_PASSES", "ISOMETRIC_SCALE", "ISOMETRIC_DROP", "UNITS", "add_flags", "options_from_flags"]
+
+MAX_SIDE = 480
+"""Default working resolution: a frame's longer side, in pixels. The real
+cloth (filmed at 1920×1080) reads best here and the real paper the same at
+384 and 528 (docs/reconstruction.md#working-resolution)."""
+FINE_PASSES = ("field", "patches")
+"""The fine passes, the default first (:mod:`nrdepth.reconstruct.fine`)."""
+UNITS = ("standard", "pixels")
+ISOMETRIC_SCALE = 0.3
+"""With a camera's focal length, the isometric depth's shape is kept above
+this scale (a fraction of the frame's shorter side) and the network's
+below it; picked by a rule fixed beforehand on 64 generated sheets
+(docs/campaign.md)."""
+ISOMETRIC_DROP = DROP
+"""With a camera's focal length, the share of the tracked points left out
+(:data:`nrdepth.isometric.DROP`)."""
+
+
+def _option(default: Any, help: str, flag: Optional[str] = None, **argparse_kwargs: Any) -> Any:
+    """A field of :class:`Options`: its default, its help (the API's and the
+    command line's), and how ``nrdepth reconstruct`` takes it (``flag``:
+    its name there, ``None``: the field's name with dashes; ``""``: none)."""
+    return field(default=default, metadata={"help": help, "flag": flag, "argparse": argparse_kwargs})
+
+
+def _parse_ints(what: str, count: int):
+    def parse(text: str) -> Tuple[int, ...]:
+        try:
+            values = tuple(int(v) for v in text.split(","))
+        except ValueError:
+            values = ()
+        if len(values) != count:
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+        return values
+
+    return parse
+
+
+def _parse_numbers(what: str, counts: Tuple[int, ...]):
+    def parse(text: str) -> Union[float, Tuple[float, ...]]:
+        try:
+            values = tuple(float(v) for v in text.split(","))
+        except ValueError:
+            values = ()
+        if len(values) not in counts:
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+        return values[0] if len(values) == 1 else values
+
+    return parse
+
+
+def _parse_frames(text: str) -> slice:
+    try:
+        parts = [int(v) if v else None for v in text.split(":")]
+        if not 2 <= len(parts) <= 3:
+            raise ValueError
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected START:STOP[:STEP] (Python slice), got {text!r}") from None
+    return slice(*parts)
+
+
+def _parse_side(text: str) -> Optional[int]:
+    try:
+        side = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    return side or None
+
+
+_ROI = _parse_ints("X,Y,W,H in pixels", 4)
+
+
+@dataclass(frozen=True, eq=False)
+class Options:
+    """How :func:`~nrdepth.reconstruct` and :func:`~nrdepth.reconstruct_file`
+    reconstruct a video. Every field is checked when the options are made;
+    what depends on the video (a region inside its frame, a mask of its
+    size) is checked when it is read. The fields:
+    """
+
+    # What to reconstruct.
+    roi: Optional[Tuple[int, int, int, int]] = _option(None, "the region X,Y,W,H in pixels of the video's frames", type=_ROI, metavar="X,Y,W,H")
+    frames: Optional[slice] = _option(None, "the frames START:STOP[:STEP] (a Python slice)", type=_parse_frames, metavar="A:B[:S]")
+    max_side: Optional[int] = _option(
+        MAX_SIDE, "reconstruct at a working size whose longer side is at most this many pixels, the depth resized back; None (0 on the "
+        "command line): the video's own size (the network reads relief at the scale of 64-pixel patches; docs/reconstruction.md)", type=_parse_side, metavar="N")
+    mask: Union[None, np.ndarray, str, "os.PathLike[str]"] = _option(
+        None, "the surface's pixels: bool (H, W) or (T, H, W) of the video as given, or (reconstruct_file, the command line) a file: one image "
+        "for every frame, or a video, image folder or .npy of the input's frames, white (128 or more of 255) on the surface. Off it the depth "
+        "is NaN (black in the videos, 0 in the PNGs, no PLY point, a hole in the viewer) and takes no part in the alignments: for a "
+        "background that moves on its own")
+    # The network.
+    device: str = _option("auto", "auto | cpu | cuda | cuda:N (on CUDA the network runs in bfloat16)")
+    batch_size: int = _option(8, "clips per network call in the coarse pass (and with fine='patches')", type=int)
+    fine: str = _option(FINE_PASSES[0], "the fine pass: field (the network once over the video, in tiles) or patches (every 64×64×16 "
+                        "window on its own, as the paper: 8× the work)", choices=FINE_PASSES)
+    tile: Optional[Tuple[int, int, int]] = _option(None, "the field pass's tile core (frames, rows, columns; rows and columns multiples "
+                                                   "of 8); None: (32, 320, 320) on the CPU, (64, 512, 512) on CUDA", flag="")
+    units: str = _option(UNITS[0], "the depth's scale: standard (unit standard deviation over the video) or pixels (the relief's scale as a "
+                         "model trained with --amplitude reads it; without a model, the shipped one that learnt it)", choices=UNITS)
+    # The stitch.
+    alignment: str = _option(ALIGNMENTS[0], "how the windows are aligned: joint (all together, agreeing where they overlap, tied to the coarse "
+                             "pass by coarse_weight) or coarse (each on its own to the coarse pass, as the paper)", choices=ALIGNMENTS)
+    coarse_weight: float = _option(COARSE_WEIGHT, "the joint alignment's weight on the coarse pass (smaller trusts the windows' agreement more)",
+                                   type=float)
+    temporal_weight: float = _option(TEMPORAL_WEIGHT, "the joint alignment's tie of each window's GBR to the frame before, as much as the "
+                                     "window holds still (0: frames on their own)", type=float)
+    window: str = _option(WINDOWS[0], "the overlap-add window: hann (no seams) or triangle (the paper's; the paper's stitch is "
+                          "alignment coarse, window triangle)", choices=WINDOWS)
+    temporal: bool = _option(False, "give every frame frame 0's plane and relief norm (nrdepth.temporal_align): for models trained with "
+                             "per-frame losses only", flag="--temporal-align", action="store_true")
+    # A sheet through a known camera.
+    focal: Union[None, float, Tuple[float, float]] = _option(
+        None, "for a sheet (paper, cloth) filmed by a perspective camera: its focal length in pixels of the video's frames, F or FX,FY. The "
+        "shape above isometric_scale then comes from inextensibility (points followed by optical flow over the sheet; nrdepth.isometric), "
+        "the relief below it from the network, and on a long video that bends the sheet many ways the relief's sign too (a short clip reads "
+        "as a dome). Holds the selected frames in memory; minutes for a few hundred frames", type=_parse_numbers("F or FX,FY in pixels", (1, 2)), metavar="F[,FY]")
+    centre: Optional[Tuple[float, float]] = _option(None, "with focal: the principal point in the video's frames (default: their centre)",
+                                                    type=_parse_numbers("CX,CY in pixels", (2,)), metavar="CX,CY")
+    sheet: Union[None, np.ndarray, Tuple[int, int, int, int]] = _option(
+        None, "with focal: where the points are spread in the first selected frame, on the sheet only (not the background or the hands): a "
+        "box X,Y,W,H in the video's pixels, or bool (H, W) (default: roi, or the whole frame)", type=_ROI, metavar="X,Y,W,H")
+    isometric_scale: float = _option(ISOMETRIC_SCALE, "with focal: the length below which the network's relief is kept, as a fraction of the "
+                                     "frame's shorter side (0: the isometric depth alone)", type=float)
+    isometric_template: str = _option(TEMPLATES[0], "with focal: the pairs' template distances (nrdepth.isometric.mdh_depths): joint, refined "
+                                      "(each pair held to its distance in every keyframe; for a long video of a sheet bent many ways, with "
+                                      "isometric_drop 0.3 and isometric_scale 0.2), first (the first frame a flat sheet facing the camera)",
+                                      choices=TEMPLATES)
+    isometric_drop: float = _option(ISOMETRIC_DROP, "with focal: the share of the points left out where the flow's two directions disagree most",
+                                    type=float)
+    # The outputs.
+    flip: bool = _option(False, "negate the depth: the other convex/concave reading (the model assumes light from above; use it for a video "
+                         "lit from below)", action="store_true")
+    png16: bool = _option(False, "reconstruct_file: also write 16-bit PNG depth frames (0: no depth; 1 … 65535 span depth.npz's png16_range)",
+                          action="store_true")
+    ply: bool = _option(False, "reconstruct_file: also write a PLY point cloud per frame", action="store_true")
+    ply_relief: Optional[float] = _option(None, "reconstruct_file: the PLYs' depth standard deviation in frame widths (default: 0.073, as the "
+                                          "training surfaces; one frame width per pixel with units pixels)", type=float)
+    viewer: bool = _option(True, "reconstruct_file: write viewer.html, the 3-D page of the depth video (off: nrdepth view OUT writes it later)",
+                           flag="--no-viewer", action="store_false")
+    overwrite: bool = _option(False, "reconstruct_file: replace the output folder if it exists", action="store_true")
+
+    def __post_init__(self) -> None:
+        _check(self)
+
+    @property
+    def camera(self) -> Optional[Camera]:
+        """The sheet's camera (``focal``, ``centre``), or None without ``focal``."""
+        return None if self.focal is None else Camera(self.focal, self.centre)
+
+    @classmethod
+    def of(cls, options: Optional["Options"] = None, **settings: Any) -> "Options":
+        """``options`` (default: the defaults) with the fields in ``settings`` replaced; TypeError naming an unknown one."""
+        if options is not None and not isinstance(options, cls):
+            raise TypeError(f"options: expected nrdepth.reconstruct.Options or None, got {type(options).__name__}")
+        names = {f.name for f in fields(cls)}
+        for name in settings:
+            if name not in names:
+                raise TypeError(f"{name}: not an option of the main job; the options are nrdepth.reconstruct.Options' fields: {', '.join(sorted(names))}")
+        return dataclasses.replace(options or cls(), **settings)
+
+    def changed(self) -> Dict[str, Any]:
+        """The fields that differ from their defaults."""
+        return {f.name: getattr(self, f.name) for f in fields(self) if _differs(getattr(self, f.name), f.default)}
+
+
+def _differs(value: Any, default: Any) -> bool:
+    return value is not default and (isinstance(value, np.ndarray) or value != default)
+
+
+FILE_ONLY = ("png16", "ply", "ply_relief", "viewer", "overwrite")
+"""The options that say what :func:`~nrdepth.reconstruct_file` writes."""
+
+
+def _check(o: Options) -> None:
+    """Every check of :class:`Options` that needs no video, in field order; normalises tuples in place."""
+    set_ = lambda name, value: object.__setattr__(o, name, value)  # noqa: E731  (a frozen dataclass normalises in __post_init__)
+    if o.roi is not None:
+        try:
+            set_("roi", tuple(int(v) for v in o.roi if not isinstance(v, bool) and float(v) == int(v)))
+            if len(o.roi) != 4:
+                raise ValueError
+        except (TypeError, ValueError):
+            raise option_error("roi", f"expected four integers (x, y, width, height), got {o.roi!r}") from None
+    if o.frames is not None:
+        if not isinstance(o.frames, slice):
+            raise option_error("frames", f"expected a slice, got {type(o.frames).__name__}", TypeError)
+        if o.frames.step is not None and o.frames.step <= 0:
+            raise option_error("frames", f"expected a positive step, got {o.frames.step}")
+    if o.max_side is not None and (isinstance(o.max_side, bool) or not isinstance(o.max_side, (int, np.integer)) or o.max_side < 8):
+        raise option_error("max_side", f"expected an integer ≥ 8, or None (0 on the command line) for the video's own size, got {o.max_side!r}")
+    if o.mask is not None and not isinstance(o.mask, (str, os.PathLike)):
+        mask = np.asarray(o.mask)
+        if mask.dtype != bool:
+            raise option_error("mask", f"expected a bool array (True on the surface), got dtype {mask.dtype}", TypeError)
+    if not isinstance(o.device, str):
+        raise option_error("device", f"expected 'auto', 'cpu', 'cuda' or 'cuda:N', got {o.device!r}", TypeError)
+    if isinstance(o.batch_size, bool) or not isinstance(o.batch_size, (int, np.integer)) or o.batch_size < 1:
+        raise option_error("batch_size", f"expected a positive integer, got {o.batch_size!r}")
+    if o.units not in UNITS:
+        raise option_error("units", f"expected 'standard' or 'pixels', got {o.units!r}")
+    if o.fine not in FINE_PASSES:
+        raise option_error("fine", f"expected one of {FINE_PASSES}, got {o.fine!r}")
+    if o.tile is not None:
+        set_("tile", check_tile(o.tile))
+    if o.alignment not in ALIGNMENTS:
+        raise option_error("alignment", f"expected one of {ALIGNMENTS}, got {o.alignment!r}")
+    if o.window not in WINDOWS:
+        raise option_error("window", f"expected one of {WINDOWS}, got {o.window!r}")
+    if not is_number(o.coarse_weight) or not (0 < o.coarse_weight < math.inf):
+        raise option_error("coarse_weight", f"expected a finite number > 0, got {o.coarse_weight!r}")
+    if not is_number(o.temporal_weight) or not (0 <= o.temporal_weight < math.inf):
+        raise option_error("temporal_weight", f"expected a finite number ≥ 0, got {o.temporal_weight!r}")
+    _check_sheet(o)
+    if o.mask is not None:
+        if o.alignment != "joint":
+            raise option_error("mask", "the paper's alignment fits every pixel of a patch, padding included; use alignment='joint'")
+        if o.temporal or o.units != "standard":
+            raise option_error("mask", "works with temporal=False and units='standard'")
+    if o.ply_relief is not None and not (is_number(o.ply_relief) and 0 < o.ply_relief < math.inf):
+        raise option_error("ply_relief", f"expected a positive finite number, got {o.ply_relief!r}")
+
+
+def _check_sheet(o: Options) -> None:
+    if o.focal is None:
+        if o.centre is not None or o.sheet is not None or o.isometric_template != TEMPLATES[0] or o.isometric_drop != ISOMETRIC_DROP:
+            raise option_error("focal", "centre, sheet, isometric_template and isometric_drop shape the isometric depth; they need the camera's focal length")
+        return
+    Camera(o.focal, o.centre)  # raises naming focal or centre
+    if not (is_number(o.isometric_scale) and np.isfinite(o.isometric_scale) and o.isometric_scale >= 0):
+        raise option_error("isometric_scale", f"expected a fraction of the frame's shorter side >= 0, got {o.isometric_scale!r}")
+    if o.units != "standard" or o.temporal:
+        raise option_error("focal", "the isometric shape comes with units='standard' and temporal off only")
+    if o.isometric_template not in TEMPLATES:
+        raise option_error("isometric_template", f"expected one of {TEMPLATES}, got {o.isometric_template!r}")
+    if not (is_number(o.isometric_drop) and 0 <= o.isometric_drop < 1):
+        raise option_error("isometric_drop", f"expected a share of the points in [0, 1), got {o.isometric_drop!r}")
+
+
+def flag_of(name: str) -> str:
+    """The command line's flag of option ``name`` (``--roi``; ``--no-viewer`` for ``viewer``); ``--name`` for a name that is no field."""
+    meta = {f.name: f.metadata for f in fields(Options)}.get(name, {})
+    return meta.get("flag") or f"--{name.replace('_', '-')}"
+
+
+def add_flags(parser: argparse.ArgumentParser) -> None:
+    """``nrdepth reconstruct``'s flags, one per field of :class:`Options` that has one, with its help."""
+    for f in fields(Options):
+        if f.metadata.get("flag") == "":
+            continue
+        parser.add_argument(flag_of(f.name), dest=f.name, default=f.default, help=f.metadata["help"], **f.metadata["argparse"])
+
+
+def options_from_flags(args: argparse.Namespace) -> Options:
+    """The :class:`Options` of parsed ``nrdepth reconstruct`` flags."""
+    return Options.of(**{f.name: getattr(args, f.name) for f in fields(Options) if f.metadata.get("flag") != ""})
+
+
+Options.__doc__ = (Options.__doc__ or "") + "".join(
+    f"\n    - ``{f.name}`` (default ``{'None' if f.default is None else repr(f.default)}``): {f.metadata['help']}." for f in fields(Options)
+)

@@ -1,0 +1,68 @@
+"""The sheet stage: with a camera's focal length, the stitched depth's
+shape above a length scale from the sheet's inextensibility
+(:mod:`nrdepth.isometric`), its relief below it from the network.
+
+Points over the sheet are followed through the selected frames whole (not
+cut to the region: points near its edge stay in view), their depths come
+from the maximum-depth heuristic through the camera, and they are spread
+over the region's working frame and fused with the network's depth.
+"""
+
+from __future__ import annotations
+
+from typing import Tuple
+
+import numpy as np
+
+from ..baselines.tracks import densify
+from ..camera import Camera
+from ..checks import option_error
+from ..isometric import fuse, mdh_depths, require_isometric, track_grid
+from .frames import as_uint8
+from .options import Options
+
+__all__ = ["sheet_points", "sheet_depth"]
+
+
+def sheet_points(options: Options, frame: Tuple[int, int]) -> np.ndarray:
+    """Where the points go in the first selected frame, bool (H, W) of the
+    video's ``frame``: ``options.sheet`` (a box or a bool array), else
+    ``options.roi``, else the whole frame. Checks the optional
+    dependencies first, before any work."""
+    require_isometric()
+    H, W = frame
+    sheet = options.sheet
+    if sheet is None or (np.ndim(sheet) == 1 and len(sheet) == 4):
+        x, y, w, h = (options.roi or (0, 0, W, H)) if sheet is None else (int(v) for v in sheet)
+        if not (0 <= x and 0 <= y and w > 0 and h > 0 and x + w <= W and y + h <= H):
+            raise option_error("sheet", f"expected a box x, y, width, height inside the {W}×{H} frame, got {sheet!r}")
+        points = np.zeros(frame, bool)
+        points[y : y + h, x : x + w] = True
+        return points
+    points = np.asarray(sheet)
+    if points.dtype != np.bool_ or points.shape != tuple(frame) or points.sum() < 16:
+        raise option_error("sheet", f"expected a box (x, y, w, h) or a bool array of the video's frame {tuple(frame)} with at least 16 "
+                           f"pixels on the sheet, got {points.dtype} {points.shape}")
+    return points
+
+
+def sheet_depth(raw: np.ndarray, work: Tuple[int, int], options: Options, camera: Camera, points: np.ndarray, video: np.ndarray) -> np.ndarray:
+    """The stitched depth ``raw`` (T, h, w) at the working resolution
+    ``work`` with its shape above ``options.isometric_scale`` from the
+    sheet's inextensibility: ``points`` (:func:`sheet_points`) followed
+    through ``video`` (the selected frames whole, (T, H, W)) and their
+    depths through ``camera``, spread over the region's working frame."""
+    try:
+        xy = track_grid(as_uint8(video), points, drop=float(options.isometric_drop))
+    except ValueError as error:
+        if getattr(error, "option", None) != "mask":
+            raise
+        raise option_error("sheet", error.detail) from None  # the points' region is the user's sheet
+    depths = mdh_depths(xy, camera.at(video.shape[1:]), template=options.isometric_template)
+    x, y, w_region, h_region = options.roi or (0, 0, video.shape[2], video.shape[1])
+    h, w = work
+    # Into the region's working frame: area-averaged resizes keep pixel centres' relative places.
+    working = (xy - np.array([x, y]) + 0.5) * np.array([w / w_region, h / h_region]) - 0.5
+    on = np.isfinite(raw)
+    fused = fuse(np.where(on, raw, 0.0), densify(working, depths, raw.shape), float(options.isometric_scale) * min(h, w), mask=on)
+    return np.where(on, fused, np.nan).astype(np.float32)
