@@ -147,7 +147,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--model", default=None, help="model.safetensors or run folder (default: the shipped model)")
     parser.add_argument("--crop", type=crop_arg, default=(110, 218, 106, 214), help="TOP,BOTTOM,LEFT,RIGHT of phisft_R1's 270×480 grid")
-    parser.add_argument("--out", type=Path, default=Path("docs"), help="folder for the pictures")
+    parser.add_argument("--out", type=Path, default=Path("docs/benchmarks"), help="folder for the pictures")
     parser.add_argument("--skip-kinect", action="store_true")
     parser.add_argument("--skip-csf2", action="store_true", help="no CSF2 on kinect_paper (tracking and NRSfM take a minute)")
     parser.add_argument("--write-kinect", default=None, metavar="NPZ",

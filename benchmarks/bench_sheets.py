@@ -25,11 +25,11 @@ the references as horizontal lines; at 0 clips, the row named by
 ``--start`` (default ``shipped``): the model the runs started from.
 
     python benchmarks/bench_sheets.py --run campaign/sheets41 --run campaign/sheets41_control \\
-        --epochs 3,6,9,12,15 --csv docs/sheets41.csv --plot docs/sheets41.png \
+        --epochs 3,6,9,12,15 --csv docs/campaign/sheets41.csv --plot docs/campaign/sheets41.png \
         --label "sheets41=half the clips sheets, print textures" --label "sheets41_control=control"
     python benchmarks/bench_sheets.py --model soup=avg.safetensors --csv soups.csv     # any model besides the shipped one
-    python benchmarks/bench_sheets.py --plot docs/sheets41.png --csv docs/sheets41.csv --replot --label ...
-    python benchmarks/bench_sheets.py --csv docs/sheets41.csv --replot --pair sheets41=sheets41_control   # paired differences
+    python benchmarks/bench_sheets.py --plot docs/campaign/sheets41.png --csv docs/campaign/sheets41.csv --replot --label ...
+    python benchmarks/bench_sheets.py --csv docs/campaign/sheets41.csv --replot --pair sheets41=sheets41_control   # paired differences
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ noise) interpolated to every pixel, and by a flat plane; MAE-SN mean ± std
 for both alignments beside the paper's figures; KSTA (our reading of its
 paper, nrdepth.baselines.nrsfm.ksta) from the same tracks.
 
-    python benchmarks/bench_table2.py [--videos 100] [--K 2] [--d 4] [--noise 0] [--picture docs/table2.png]
+    python benchmarks/bench_table2.py [--videos 100] [--K 2] [--d 4] [--noise 0] [--picture docs/benchmarks/table2.png]
     # split over processes, then one table from their rows:
     python benchmarks/bench_table2.py --videos 50 --start 0 --rows a.csv & python benchmarks/bench_table2.py --videos 50 --start 50 --rows b.csv
     python benchmarks/bench_table2.py --summarise a.csv b.csv

@@ -132,7 +132,7 @@ def main() -> None:
     parser.add_argument("--model", default=None, help="model.safetensors or run folder (default: the shipped model)")
     parser.add_argument("--K", type=int, default=2, help="CSF2's and KSTA's rank-3 spaces")
     parser.add_argument("--d-fraction", type=float, default=0.1, help="DCT (and kernel) functions d = ceil(fraction · T)")
-    parser.add_argument("--out", type=Path, default=Path("docs"), help="folder for the pictures")
+    parser.add_argument("--out", type=Path, default=Path("docs/benchmarks"), help="folder for the pictures")
     parser.add_argument("--skip-kinect", action="store_true")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)

@@ -312,11 +312,25 @@ def file_job(source: Path, out: Path, threads: int, device: str, max_side: int) 
     return seconds, peak, frames
 
 
+def memory_job(source: Path, threads: int, device: str) -> tuple:
+    """``nrdepth.reconstruct`` of a video read into memory first, in a process of its own: (seconds, peak RSS in MB, frames)."""
+    code = ("import resource, sys, time, torch; torch.set_num_threads(int(sys.argv[2])); import nrdepth; from nrdepth.io import read_video; "
+            "video = read_video(sys.argv[1]).frames; start = time.perf_counter(); nrdepth.reconstruct(video, device=sys.argv[3]); "
+            "print(time.perf_counter() - start, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, len(video))")
+    run = subprocess.run([sys.executable, "-c", code, str(source), str(threads), device], check=True, capture_output=True, text=True)
+    seconds, peak, frames = (float(v) for v in run.stdout.split()[-3:])
+    return seconds, peak, int(frames)
+
+
 def long(threads: int, device: str, native: bool) -> None:
     import tempfile
 
     from nrdepth.reconstruct import MAX_SIDE
 
+    print(f"torch sgemm 2048² on {threads} threads: {sgemm_rate():.1f} GFLOP/s (this machine's speed, beside every time below)")
+    seconds, peak, frames = memory_job(DATA / "kinect_paper", threads, device)
+    print(f"kinect_paper 640×480×191 in memory (nrdepth.reconstruct, no files written), max_side {MAX_SIDE}: {seconds:.1f} s "
+          f"({frames / seconds:.2f} frames/s), peak RSS {peak:.0f} MB")
     with tempfile.TemporaryDirectory() as scratch:
         path = Path(scratch) / "long.mp4"
         start = time.perf_counter()

@@ -15,12 +15,8 @@ import os as _os
 # allocation; a value the user set is kept.
 _os.environ.setdefault("THP_MEM_ALLOC_ENABLE", "1")
 
-from .engine.generate import Clips, GeneratorConfig, generate_clips, image_points, observable_depth
-from .scores.metrics import flat_baseline, gbr_align, grid_contrast, mae_sn, sign_rates
-from .reconstruct.stitch import PatchLayout, patch_layout, stitch, temporal_align
 from .camera import Camera
-from .reconstruct import Options, reconstruct, reconstruct_file
-from .io import view
+from .engine.generate import Clips, GeneratorConfig, generate_clips, image_points, observable_depth
 from .engine.render import CAMERA_Z, TEXTURE_FAMILIES, Light, Material, Render, procedural_texture, raycast_depth, render
 from .engine.surface import (
     SurfaceConfig,
@@ -30,10 +26,14 @@ from .engine.surface import (
     synthesize_surface,
     synthesize_surfaces,
 )
+from .io import view
+from .reconstruct import ReconstructOptions, reconstruct, reconstruct_file
+from .reconstruct.stitch import PatchLayout, patch_layout, stitch, temporal_align
+from .scores.metrics import flat_baseline, gbr_align, grid_contrast, mae_sn, sign_rates
 
 __all__ = [
     "Camera",
-    "Options",
+    "ReconstructOptions",
     "CAMERA_Z",
     "TEXTURE_FAMILIES",
     "Clips",

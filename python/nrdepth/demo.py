@@ -15,10 +15,13 @@ from typing import Any, Callable, Dict, Optional, Union
 
 import numpy as np
 
-from .learning.evaluate import TEST_SEED
 from .engine.generate import GeneratorConfig, generate_clips
-from .scores.metrics import flat_baseline, gbr_align, mae_sn
 from .io import colorize_depth, depth_range
+from .io.figures import ColourBar, labelled
+from .io.viewer import ViewerFrames, write_page
+from .learning.evaluate import TEST_SEED
+from .reconstruct import reconstruct
+from .scores.metrics import flat_baseline, gbr_align, mae_sn
 
 __all__ = ["run_demo", "demo_picture", "demo_page"]
 
@@ -37,8 +40,6 @@ def run_demo(
     ground-truth and reconstructed depth, MAE-SN of the reconstruction and of
     the flat baseline for both alignments, and the seconds each step took.
     ``progress(done, total)`` is called as frames of the fine pass are done."""
-    from .reconstruct import reconstruct
-
     config = config or GeneratorConfig(size=size)
     start = time.perf_counter()
     clip = generate_clips(1, seed=seed, config=config, start=index)
@@ -62,8 +63,6 @@ def demo_picture(result: Dict[str, Any], frames_shown: int = 4) -> np.ndarray:
     alignment MAE-SN scores), both depths in the truth's colour range, under
     column titles and the scores, with a colour bar in the truth's units
     (near is yellow, far is blue); drawn by matplotlib."""
-    from .io.figures import ColourBar, labelled
-
     video, truth = result["video"], result["truth"]
     aligned = gbr_align(result["depth"], truth, "frame")
     value_range = depth_range(truth)
@@ -83,8 +82,6 @@ def demo_page(result: Dict[str, Any], path: "Union[str, os.PathLike[str]]") -> "
     """The 3-D page (:mod:`nrdepth.viewer`) of a demo: the ground truth and
     the reconstruction mapped onto it by its per-frame GBR, side by side,
     each draped with the video, under one time slider."""
-    from .io.viewer import ViewerFrames, write_page
-
     video, truth = result["video"], result["truth"]
     videos = []
     for name, depth in (("ground truth", truth), ("nrdepth (gbr-aligned)", gbr_align(result["depth"], truth, "frame"))):

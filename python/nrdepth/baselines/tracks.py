@@ -26,6 +26,7 @@ from typing import Any, Dict, NamedTuple, Optional
 import numpy as np
 
 from ..engine.generate import GeneratorConfig
+from ..engine.render import CAMERA_Z
 from ..engine.surface import SurfaceParams, synthesize_surface
 
 __all__ = ["Tracks", "clip_tracks", "nrsfm_depth", "densify", "measurement_matrix", "track_video"]
@@ -45,8 +46,6 @@ def clip_tracks(params: Dict[str, Any], config: GeneratorConfig, points: int = 3
     the part of the surface visible in every frame of a generated clip
     (``params`` is one of ``generate_clips(...).params``); ``noise``: the
     standard deviation of Gaussian pixel noise added to the positions."""
-    from ..engine.render import CAMERA_Z
-
     if not (isinstance(points, int) and points >= 2):
         raise ValueError(f"points: expected an int >= 2, got {points!r}")
     if not (noise >= 0 and np.isfinite(noise)):

@@ -6,12 +6,15 @@ import argparse
 import math
 import time
 
+from ..engine.dataset import write_dataset
+from ..engine.generate import GeneratorConfig
+from ..engine.preview import preview_sheet, save_png, surface_sheet
+from ..engine.surface import SurfaceConfig
+
 __all__ = ["add_commands", "add_generator_options", "generator_config"]
 
 
 def _surfaces(args: argparse.Namespace) -> int:
-    from ..engine.preview import save_png, surface_sheet
-
     start = time.perf_counter()
     sheet = surface_sheet(seed=args.seed, clips=args.clips, frames=args.frames, grid=args.grid, columns=args.columns)
     save_png(args.out, sheet)
@@ -31,9 +34,6 @@ def _shard(text: str) -> tuple:
 
 
 def generator_config(args: argparse.Namespace):
-    from ..engine.generate import GeneratorConfig
-    from ..engine.surface import SurfaceConfig
-
     extra = {}
     if args.light_azimuth is not None:
         extra["light_azimuth"] = args.light_azimuth
@@ -62,8 +62,6 @@ def generator_config(args: argparse.Namespace):
 
 
 def _generate(args: argparse.Namespace) -> int:
-    from ..engine.dataset import write_dataset
-
     start = time.perf_counter()
     manifest = write_dataset(
         args.out, args.clips, seed=args.seed, config=generator_config(args), shard_size=args.shard_size,
@@ -74,8 +72,6 @@ def _generate(args: argparse.Namespace) -> int:
 
 
 def _preview(args: argparse.Namespace) -> int:
-    from ..engine.preview import preview_sheet, save_png
-
     save_png(args.out, preview_sheet(seed=args.seed, clips=args.clips, config=generator_config(args)))
     print(f"wrote {args.out}: {args.clips} sample clips (frames | depth | mesh) and the parameter sweep "
           "(low values | more constraint | non-identity Σ | more flexibility | more folding)")

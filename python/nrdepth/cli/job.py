@@ -4,8 +4,14 @@ from __future__ import annotations
 
 import argparse
 import time
+import zipfile
 from pathlib import Path
 
+import numpy as np
+
+from ..engine.preview import save_png
+from ..io.viewer import view
+from ..reconstruct import reconstruct_file
 from ..reconstruct.options import add_flags, flag_of, options_from_flags
 
 __all__ = ["add_commands"]
@@ -13,8 +19,6 @@ __all__ = ["add_commands"]
 
 def _reconstruct(args: argparse.Namespace) -> int:
     from ..model.io import resolve_device
-    from ..reconstruct import reconstruct_file
-
     out = Path(args.out) if args.out is not None else Path(Path(args.input).stem + "_depth")
     bar = None
 
@@ -51,10 +55,6 @@ def _reconstruct(args: argparse.Namespace) -> int:
 
 def _npz_shape(path: Path, name: str) -> tuple:
     """The shape of array ``name`` in an .npz, read from its header alone."""
-    import zipfile
-
-    import numpy as np
-
     with zipfile.ZipFile(path) as archive, archive.open(f"{name}.npy") as f:
         version = np.lib.format.read_magic(f)
         read = np.lib.format.read_array_header_2_0 if version == (2, 0) else np.lib.format.read_array_header_1_0
@@ -66,8 +66,6 @@ def _demo(args: argparse.Namespace) -> int:
 
     from ..demo import demo_page, demo_picture, run_demo
     from ..learning.evaluate import TEST_SEED
-    from ..engine.preview import save_png
-
     seed = TEST_SEED if args.seed is None else args.seed
     with tqdm(total=16, desc="frames", unit="frame", disable=args.quiet) as bar:
         result = run_demo(args.model, size=args.size, seed=seed, device=args.device, progress=lambda done, total: bar.update(done - bar.n))
@@ -86,8 +84,6 @@ def _demo(args: argparse.Namespace) -> int:
 
 
 def _view(args: argparse.Namespace) -> int:
-    from ..io.viewer import view
-
     page = view(args.folder, path=args.out)
     print(f"wrote {page}: the depth video in 3-D (open it in a browser; it needs no network)")
     return 0
@@ -96,12 +92,12 @@ def _view(args: argparse.Namespace) -> int:
 def add_commands(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("reconstruct", help="depth video of a video file, an image folder or a .npy/.npz array",
                        description="Depth video of a video file, an image folder or a .npy/.npz array, streamed: memory does not grow with the "
-                       "video's length. The flags are the fields of nrdepth.reconstruct.Options; what a video costs: docs/benchmarks.md.")
+                       "video's length. The flags are the fields of nrdepth.ReconstructOptions; what a video costs: docs/benchmarks.md.")
     p.add_argument("input", help="video file (mp4, avi, gif, …), folder of images, or .npy/.npz (T, H, W[, 3])")
     p.add_argument("-o", "--out", default=None,
                    help="output folder: depth.npz, depth.mp4, side_by_side.mp4 [, png16/, ply/] (default: INPUT_depth here)")
     p.add_argument("--model", default=None, help="model.safetensors or run folder (default: the shipped model)")
-    add_flags(p)  # one flag per field of nrdepth.reconstruct.Options
+    add_flags(p)  # one flag per field of nrdepth.ReconstructOptions
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=_reconstruct)
 

@@ -26,8 +26,8 @@ from typing import Any, Dict, Iterator, Optional, Tuple, Union
 import numpy as np
 
 from .. import __version__
-from .generate import GeneratorConfig, generate_clips
 from ..checks import check_int, check_seed
+from .generate import GeneratorConfig, generate_clips
 
 __all__ = ["write_dataset", "ClipStore", "SPLITS"]
 

@@ -16,8 +16,8 @@ from typing import Any, Dict, List, NamedTuple, Optional, Tuple
 import numpy as np
 
 from .. import _core
-from .render import CAMERA_Z
 from ..checks import check_int, check_seed, float_tuple
+from .render import CAMERA_Z
 from .surface import SurfaceConfig
 
 __all__ = ["GeneratorConfig", "Clips", "generate_clips", "image_points", "observable_depth", "window_widths"]

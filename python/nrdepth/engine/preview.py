@@ -10,16 +10,17 @@ from __future__ import annotations
 
 import os
 from dataclasses import replace
-from typing import TYPE_CHECKING, Optional, Sequence, Union
+from typing import Optional, Sequence, Union
 
 import numpy as np
 
 from .. import _core
 from ..io.colours import colormap
-from .surface import SurfaceConfig, sample_surface_params, synthesize_surfaces
+from ..io.figures import labelled
+from .generate import GeneratorConfig, generate_clips
+from .render import Light, Material, render
+from .surface import SurfaceConfig, SurfaceParams, grid_triangles, sample_surface_params, synthesize_surface, synthesize_surfaces
 
-if TYPE_CHECKING:
-    from .generate import GeneratorConfig
 
 def vertex_normals(positions: np.ndarray) -> np.ndarray:
     """Unit normals (..., grid, grid, 3) of grid vertex positions by central differences."""
@@ -106,12 +107,9 @@ def _wireframe(positions: np.ndarray, window: Sequence[float], size: int, every:
     return img
 
 
-def clip_sheet(clips: int = 3, seed: int = 0, frames_shown: int = 4, scale: int = 2, config: Optional["GeneratorConfig"] = None) -> np.ndarray:
+def clip_sheet(clips: int = 3, seed: int = 0, frames_shown: int = 4, scale: int = 2, config: Optional[GeneratorConfig] = None) -> np.ndarray:
     """One row per generated clip: ``frames_shown`` rendered frames, the same
     frames' depth (one colour range per clip), and the mesh of the first frame."""
-    from .generate import GeneratorConfig, generate_clips
-    from .surface import SurfaceParams, synthesize_surface
-
     config = GeneratorConfig() if config is None else config
     data = generate_clips(clips, seed=seed, config=config)
     tile = config.size * scale
@@ -131,8 +129,6 @@ def clip_sheet(clips: int = 3, seed: int = 0, frames_shown: int = 4, scale: int 
         for c, img in enumerate(tiles):
             y0, x0 = gap + r * (tile + gap), gap + c * (tile + gap)
             sheet[y0 : y0 + tile, x0 : x0 + tile] = img
-    from ..io.figures import labelled
-
     titles = [f"frame {f}" for f in picks] + [f"depth {f}" for f in picks] + ["mesh"]
     return labelled((sheet.clip(0, 1) * 255 + 0.5).astype(np.uint8), titles, tile + gap)
 
@@ -143,9 +139,6 @@ def parameter_sweep(seed: int = 0, size: int = 128) -> np.ndarray:
     constraint, a non-identity Σ, more flexibility and more folding. Each
     panel renders frame 0 under an oblique light with a check texture over
     the whole patch, so in-plane folding shows as distorted checks."""
-    from .render import Light, Material, render
-    from .surface import SurfaceParams, grid_triangles, synthesize_surface
-
     base = SurfaceParams(
         intensity=0.12, constraint=0.05, folding=0.05, flexibility=0.4,
         orientation=(1.0, 0.0, 1.0), speeds=(1.0, 1.0, 1.0), phase_seed=seed,
@@ -174,13 +167,11 @@ def parameter_sweep(seed: int = 0, size: int = 128) -> np.ndarray:
         out = render(vertices, triangles, uv, texture, size, (-1.3, -1.3, 1.3, 1.3), lights, Material(0.25, 0.75, 0.3, 30.0))
         x0 = gap + k * (size + gap)
         sheet[gap : gap + size, x0 : x0 + size] = _tile(out.image.clip(0, 1), size) * 0.9 + 0.1 * (out.coverage[..., None] == 0)
-    from ..io.figures import labelled
-
     titles = ["low values", "more constraint ν", "anisotropic Σ", "more flexibility ξ", "more folding ζ"]
     return labelled((sheet.clip(0, 1) * 255 + 0.5).astype(np.uint8), titles, size + gap)
 
 
-def preview_sheet(seed: int = 0, clips: int = 3, config: Optional["GeneratorConfig"] = None) -> np.ndarray:
+def preview_sheet(seed: int = 0, clips: int = 3, config: Optional[GeneratorConfig] = None) -> np.ndarray:
     """:func:`clip_sheet` above :func:`parameter_sweep`, on one white page."""
     top = clip_sheet(clips=clips, seed=seed, config=config)
     bottom = parameter_sweep(seed=seed)

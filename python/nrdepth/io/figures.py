@@ -38,8 +38,8 @@ def labelled(image: np.ndarray, titles: Sequence[str], cell_width: int, colour_b
 
     matplotlib.use("Agg", force=False)
     from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.colors import ListedColormap, Normalize
     from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import ListedColormap, Normalize
     from matplotlib.figure import Figure
 
     image = np.asarray(image)

@@ -20,10 +20,12 @@ from typing import Any, Dict, NamedTuple, Optional, Tuple, Union
 import numpy as np
 import torch
 
+from ..engine.dataset import ClipStore
 from ..engine.generate import GeneratorConfig, generate_clips, window_widths
-from .losses import relief_rms
-from ..scores.metrics import flat_baseline, mae_sn, sign_rates
 from ..model.io import check_readings, load_model, predict_depth, resolve_device
+from ..reconstruct import reconstruct
+from ..scores.metrics import flat_baseline, mae_sn, sign_rates, sparse_baselines, sparse_mae, sparse_sign_rate
+from .losses import relief_rms
 
 __all__ = ["evaluate", "load_real_video", "load_real", "RealVideo", "score_real", "score_real_video", "relief_ratio", "TEST_SEED"]
 
@@ -48,8 +50,6 @@ def evaluate(
     check_readings(readings)
     net = load_model(model, device="cpu").to(resolve_device(device))
     if data is not None:
-        from ..engine.dataset import ClipStore
-
         store = ClipStore(data, "test")
         items = [store[i] for i in range(min(clips, len(store)))]
         video, depth, params = np.stack([v for v, _, _ in items]), np.stack([d for _, d, _ in items]), [p for _, _, p in items]
@@ -171,9 +171,6 @@ def score_real(model: torch.nn.Module, real: RealVideo, device: Union[str, torch
     the plane's, and the share of frames whose relief sign is right."""
     if real.depth is not None:
         return score_real_video(model, real.video, real.depth, device)
-    from ..scores.metrics import sparse_baselines, sparse_mae, sparse_sign_rate
-    from ..reconstruct import reconstruct
-
     p = real.points
     pred = reconstruct(real.video, model, device=str(device))[p["frames"]]
     return {"mae": sparse_mae(pred, p["uv"], p["z"]), "flat_mae": sparse_baselines(p["uv"], p["z"])["plane"],
@@ -185,8 +182,6 @@ def score_real_video(model: torch.nn.Module, video: np.ndarray, depth: np.ndarra
     and score it over the pixels with a ground-truth value: MAE-SN per frame
     and from the first frame, the flat plane's per frame, and the share of
     frames whose relief sign is read right."""
-    from ..reconstruct import reconstruct
-
     mask = np.isfinite(depth)
     pred = reconstruct(video, model, device=str(device))
     return {

@@ -18,6 +18,7 @@ Files in the run folder: ``config.json`` (this run's TrainConfig),
 
 from __future__ import annotations
 
+import copy
 import csv
 import hashlib
 import json
@@ -31,12 +32,13 @@ import numpy as np
 import torch
 import torch.distributed as dist
 
+from ..engine.dataset import ClipStore
 from ..engine.generate import GeneratorConfig, generate_clips, window_widths
 from ..model import build_model
 from ..model.io import load_model, predict_depth, resolve_device, save_model
 from ..scores.metrics import flat_baseline, mae_sn, sign_rates
 from .config import TARGETS, TrainConfig
-from .evaluate import relief_ratio
+from .evaluate import load_real, relief_ratio, score_real
 from .losses import get_loss, relief_amplitude_loss
 
 __all__ = ["train", "targets", "validation_set", "evaluate_depth"]
@@ -80,8 +82,6 @@ class StoredBatches(torch.utils.data.Dataset):
     """Batch k of the train split: a permutation seeded by (seed, epoch)."""
 
     def __init__(self, root: str, seed: int, batch_size: int, target: str = "depth", window_units: bool = False) -> None:
-        from ..engine.dataset import ClipStore
-
         self.store = ClipStore(root, "train")
         self.seed, self.batch_size, self.target, self.window_units = seed, batch_size, target, window_units
         if len(self.store) < batch_size:
@@ -102,8 +102,6 @@ class StoredBatches(torch.utils.data.Dataset):
 def validation_set(config: TrainConfig) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Validation videos, depths (world units) and window widths."""
     if config.data is not None:
-        from ..engine.dataset import ClipStore
-
         store = ClipStore(config.data, "validation")
         if len(store) == 0:
             raise ValueError(f"data: the validation split of {config.data} is empty (it is 10 % of the clips, rounded down: write at least 10)")
@@ -173,8 +171,6 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
     depth_val_half = torch.nn.functional.avg_pool2d(torch.from_numpy(depth_val).float(), 2).numpy() if leader else None
     reals = {}
     if leader and config.real is not None:
-        from .evaluate import load_real, score_real
-
         paths = [config.real] if isinstance(config.real, str) else config.real
         reals = {("real_" if len(paths) == 1 else f"real_{Path(p).stem}_"): load_real(p) for p in paths}
     if leader:
@@ -317,8 +313,6 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
 
 def _frozen_copy(model: torch.nn.Module) -> torch.nn.Module:
     """A copy of ``model`` that no optimiser or autograd touches: the moving average's home."""
-    import copy
-
     average = copy.deepcopy(model)
     for p in average.parameters():
         p.requires_grad_(False)

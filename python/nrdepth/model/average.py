@@ -28,7 +28,7 @@ from typing import Dict, List, Optional, Sequence, Set, Tuple, Union
 import torch
 from torch import nn
 
-from .io import unwrap, architecture_name, build_model, load_model
+from .io import architecture_name, build_model, load_model, unwrap
 
 __all__ = ["average_models"]
 

@@ -24,7 +24,7 @@ from typing import Any, Dict
 import torch
 from torch import nn
 
-from .parts import ConvAct, Context, Up
+from .parts import Context, ConvAct, Up
 
 
 class UNet3D(nn.Module):

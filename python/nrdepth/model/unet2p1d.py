@@ -45,7 +45,6 @@ from torch import nn
 
 from .parts import NEGATIVE_SLOPE
 
-
 STD_FLOOR = 1e-3
 """Added to the input's standard deviation before dividing by it (a flat clip stays finite)."""
 

@@ -2,7 +2,7 @@
 
 One file a stage, in the order they run:
 
-- :mod:`.options`: :class:`Options`, every setting of the job, checked in one place;
+- :mod:`.options`: :class:`ReconstructOptions`, every setting of the job, checked in one place;
 - :mod:`.frames`: the frames at the working resolution, their statistic, a video on disk;
 - :mod:`.network`: the network, loaded once on its device;
 - :mod:`.pipeline`: the video read at the working resolution, with its coarse pass (:mod:`.coarse`);
@@ -25,8 +25,8 @@ from .coarse import coarse_depth, coarse_half
 from .fine import GPU_TILE, MARGIN, TILE, field_frames, field_windows, patch_depths, tile_plan
 from .frames import Statistic, working_shape
 from .network import inference_model
-from .options import FINE_PASSES, ISOMETRIC_DROP, ISOMETRIC_SCALE, MAX_SIDE, Options
+from .options import FINE_PASSES, ISOMETRIC_DROP, ISOMETRIC_SCALE, MAX_SIDE, ReconstructOptions
 
-__all__ = ["reconstruct", "reconstruct_file", "Options", "Camera", "MAX_SIDE", "FINE_PASSES", "ISOMETRIC_SCALE", "ISOMETRIC_DROP",
+__all__ = ["reconstruct", "reconstruct_file", "ReconstructOptions", "Camera", "MAX_SIDE", "FINE_PASSES", "ISOMETRIC_SCALE", "ISOMETRIC_DROP",
            "coarse_depth", "coarse_half", "patch_depths", "field_frames", "field_windows", "tile_plan", "inference_model", "working_shape",
            "Statistic", "TILE", "GPU_TILE", "MARGIN"]

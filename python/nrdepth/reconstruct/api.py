@@ -22,7 +22,7 @@ from .export import final, units_of
 from .frames import CHUNK, DiskFrames
 from .mask import file_mask, video_mask
 from .network import load_net
-from .options import FILE_ONLY, Options
+from .options import FILE_ONLY, ReconstructOptions
 from .pipeline import Pipeline
 from .sheet import sheet_depth, sheet_points
 from .stitching import stitched
@@ -33,25 +33,25 @@ Model = Union[None, str, "os.PathLike[str]", "torch.nn.Module"]  # noqa: F821
 Progress = Optional[Callable[[int, int], None]]
 
 
-def _prepared(model: Model, options: Optional[Options], progress: Progress, settings: dict) -> tuple:
+def _prepared(model: Model, options: Optional[ReconstructOptions], progress: Progress, settings: dict) -> tuple:
     """The options with ``settings`` applied, the device and the network, every one checked."""
     from ..model.io import resolve_device
 
-    options = Options.of(options, **settings)
+    options = ReconstructOptions.of(options, **settings)
     if progress is not None and not callable(progress):
         raise TypeError(f"progress: expected a callable progress(done, total) or None, got {type(progress).__name__}")
     device = resolve_device(options.device)
     return options, device, load_net(model, options.units, device)
 
 
-def reconstruct(video: np.ndarray, model: Model = None, options: Optional[Options] = None, *, progress: Progress = None, **settings: Any) -> np.ndarray:
+def reconstruct(video: np.ndarray, model: Model = None, options: Optional[ReconstructOptions] = None, *, progress: Progress = None, **settings: Any) -> np.ndarray:
     """The depth video of ``video`` (T, H, W[, 3]; uint8, or float in
     [0, 1]; colour becomes luma): float32 (T', H', W') of the selected
     frames and region.
 
     ``model``: a path to ``model.safetensors`` or its run folder, a
     ``torch.nn.Module``, or None for the shipped model. ``options``: an
-    :class:`~nrdepth.reconstruct.Options`, and/or any of its fields as
+    :class:`~nrdepth.ReconstructOptions`, and/or any of its fields as
     keywords (``roi=``, ``focal=``, ``device="cuda"``, …; they replace the
     options' own). ``progress(done, total)`` is called as frames of the
     fine pass are done.
@@ -97,7 +97,7 @@ def reconstruct(video: np.ndarray, model: Model = None, options: Optional[Option
 
 
 def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.PathLike[str]"], model: Model = None,
-                     options: Optional[Options] = None, *, progress: Progress = None, **settings: Any) -> Path:
+                     options: Optional[ReconstructOptions] = None, *, progress: Progress = None, **settings: Any) -> Path:
     """:func:`reconstruct` a video file, image folder or array file
     (:class:`~nrdepth.io.VideoSource`) into the folder ``out``
     (:class:`~nrdepth.io.ReconstructionWriter`: ``depth.npz``,

@@ -17,7 +17,7 @@ __all__ = ["video_mask", "file_mask"]
 
 def video_mask(mask: Any, video_shape: Tuple[int, ...], frames: Optional[slice], roi: Any) -> Optional[np.ndarray]:
     """``mask`` (bool (H, W) or (T, H, W) of the video as given; its dtype
-    and the options it needs checked by :class:`~nrdepth.reconstruct.Options`)
+    and the options it needs checked by :class:`~nrdepth.ReconstructOptions`)
     cut as the video is, (1 or T', h, w); None stays None."""
     if mask is None:
         return None

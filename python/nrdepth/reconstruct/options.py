@@ -2,7 +2,7 @@
 documented and checked here.
 
 :func:`~nrdepth.reconstruct` and :func:`~nrdepth.reconstruct_file` take an
-:class:`Options` and/or its fields as keywords; ``nrdepth reconstruct``
+:class:`ReconstructOptions` and/or its fields as keywords; ``nrdepth reconstruct``
 builds its flags from the fields (:func:`add_flags`). Adding an option
 touches its field here and the stage that uses it.
 
@@ -22,13 +22,13 @@ from typing import Any, Dict, Optional, Tuple, Union
 
 import numpy as np
 
+from ..camera import Camera
 from ..checks import is_number, option_error
 from ..isometric import DROP, TEMPLATES
-from ..camera import Camera
 from .fine import check_tile
 from .stitch import ALIGNMENTS, COARSE_WEIGHT, TEMPORAL_WEIGHT, WINDOWS
 
-__all__ = ["Options", "MAX_SIDE", "FINE_PASSES", "ISOMETRIC_SCALE", "ISOMETRIC_DROP", "UNITS", "add_flags", "options_from_flags"]
+__all__ = ["ReconstructOptions", "MAX_SIDE", "FINE_PASSES", "ISOMETRIC_SCALE", "ISOMETRIC_DROP", "UNITS", "add_flags", "options_from_flags"]
 
 MAX_SIDE = 480
 """Default working resolution: a frame's longer side, in pixels. The real
@@ -48,7 +48,7 @@ ISOMETRIC_DROP = DROP
 
 
 def _option(default: Any, help: str, flag: Optional[str] = None, **argparse_kwargs: Any) -> Any:
-    """A field of :class:`Options`: its default, its help (the API's and the
+    """A field of :class:`ReconstructOptions`: its default, its help (the API's and the
     command line's), and how ``nrdepth reconstruct`` takes it (``flag``:
     its name there, ``None``: the field's name with dashes; ``""``: none)."""
     return field(default=default, metadata={"help": help, "flag": flag, "argparse": argparse_kwargs})
@@ -102,7 +102,7 @@ _ROI = _parse_ints("X,Y,W,H in pixels", 4)
 
 
 @dataclass(frozen=True, eq=False)
-class Options:
+class ReconstructOptions:
     """How :func:`~nrdepth.reconstruct` and :func:`~nrdepth.reconstruct_file`
     reconstruct a video. Every field is checked when the options are made;
     what depends on the video (a region inside its frame, a mask of its
@@ -141,8 +141,9 @@ class Options:
     temporal: bool = _option(False, "give every frame frame 0's plane and relief norm (nrdepth.temporal_align): for models trained with "
                              "per-frame losses only", flag="--temporal-align", action="store_true")
     # A sheet through a known camera.
-    focal: Union[None, float, Tuple[float, float]] = _option(
-        None, "for a sheet (paper, cloth) filmed by a perspective camera: its focal length in pixels of the video's frames, F or FX,FY. The "
+    focal: Union[None, float, Tuple[float, float], Camera] = _option(
+        None, "for a sheet (paper, cloth) filmed by a perspective camera: its focal length in pixels of the video's frames, F or FX,FY "
+        "(or a nrdepth.Camera, whose principal point comes with it). The "
         "shape above isometric_scale then comes from inextensibility (points followed by optical flow over the sheet; nrdepth.isometric), "
         "the relief below it from the network, and on a long video that bends the sheet many ways the relief's sign too (a short clip reads "
         "as a dome). Holds the selected frames in memory; minutes for a few hundred frames", type=_parse_numbers("F or FX,FY in pixels", (1, 2)), metavar="F[,FY]")
@@ -180,14 +181,14 @@ class Options:
         return None if self.focal is None else Camera(self.focal, self.centre)
 
     @classmethod
-    def of(cls, options: Optional["Options"] = None, **settings: Any) -> "Options":
+    def of(cls, options: Optional["ReconstructOptions"] = None, **settings: Any) -> "ReconstructOptions":
         """``options`` (default: the defaults) with the fields in ``settings`` replaced; TypeError naming an unknown one."""
         if options is not None and not isinstance(options, cls):
-            raise TypeError(f"options: expected nrdepth.reconstruct.Options or None, got {type(options).__name__}")
+            raise TypeError(f"options: expected nrdepth.ReconstructOptions or None, got {type(options).__name__}")
         names = {f.name for f in fields(cls)}
         for name in settings:
             if name not in names:
-                raise TypeError(f"{name}: not an option of the main job; the options are nrdepth.reconstruct.Options' fields: {', '.join(sorted(names))}")
+                raise TypeError(f"{name}: not an option of the main job; the options are nrdepth.ReconstructOptions' fields: {', '.join(sorted(names))}")
         return dataclasses.replace(options or cls(), **settings)
 
     def changed(self) -> Dict[str, Any]:
@@ -203,8 +204,8 @@ FILE_ONLY = ("png16", "ply", "ply_relief", "viewer", "overwrite")
 """The options that say what :func:`~nrdepth.reconstruct_file` writes."""
 
 
-def _check(o: Options) -> None:
-    """Every check of :class:`Options` that needs no video, in field order; normalises tuples in place."""
+def _check(o: ReconstructOptions) -> None:
+    """Every check of :class:`ReconstructOptions` that needs no video, in field order; normalises tuples in place."""
     set_ = lambda name, value: object.__setattr__(o, name, value)  # noqa: E731  (a frozen dataclass normalises in __post_init__)
     if o.roi is not None:
         try:
@@ -252,11 +253,15 @@ def _check(o: Options) -> None:
         raise option_error("ply_relief", f"expected a positive finite number, got {o.ply_relief!r}")
 
 
-def _check_sheet(o: Options) -> None:
+def _check_sheet(o: ReconstructOptions) -> None:
     if o.focal is None:
         if o.centre is not None or o.sheet is not None or o.isometric_template != TEMPLATES[0] or o.isometric_drop != ISOMETRIC_DROP:
             raise option_error("focal", "centre, sheet, isometric_template and isometric_drop shape the isometric depth; they need the camera's focal length")
         return
+    if isinstance(o.focal, Camera):  # a camera as itself: its focal length, and its principal point unless centre says otherwise
+        camera = o.focal
+        object.__setattr__(o, "focal", camera.focal)
+        object.__setattr__(o, "centre", o.centre if o.centre is not None else camera.centre)
     Camera(o.focal, o.centre)  # raises naming focal or centre
     if not (is_number(o.isometric_scale) and np.isfinite(o.isometric_scale) and o.isometric_scale >= 0):
         raise option_error("isometric_scale", f"expected a fraction of the frame's shorter side >= 0, got {o.isometric_scale!r}")
@@ -270,23 +275,23 @@ def _check_sheet(o: Options) -> None:
 
 def flag_of(name: str) -> str:
     """The command line's flag of option ``name`` (``--roi``; ``--no-viewer`` for ``viewer``); ``--name`` for a name that is no field."""
-    meta = {f.name: f.metadata for f in fields(Options)}.get(name, {})
+    meta = {f.name: f.metadata for f in fields(ReconstructOptions)}.get(name, {})
     return meta.get("flag") or f"--{name.replace('_', '-')}"
 
 
 def add_flags(parser: argparse.ArgumentParser) -> None:
-    """``nrdepth reconstruct``'s flags, one per field of :class:`Options` that has one, with its help."""
-    for f in fields(Options):
+    """``nrdepth reconstruct``'s flags, one per field of :class:`ReconstructOptions` that has one, with its help."""
+    for f in fields(ReconstructOptions):
         if f.metadata.get("flag") == "":
             continue
         parser.add_argument(flag_of(f.name), dest=f.name, default=f.default, help=f.metadata["help"], **f.metadata["argparse"])
 
 
-def options_from_flags(args: argparse.Namespace) -> Options:
-    """The :class:`Options` of parsed ``nrdepth reconstruct`` flags."""
-    return Options.of(**{f.name: getattr(args, f.name) for f in fields(Options) if f.metadata.get("flag") != ""})
+def options_from_flags(args: argparse.Namespace) -> ReconstructOptions:
+    """The :class:`ReconstructOptions` of parsed ``nrdepth reconstruct`` flags."""
+    return ReconstructOptions.of(**{f.name: getattr(args, f.name) for f in fields(ReconstructOptions) if f.metadata.get("flag") != ""})
 
 
-Options.__doc__ = (Options.__doc__ or "") + "".join(
-    f"\n    - ``{f.name}`` (default ``{'None' if f.default is None else repr(f.default)}``): {f.metadata['help']}." for f in fields(Options)
+ReconstructOptions.__doc__ = (ReconstructOptions.__doc__ or "") + "".join(
+    f"\n    - ``{f.name}`` (default ``{'None' if f.default is None else repr(f.default)}``): {f.metadata['help']}." for f in fields(ReconstructOptions)
 )

@@ -14,7 +14,7 @@ import numpy as np
 
 from .coarse import coarse_half
 from .frames import Statistic, as_unit_float, frames_of, resize, working_shape
-from .options import Options
+from .options import ReconstructOptions
 from .stitch import PATCH
 
 __all__ = ["Pipeline"]
@@ -26,7 +26,7 @@ class Pipeline:
     with its statistic and coarse pass through ``net``; ``mask``: the
     surface's pixels (1 or T, H, W), checked (:mod:`.mask`), or None."""
 
-    def __init__(self, frame: Tuple[int, int], chunks: Callable[[], Iterable[np.ndarray]], net: Any, device: Any, options: Options,
+    def __init__(self, frame: Tuple[int, int], chunks: Callable[[], Iterable[np.ndarray]], net: Any, device: Any, options: ReconstructOptions,
                  mask: Optional[np.ndarray] = None) -> None:
         self.full, self.work = frame, working_shape(frame, options.max_side)
         self.chunks, self.net, self.device, self.options = chunks, net, device, options

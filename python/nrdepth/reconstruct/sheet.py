@@ -19,12 +19,12 @@ from ..camera import Camera
 from ..checks import option_error
 from ..isometric import fuse, mdh_depths, require_isometric, track_grid
 from .frames import as_uint8
-from .options import Options
+from .options import ReconstructOptions
 
 __all__ = ["sheet_points", "sheet_depth"]
 
 
-def sheet_points(options: Options, frame: Tuple[int, int]) -> np.ndarray:
+def sheet_points(options: ReconstructOptions, frame: Tuple[int, int]) -> np.ndarray:
     """Where the points go in the first selected frame, bool (H, W) of the
     video's ``frame``: ``options.sheet`` (a box or a bool array), else
     ``options.roi``, else the whole frame. Checks the optional
@@ -46,7 +46,7 @@ def sheet_points(options: Options, frame: Tuple[int, int]) -> np.ndarray:
     return points
 
 
-def sheet_depth(raw: np.ndarray, work: Tuple[int, int], options: Options, camera: Camera, points: np.ndarray, video: np.ndarray) -> np.ndarray:
+def sheet_depth(raw: np.ndarray, work: Tuple[int, int], options: ReconstructOptions, camera: Camera, points: np.ndarray, video: np.ndarray) -> np.ndarray:
     """The stitched depth ``raw`` (T, h, w) at the working resolution
     ``work`` with its shape above ``options.isometric_scale`` from the
     sheet's inextensibility: ``points`` (:func:`sheet_points`) followed

@@ -23,8 +23,8 @@ from typing import Dict, Tuple
 
 import numpy as np
 
-from .metrics import gbr_align, sparse_baselines, sparse_mae, sparse_sign_rate
 from ..io import read_video
+from .metrics import gbr_align, sparse_baselines, sparse_mae, sparse_sign_rate
 
 DATA = Path(os.environ.get("NRDEPTH_DATA", Path(__file__).resolve().parents[4] / "shared" / "data" / "real"))
 """The folder of the real videos (``NRDEPTH_DATA``, or the repository's ``../shared/data/real``)."""
