@@ -24,7 +24,7 @@ from .mask import file_mask, video_mask
 from .network import load_net
 from .options import FILE_ONLY, ReconstructOptions
 from .pipeline import Pipeline
-from .sheet import sheet_depth, sheet_points
+from .sheet import sheet_depth, sheet_region
 from .stitching import stitched
 
 __all__ = ["reconstruct", "reconstruct_file"]
@@ -85,13 +85,13 @@ def reconstruct(video: np.ndarray, model: Model = None, options: Optional[Recons
     if file_only:
         raise ValueError(f"{file_only[0]}: says what reconstruct_file writes; reconstruct returns the depth")
     mask = video_mask(options.mask, gray.shape, options.frames, options.roi)
-    points = None if options.focal is None else sheet_points(options, gray.shape[1:3])
+    region = None if options.focal is None else sheet_region(options, gray.shape[1:3])
     video = select(gray, options.frames, options.roi)
     chunks = lambda: (video[a : a + CHUNK] for a in range(0, len(video), CHUNK))  # noqa: E731
     pipeline = Pipeline(video.shape[1:], chunks, net, device, options, mask)
     raw = np.concatenate(list(stitched(pipeline, progress)))
-    if points is not None:
-        raw = sheet_depth(raw, pipeline.work, options, options.camera, points, select(gray, options.frames, None))
+    if region is not None:
+        raw = sheet_depth(raw, pipeline.work, options, options.camera, region, select(gray, options.frames, None))
     offset, scale = units_of(pipeline, raw, options.temporal, options.units)
     return final(pipeline, raw, 0, len(raw), offset, -scale if options.flip else scale)
 
@@ -123,7 +123,7 @@ def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.
     out = check_output_folder(out, options.overwrite, inputs=(input,))
     source = open_video(input, "input", options.frames, options.roi)
     mask = file_mask(options.mask, source, options.frames, options.roi)
-    points = None if options.focal is None else sheet_points(options, source.raw_size)
+    region = None if options.focal is None else sheet_region(options, source.raw_size)
     pipeline = Pipeline(source.frame_size, lambda: source.chunks(CHUNK), net, device, options, mask)
     t = pipeline.shape[0]
     ply_relief = options.ply_relief
@@ -134,9 +134,9 @@ def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.
         raw = DiskFrames(writer.scratch("stitched.f32"), pipeline.shape[1:])
         for chunk in stitched(pipeline, progress):
             raw.append(chunk)
-        if points is not None:
+        if region is not None:
             whole = np.concatenate(list(open_video(input, "input", options.frames, None).chunks(CHUNK)))
-            raw[:] = sheet_depth(raw[:], pipeline.work, options, options.camera, points, whole)
+            raw[:] = sheet_depth(raw[:], pipeline.work, options, options.camera, region, whole)
         offset, scale = units_of(pipeline, raw, options.temporal, options.units)
         scale = -scale if options.flip else scale
         # The ranges from the working resolution (bilinear resizing makes no new extremes), a chunk at a time.

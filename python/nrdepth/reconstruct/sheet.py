@@ -21,10 +21,10 @@ from ..isometric import fuse, mdh_depths, require_isometric, track_grid
 from .frames import as_uint8
 from .options import ReconstructOptions
 
-__all__ = ["sheet_points", "sheet_depth"]
+__all__ = ["sheet_region", "sheet_depth"]
 
 
-def sheet_points(options: ReconstructOptions, frame: Tuple[int, int]) -> np.ndarray:
+def sheet_region(options: ReconstructOptions, frame: Tuple[int, int]) -> np.ndarray:
     """Where the points go in the first selected frame, bool (H, W) of the
     video's ``frame``: ``options.sheet`` (a box or a bool array), else
     ``options.roi``, else the whole frame. Checks the optional
@@ -46,14 +46,14 @@ def sheet_points(options: ReconstructOptions, frame: Tuple[int, int]) -> np.ndar
     return points
 
 
-def sheet_depth(raw: np.ndarray, work: Tuple[int, int], options: ReconstructOptions, camera: Camera, points: np.ndarray, video: np.ndarray) -> np.ndarray:
+def sheet_depth(raw: np.ndarray, work: Tuple[int, int], options: ReconstructOptions, camera: Camera, region: np.ndarray, video: np.ndarray) -> np.ndarray:
     """The stitched depth ``raw`` (T, h, w) at the working resolution
     ``work`` with its shape above ``options.isometric_scale`` from the
-    sheet's inextensibility: ``points`` (:func:`sheet_points`) followed
+    sheet's inextensibility: points over ``region`` (:func:`sheet_region`) followed
     through ``video`` (the selected frames whole, (T, H, W)) and their
     depths through ``camera``, spread over the region's working frame."""
     try:
-        xy = track_grid(as_uint8(video), points, drop=float(options.isometric_drop))
+        xy = track_grid(as_uint8(video), region, drop=float(options.isometric_drop))
     except ValueError as error:
         if getattr(error, "option", None) != "mask":
             raise
