@@ -29,9 +29,9 @@ FLAGS = [
     (["--window", "triangle"], {"window": "triangle"}),
     (["--temporal-align"], {"temporal": True}),
     (["--focal", "500,510", "--centre", "10,20", "--sheet", "0,0,8,8", "--isometric-scale", "0.1", "--isometric-template", "refined",
-      "--isometric-drop", "0.3"],
+      "--isometric-drop", "0.3", "--isometric-points", "900"],
      {"focal": (500.0, 510.0), "centre": (10.0, 20.0), "sheet": (0, 0, 8, 8), "isometric_scale": 0.1, "isometric_template": "refined",
-      "isometric_drop": 0.3}),
+      "isometric_drop": 0.3, "isometric_points": 900}),
     (["--flip", "--png16", "--ply", "--ply-relief", "0.1", "--no-viewer", "--overwrite"],
      {"flip": True, "png16": True, "ply": True, "ply_relief": 0.1, "viewer": False, "overwrite": True}),
 ]
@@ -80,6 +80,7 @@ def test_an_unknown_option_is_named():
     ({"centre": (1.0, 1.0)}, "focal"),  # the centre shapes the isometric depth: it needs the focal length
     ({"focal": 100.0, "isometric_drop": 1.0}, "isometric_drop"),
     ({"focal": 100.0, "isometric_scale": float("nan")}, "isometric_scale"),
+    ({"focal": 100.0, "isometric_points": 2.5}, "isometric_points"),
     ({"roi": (0, 0, 8.5, 8)}, "roi"),
     ({"max_side": 4}, "max_side"),
     ({"tile": (8, 36, 64)}, "tile"),

@@ -160,6 +160,7 @@ class ReconstructOptions:
                                       choices=TEMPLATES)
     isometric_drop: float = _option(ISOMETRIC_DROP, "with focal: the share of the points left out where the flow's two directions disagree most",
                                     type=float)
+    isometric_points: int = _option(400, "with focal: about how many points are followed over the sheet (a square grid)", type=int)
     # The outputs.
     flip: bool = _option(False, "negate the depth: the other convex/concave reading (the model assumes light from above; use it for a video "
                          "lit from below)", action="store_true")
@@ -255,8 +256,8 @@ def _check(o: ReconstructOptions) -> None:
 
 def _check_sheet(o: ReconstructOptions) -> None:
     if o.focal is None:
-        if o.centre is not None or o.sheet is not None or o.isometric_template != TEMPLATES[0] or o.isometric_drop != ISOMETRIC_DROP:
-            raise option_error("focal", "centre, sheet, isometric_template and isometric_drop shape the isometric depth; they need the camera's focal length")
+        if o.centre is not None or o.sheet is not None or o.isometric_template != TEMPLATES[0] or o.isometric_drop != ISOMETRIC_DROP or o.isometric_points != 400:
+            raise option_error("focal", "centre, sheet and the isometric options shape the isometric depth; they need the camera's focal length")
         return
     if isinstance(o.focal, Camera):  # a camera as itself: its focal length, and its principal point unless centre says otherwise
         camera = o.focal
@@ -271,6 +272,8 @@ def _check_sheet(o: ReconstructOptions) -> None:
         raise option_error("isometric_template", f"expected one of {TEMPLATES}, got {o.isometric_template!r}")
     if not (is_number(o.isometric_drop) and 0 <= o.isometric_drop < 1):
         raise option_error("isometric_drop", f"expected a share of the points in [0, 1), got {o.isometric_drop!r}")
+    if isinstance(o.isometric_points, bool) or not isinstance(o.isometric_points, (int, np.integer)) or o.isometric_points < 4:
+        raise option_error("isometric_points", f"expected an integer ≥ 4, got {o.isometric_points!r}")
 
 
 def flag_of(name: str) -> str:

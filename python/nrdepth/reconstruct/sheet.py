@@ -53,7 +53,7 @@ def sheet_depth(raw: np.ndarray, work: Tuple[int, int], options: ReconstructOpti
     through ``video`` (the selected frames whole, (T, H, W)) and their
     depths through ``camera``, spread over the region's working frame."""
     try:
-        xy = track_grid(as_uint8(video), region, drop=float(options.isometric_drop))
+        xy = track_grid(as_uint8(video), region, points=int(options.isometric_points), drop=float(options.isometric_drop))
     except ValueError as error:
         if getattr(error, "option", None) != "mask":
             raise
