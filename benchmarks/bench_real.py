@@ -24,7 +24,7 @@ CSF2 on points tracked on the print (48-frame windows, shorter where the
 tracker loses the points; K = 2), a plane, a fixed bowl and
 the best quadratic fitted to the truth.
 
-    python benchmarks/bench_real.py [--model PATH] [--out docs] [--skip-csf2]
+    python benchmarks/bench_real.py [--model PATH] [--out docs/benchmarks] [--skip-csf2]
     python benchmarks/bench_real.py --write-kinect kinect_sheet.npz      # for nrdepth train --real
     python benchmarks/bench_real.py --write-phisft phisft_bin4.npz       # the same for the cloth
 """

@@ -15,10 +15,10 @@ For every model (the shipped one, and ``--run FOLDER`` runs' kept epochs,
   MAE-SN per frame; references ``sheets_plane`` / ``sheets_bowl``;
 - ``phisft_frame`` / ``phisft_first`` / ``phisft_sign``: the real cloth
   (``bench_real.phisft``'s crop); ``phisft_border`` / ``phisft_inside``:
-  its per-frame error within ``bench_real.PHISFT_BORDER`` pixels of the
-  background and further in (``bench_real.region_errors``);
+  its per-frame error within ``nrdepth.scores.real.PHISFT_BORDER`` pixels of the
+  background and further in (``nrdepth.scores.real.region_errors``);
 - ``kinect_mm`` / ``kinect_sign`` (the whole sheet) and ``kinect_inner_mm``
-  (``bench_real.KINECT_INNER``): the real bending paper on ``gt_mdh.npz``.
+  (``nrdepth.scores.real.KINECT_INNER``): the real bending paper on ``gt_mdh.npz``.
 
 A picture (``--plot``) draws each score against the clips a run has seen,
 the references as horizontal lines; at 0 clips, the row named by

@@ -13,14 +13,14 @@ one, in one run, on this machine's threads.
    of the field.
 3. Accuracy, paired per video: MAE-SN per frame and from the first frame of
    ``--videos`` generated 256×256×16 videos inside the training ranges and
-   as many outside them (``bench_reconstruct.out_of_range``), a fresh seed,
+   as many outside them (``nrdepth.scores.generated.out_of_range``), a fresh seed,
    reconstructed both ways; the mean paired difference ± its standard error.
 4. The real videos both ways: ``phisft_R1`` (MAE-SN, ``bench_real.phisft``'s
    crop) and ``kinect_paper`` on its sparse ground truth (mm, the whole
    sheet).
 5. ``--resolution``: the working resolution (``max_side``) on both real
    videos, with the time each costs: ``phisft_R1``'s crop taken from the
-   full frames binned 2×2 (216×216, ``real_scales.phisft_at_bin``) and
+   full frames binned 2×2 (216×216, ``nrdepth.scores.real.phisft_at_bin``) and
    ``kinect_paper``'s sheet (528×416), each reconstructed at several
    working sizes and scored at its own grid, beside the plane.
 6. ``--long``: video files through ``nrdepth.reconstruct_file`` (what
@@ -51,7 +51,8 @@ import numpy as np
 import torch
 
 import nrdepth
-from nrdepth.reconstruct import MARGIN, PATCH, TILE, coarse_depth, field_frames, field_windows, inference_model, patch_depths, tile_plan
+from nrdepth.reconstruct.stitch import PATCH
+from nrdepth.reconstruct import MARGIN, TILE, coarse_depth, field_frames, field_windows, inference_model, patch_depths, tile_plan
 from nrdepth.reconstruct.stitch import COARSE_WEIGHT, TEMPORAL_WEIGHT, make_stitcher
 
 from nrdepth.scores.real import DATA, KINECT_ROI, kinect_score, kinect_truth

@@ -1,5 +1,5 @@
 """Where a model's error on ``phisft_R1`` (the real cloth) comes from. Its
-crop (``bench_real.CROP``) shows the cloth's hem and left edge over the data
+crop (``nrdepth.scores.real.CROP``) shows the cloth's hem and left edge over the data
 set's black background, about 5 % of the crop at frame 0 and a quarter by
 the end; the score counts only the cloth's pixels with ground truth.
 
@@ -15,7 +15,7 @@ For each model, MAE-SN per frame and from the first frame of:
   the optical axis is given, which no orthographic frame shows (the
   training target leaves it out: ``--target observable``);
 - the per-frame error split into the cloth's border (within
-  ``bench_real.PHISFT_BORDER`` pixels of the background) and its inside;
+  ``nrdepth.scores.real.PHISFT_BORDER`` pixels of the background) and its inside;
 - "own plane": frame 0's relief scale λ kept, each frame's plane (α, β, τ)
   fitted anew: what is left when only the plane's motion is given.
 

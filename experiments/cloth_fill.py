@@ -11,7 +11,7 @@ them, and the depth is scored on the same pixels as always:
 
 Each filled video is read with and without ``mask=`` (the cloth) for the
 alignments. MAE-SN per frame and from the first frame, and per frame split
-into the border and the inside (``bench_real.phisft_regions``).
+into the border and the inside (``nrdepth.scores.real.phisft_regions``).
 
     python experiments/cloth_fill.py [MODEL ...]      # 'default' (or nothing) is the shipped model
 """

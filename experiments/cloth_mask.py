@@ -1,11 +1,11 @@
 """Does the background corrupt the stitcher's alignments on ``phisft_R1``?
-Its crop (``bench_real.CROP``) shows the cloth's hem over the data set's
+Its crop (``nrdepth.scores.real.CROP``) shows the cloth's hem over the data set's
 black matte, and what separates checkpoints per frame is the cloth's border
 (docs/campaign.md). ``reconstruct(mask=...)`` leaves pixels off the surface
 out of every alignment; here the mask is the cloth as the frames show it
 (gray > 0, no ground truth used). Both readings are scored on the same
 pixels: MAE-SN per frame and from the first frame, and the per-frame error
-split into the border (within ``bench_real.PHISFT_BORDER`` pixels of the
+split into the border (within ``nrdepth.scores.real.PHISFT_BORDER`` pixels of the
 matte) and the inside.
 
     python experiments/cloth_mask.py [MODEL ...]      # 'default' (or nothing) is the shipped model

@@ -26,7 +26,7 @@ reads the paper again at each number of points and neighbours given, and
 with a focal length off by each factor given (no network): how much the
 figure depends on them.
 
-    python experiments/isometric_real.py [--csv docs/isometric_real.csv] [--plot docs/isometric_real.png]
+    python experiments/isometric_real.py [--csv docs/reconstruction/isometric_real.csv] [--plot docs/reconstruction/isometric_real.png]
     python experiments/isometric_real.py --drop 0,0.1,0.2,0.3 [--template refined]
     python experiments/isometric_real.py --grid --points 200,400,800 --neighbours 8,12,20
     python experiments/isometric_real.py --grid --focal-factors 0.5,0.7,1.4,2

@@ -1,5 +1,5 @@
 """Where a model's error on ``kinect_paper`` (the real bending sheet, sparse
-truth in mm) comes from: for the whole sheet (``bench_real.KINECT_ROI``) and
+truth in mm) comes from: for the whole sheet (``nrdepth.scores.real.KINECT_ROI``) and
 a crop inside it (``KINECT_INNER``), the stitched depth as ``reconstruct``
 gives it, the coarse pass alone (the crop resized to 64×64, the reading
 every window is aligned to), and each frame of the stitched depth replaced

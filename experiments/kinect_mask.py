@@ -4,8 +4,8 @@ behind the sheet and the hands holding it move on their own, which is where
 an oracle's: the convex hull of the ground truth's 301 points, interpolated
 linearly between the 23 frames that have them (the nearest outside them),
 widened by ``--margin`` pixels to reach the sheet's border. Both readings
-are scored alike, on those points (``bench_real.kinect_score``), for the
-whole sheet (``bench_real.KINECT_ROI``).
+are scored alike, on those points (``nrdepth.scores.real.kinect_score``), for the
+whole sheet (``nrdepth.scores.real.KINECT_ROI``).
 
     python experiments/kinect_mask.py [MODEL ...] [--margin 15]     # 'default' (or nothing) is the shipped model
 """

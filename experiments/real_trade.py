@@ -11,7 +11,7 @@ first one's colour (``--label STEM=TEXT`` names a CSV in the legend).
 Readings must come from the same benchmark (``bench_sheets.py`` since
 issue 41's sheets: the earlier model reads the same in all of them).
 
-    python experiments/real_trade.py docs/sheets41.csv docs/persp48.csv ... -o docs/real_trade.png [--label persp48=TEXT]
+    python experiments/real_trade.py docs/campaign/sheets41.csv docs/campaign/persp48.csv ... -o docs/campaign/real_trade.png [--label persp48=TEXT]
 """
 
 from __future__ import annotations
