@@ -1,7 +1,7 @@
 """The demo: reconstruct a synthesised deforming-surface video and score it.
 
 A 256×256×16 clip is drawn by the clip generator (same ranges as training,
-the held-out seed of :mod:`nrdepth.evaluate`, so no training run saw it),
+the held-out seed of :mod:`nrdepth.learning.evaluate`, so no training run saw it),
 reconstructed whole by :func:`nrdepth.reconstruct` (coarse pass + stitched
 64×64×16 patches) and scored by MAE-SN against its ray-cast depth, both
 alignments, beside the flat baseline.
@@ -79,7 +79,7 @@ def demo_picture(result: Dict[str, Any], frames_shown: int = 4) -> np.ndarray:
 
 
 def demo_page(result: Dict[str, Any], path: "Union[str, os.PathLike[str]]") -> "os.PathLike[str]":
-    """The 3-D page (:mod:`nrdepth.viewer`) of a demo: the ground truth and
+    """The 3-D page (:mod:`nrdepth.io.viewer`) of a demo: the ground truth and
     the reconstruction mapped onto it by its per-frame GBR, side by side,
     each draped with the video, under one time slider."""
     video, truth = result["video"], result["truth"]

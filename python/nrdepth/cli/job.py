@@ -110,7 +110,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("out", nargs="?", default="demo.png", help="output PNG (default: demo.png); the 3-D page goes beside it (demo.html)")
     p.add_argument("--model", default=None, help="model.safetensors or run folder (default: the shipped model)")
     p.add_argument("--size", type=int, default=256, help="video side in pixels")
-    p.add_argument("--seed", type=int, default=None, help="generator seed (default: nrdepth.evaluate.TEST_SEED, held out)")
+    p.add_argument("--seed", type=int, default=None, help="generator seed (default: nrdepth.learning.evaluate.TEST_SEED, held out)")
     p.add_argument("--device", default="auto", help="auto | cpu | cuda | cuda:N")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=_demo)

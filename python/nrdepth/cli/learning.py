@@ -71,7 +71,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                    help="the paper's recipe: --arch unet3d --loss gbr --target depth --lr 1e-3 (default: the recommended one, "
                         "--arch unet2p1d_deep --loss aligned_both_signed --target observable --lr 3e-4); the options below override either")
     p.add_argument("--loss", default=None, help="gbr | tr_sc | aligned | aligned_clip | aligned_signed | aligned_clip_signed | aligned_both_signed | "
-                   "aligned_clip_offsets_signed | aligned_both_offsets_signed | aligned_first | aligned_signed_first (default: aligned_both_signed; see nrdepth.losses)")
+                   "aligned_clip_offsets_signed | aligned_both_offsets_signed | aligned_first | aligned_signed_first (default: aligned_both_signed; see nrdepth.learning.losses)")
     p.add_argument("--arch", default=None, help="unet3d (the paper's) | unet2p1d (factorised, ~15x cheaper) | unet2p1d_global (unet2p1d whose coarsest level sees the whole clip in time) | unet2p1d_deep (unet2p1d with 4 more residual blocks on its coarsest level) (default: unet2p1d_deep)")
     p.add_argument("--schedule", default="cosine", help="cosine | constant (a campaign: --epochs may grow on resume) (default: cosine)")
     p.add_argument("--target", default=None,

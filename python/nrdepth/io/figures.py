@@ -1,10 +1,10 @@
 """Pictures with words: a mosaic of frames and depth maps (uint8 RGB, laid
 out by the caller) given column titles, a title and a colour bar with values
 and units by matplotlib, rendered back to a uint8 RGB array so that callers
-keep writing PNGs as before (:func:`nrdepth.preview.save_png`).
+keep writing PNGs as before (:func:`nrdepth.engine.preview.save_png`).
 
 The mosaic is drawn at one screen pixel per image pixel (no resampling);
-the colour bar uses the same ramp as :func:`nrdepth.videoio.colorize_depth`
+the colour bar uses the same ramp as :func:`nrdepth.io.colorize_depth`
 (near = small depth = yellow, far = blue).
 """
 

@@ -89,7 +89,7 @@ class ReconstructionWriter:
     ``range``, and with ``png16`` the ``png16_range`` its PNGs span),
     ``depth.mp4`` (colourised over ``value_range``, the same for every
     frame), ``side_by_side.mp4`` (input | depth), with ``viewer`` the 3-D
-    page ``viewer.html`` (:mod:`nrdepth.viewer`), and optionally
+    page ``viewer.html`` (:mod:`nrdepth.io.viewer`), and optionally
     ``png16/depth_NNNN.png`` and ``ply/frame_NNNN.ply``. Everything goes
     into a temporary folder beside ``out``, renamed at :meth:`close` once
     all T frames are in (:meth:`set_ranges` first, unless ``value_range`` is

@@ -49,7 +49,7 @@ HOLE = -32768
 FULL_RESOLUTION = "The depth at full resolution: depth.npz."
 RELIEF = 0.073
 """The surface's depth standard deviation in frame widths at exaggeration 1
-(the training surfaces' median, as ``nrdepth.videoio.PLY_RELIEF``)."""
+(the training surfaces' median, as ``nrdepth.io.PLY_RELIEF``)."""
 
 PathLike = Union[str, "os.PathLike[str]"]
 

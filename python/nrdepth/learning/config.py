@@ -39,7 +39,7 @@ PAPER = {"arch": "unet3d", "loss": "gbr", "target": "depth", "lr": 1e-3}
 @dataclass
 class TrainConfig:
     loss: str = "gbr"
-    """One of nrdepth.losses.LOSSES: gbr, tr_sc, aligned, aligned_clip,
+    """One of nrdepth.learning.losses.LOSSES: gbr, tr_sc, aligned, aligned_clip,
     aligned_signed, aligned_clip_signed, aligned_both_signed."""
     arch: str = "unet3d"
     """One of nrdepth.model.ARCHITECTURES: unet3d (the paper's), unet2p1d."""
@@ -70,10 +70,10 @@ class TrainConfig:
     """What the loss compares the prediction with: ``depth`` (the rendered
     depth, the paper's) or ``observable`` (the depth without the surface's
     motion along the optical axis, which the video cannot show:
-    :func:`nrdepth.generate.observable_depth`). Validation scores the
+    :func:`nrdepth.engine.generate.observable_depth`). Validation scores the
     rendered depth either way."""
     amplitude: float = 0.0
-    """Weight of :func:`nrdepth.losses.relief_amplitude_loss` added to the
+    """Weight of :func:`nrdepth.learning.losses.relief_amplitude_loss` added to the
     loss; above 0, targets are in window widths and the model learns the
     relief's scale (``model.json``'s ``depth_units`` says ``"window"``), so
     ``reconstruct(..., units="pixels")`` can give depth in pixels and a flat
@@ -84,7 +84,7 @@ class TrainConfig:
     resume."""
     real: Union[None, str, List[str]] = None
     """A real video with ground truth (``.npz``, dense or sparse:
-    :func:`nrdepth.evaluate.load_real`), or a list of them, reconstructed and
+    :func:`nrdepth.learning.evaluate.load_real`), or a list of them, reconstructed and
     scored after every epoch: a watch on how training on generated clips
     carries over to real footage, which validation cannot show. One video
     writes ``real_mae_sn_frame``, ``real_mae_sn_first``, ``real_flat_frame``

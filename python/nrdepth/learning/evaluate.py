@@ -167,7 +167,7 @@ def load_real(path: Union[str, os.PathLike]) -> RealVideo:
 
 def score_real(model: torch.nn.Module, real: RealVideo, device: Union[str, torch.device] = "cpu") -> Dict[str, float]:
     """:func:`score_real_video` for dense truth; for sparse truth the MAE in
-    its units after each frame's GBR (:func:`nrdepth.metrics.sparse_mae`),
+    its units after each frame's GBR (:func:`nrdepth.scores.metrics.sparse_mae`),
     the plane's, and the share of frames whose relief sign is right."""
     if real.depth is not None:
         return score_real_video(model, real.video, real.depth, device)
@@ -194,7 +194,7 @@ def score_real_video(model: torch.nn.Module, video: np.ndarray, depth: np.ndarra
 
 def relief_ratio(pred: np.ndarray, truth: np.ndarray) -> float:
     """The geometric mean over frames of the ratio of predicted to true relief
-    amplitude (:func:`nrdepth.losses.relief_rms`; 1 is right, and both must be
+    amplitude (:func:`nrdepth.learning.losses.relief_rms`; 1 is right, and both must be
     in the same units)."""
     ratio = relief_rms(torch.from_numpy(pred).double()) / relief_rms(torch.from_numpy(np.asarray(truth)).double())
     return float(torch.exp(torch.log(ratio).mean()))

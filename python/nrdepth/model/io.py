@@ -89,7 +89,7 @@ def save_model(model: nn.Module, path: Union[str, os.PathLike], extra: Optional[
     meta_tmp = meta_path.with_name(meta_path.name + ".partial")
     meta_tmp.write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
     # Each file is replaced atomically; a training run killed between the two
-    # rewrites both when it resumes (nrdepth.train._finish_epoch).
+    # rewrites both when it resumes (nrdepth.learning.train, at the end of an epoch).
     os.replace(meta_tmp, meta_path)
     os.replace(tmp, path)
 

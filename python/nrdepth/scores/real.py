@@ -26,8 +26,18 @@ import numpy as np
 from ..io import read_video
 from .metrics import gbr_align, sparse_baselines, sparse_mae, sparse_sign_rate
 
-DATA = Path(os.environ.get("NRDEPTH_DATA", Path(__file__).resolve().parents[4] / "shared" / "data" / "real"))
-"""The folder of the real videos (``NRDEPTH_DATA``, or the repository's ``../shared/data/real``)."""
+
+def _default_data() -> Path:
+    """``NRDEPTH_DATA``, else ``../shared/data/real`` beside the repository: found from the package's own
+    files (an editable install) or from the working folder (the repository's root, as the scripts run)."""
+    if "NRDEPTH_DATA" in os.environ:
+        return Path(os.environ["NRDEPTH_DATA"])
+    candidates = [Path(__file__).resolve().parents[4] / "shared" / "data" / "real", Path.cwd().resolve().parent / "shared" / "data" / "real"]
+    return next((c for c in candidates if c.is_dir()), candidates[-1])
+
+
+DATA = _default_data()
+"""The folder of the real videos (``NRDEPTH_DATA``, or ``../shared/data/real`` beside the repository)."""
 
 
 def data_folder(name: str) -> Path:
@@ -108,7 +118,7 @@ def scaled_error(aligned: np.ndarray, truth: np.ndarray) -> np.ndarray:
 
 def region_errors(depth: np.ndarray, truth: np.ndarray, regions: dict) -> dict:
     """MAE-SN per frame split by region: each frame of ``depth`` GBR-aligned
-    over all its scored pixels as :func:`~nrdepth.metrics.mae_sn` does, its
+    over all its scored pixels as :func:`~nrdepth.scores.metrics.mae_sn` does, its
     :func:`scaled_error` averaged over each region's pixels (the regions'
     pixel-weighted mean is close to, not equal to, MAE-SN's mean of frame
     means)."""
@@ -140,7 +150,7 @@ def kinect_truth() -> Dict[str, np.ndarray]:
 
 def kinect_score(depth: np.ndarray, truth: dict, roi: tuple = KINECT_ROI, signs: bool = False) -> float:
     """MAE in mm of a depth video of the ``roi`` (x, y, w, h) of every frame
-    on the sparse ground truth's points inside it (``nrdepth.metrics.sparse_mae``),
+    on the sparse ground truth's points inside it (``nrdepth.scores.metrics.sparse_mae``),
     or with ``signs`` the share of frames whose relief sign is right."""
     x, y, w, h = roi
     uv = truth["uv"] - np.array([x, y], np.float64)[None, :, None]
