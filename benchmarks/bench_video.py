@@ -40,8 +40,8 @@ one, in one run, on this machine's threads.
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
-import resource
 import subprocess
 import sys
 import time
@@ -69,6 +69,17 @@ def load(name: str) -> np.ndarray:
     from nrdepth.io import read_video
 
     return read_video(DATA / "kinect_paper").frames
+
+
+def peak_mb() -> float:
+    """The peak RSS in MB of this process's own memory (VmHWM). Not getrusage's ru_maxrss: Linux carries that
+    across fork and exec, so a job would report its parent's size when the parent was larger."""
+    with open("/proc/self/status") as status:
+        return next(int(line.split()[1]) for line in status if line.startswith("VmHWM")) / 1024
+
+
+PEAK_MB = inspect.getsource(peak_mb)
+"""``peak_mb``'s source, for the jobs' own processes."""
 
 
 def flops_per_voxel(net: torch.nn.Module) -> float:
@@ -148,7 +159,7 @@ def run(video: np.ndarray, net: torch.nn.Module, fine: str) -> dict:
         seconds["network, cutting, resizing"] = cut
     seconds["stitch"] = stitch
     total = time.perf_counter() - start
-    return {"seconds": seconds, "total": total, "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+    return {"seconds": seconds, "total": total, "peak_mb": peak_mb(),
             "work": computed / video.size, "shape": list(video.shape), "network_voxels": float(computed)}
 
 
@@ -303,9 +314,9 @@ def rate(device: str) -> None:
 
 def file_job(source: Path, out: Path, threads: int, device: str, max_side: int) -> tuple:
     """``nrdepth.reconstruct_file`` in a process of its own: (seconds, peak RSS in MB, frames)."""
-    code = ("import resource, sys, time, torch; torch.set_num_threads(int(sys.argv[3])); import nrdepth; "
-            "start = time.perf_counter(); nrdepth.reconstruct_file(sys.argv[1], sys.argv[2], device=sys.argv[4], max_side=int(sys.argv[5]) or None); "
-            "print(time.perf_counter() - start, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)")
+    code = PEAK_MB + ("import sys, time, torch; torch.set_num_threads(int(sys.argv[3])); import nrdepth; "
+                      "start = time.perf_counter(); nrdepth.reconstruct_file(sys.argv[1], sys.argv[2], device=sys.argv[4], max_side=int(sys.argv[5]) or None); "
+                      "print(time.perf_counter() - start, peak_mb())")
     run = subprocess.run([sys.executable, "-c", code, str(source), str(out), str(threads), device, str(max_side)], check=True, capture_output=True, text=True)
     seconds, peak = (float(v) for v in run.stdout.split()[-2:])
     with np.load(out / "depth.npz") as saved:
@@ -315,9 +326,9 @@ def file_job(source: Path, out: Path, threads: int, device: str, max_side: int) 
 
 def memory_job(source: Path, threads: int, device: str) -> tuple:
     """``nrdepth.reconstruct`` of a video read into memory first, in a process of its own: (seconds, peak RSS in MB, frames)."""
-    code = ("import resource, sys, time, torch; torch.set_num_threads(int(sys.argv[2])); import nrdepth; from nrdepth.io import read_video; "
-            "video = read_video(sys.argv[1]).frames; start = time.perf_counter(); nrdepth.reconstruct(video, device=sys.argv[3]); "
-            "print(time.perf_counter() - start, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, len(video))")
+    code = PEAK_MB + ("import sys, time, torch; torch.set_num_threads(int(sys.argv[2])); import nrdepth; from nrdepth.io import read_video; "
+                      "video = read_video(sys.argv[1]).frames; start = time.perf_counter(); nrdepth.reconstruct(video, device=sys.argv[3]); "
+                      "print(time.perf_counter() - start, peak_mb(), len(video))")
     run = subprocess.run([sys.executable, "-c", code, str(source), str(threads), device], check=True, capture_output=True, text=True)
     seconds, peak, frames = (float(v) for v in run.stdout.split()[-3:])
     return seconds, peak, int(frames)
@@ -350,6 +361,7 @@ def long(threads: int, device: str, native: bool) -> None:
                 import shutil
 
                 shutil.rmtree(out)
+    print(f"torch sgemm 2048² on {threads} threads, again: {sgemm_rate():.1f} GFLOP/s (a shared machine's speed drifts)")
 
 
 def main() -> None:
