@@ -361,7 +361,7 @@ def long(threads: int, device: str, native: bool) -> None:
                 import shutil
 
                 shutil.rmtree(out)
-    print(f"torch sgemm 2048² on {threads} threads, again: {sgemm_rate():.1f} GFLOP/s (a shared machine's speed drifts)")
+    print(f"torch sgemm 2048² on {threads} threads, again: {sgemm_rate():.1f} GFLOP/s (whether the machine's speed held through the run)")
 
 
 def main() -> None:

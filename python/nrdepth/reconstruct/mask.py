@@ -21,6 +21,8 @@ def video_mask(mask: Any, video_shape: Tuple[int, ...], frames: Optional[slice],
     cut as the video is, (1 or T', h, w); None stays None."""
     if mask is None:
         return None
+    if isinstance(mask, (str, os.PathLike)):
+        raise option_error("mask", f"a file ({mask}) is read by reconstruct_file; reconstruct takes a bool array", TypeError)
     mask = np.asarray(mask)
     t, h, w = video_shape[:3]
     if mask.shape not in ((h, w), (t, h, w)):
