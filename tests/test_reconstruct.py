@@ -145,7 +145,7 @@ def test_cli_reconstructs_an_image_folder(tmp_path, tiny_model):
         ("focal", ["--device", "cpu", "--focal", "0"], "--focal: expected the camera's focal length in pixels"),
         ("focal units", ["--device", "cpu", "--focal", "50", "--temporal-align"], "--focal: the isometric shape comes with units='standard' and temporal off only"),
         ("sheet", ["--device", "cpu", "--focal", "50", "--sheet", "30,0,20,20"], "--sheet: expected a box x, y, width, height inside the 40×48 frame"),
-        ("sheet without focal", ["--device", "cpu", "--sheet", "0,0,20,20"], "--focal: centre, sheet, isometric_template and isometric_drop shape"),
+        ("sheet without focal", ["--device", "cpu", "--sheet", "0,0,20,20"], "--focal: the isometric depth's options \\(sheet\\) need the camera's focal length"),
         ("drop", ["--device", "cpu", "--focal", "50", "--isometric-drop", "1"], r"--isometric-drop: expected a share of the points in \[0, 1\)"),
     ],
 )

@@ -15,6 +15,7 @@ from typing import Any, Callable, Optional, Union
 
 import numpy as np
 
+from ..checks import option_error
 from ..io.decode import open_video, select, to_gray
 from ..io.folder import ReconstructionWriter, check_output_folder
 from ..io.writers import PLY_RELIEF
@@ -33,15 +34,19 @@ Model = Union[None, str, "os.PathLike[str]", "torch.nn.Module"]  # noqa: F821
 Progress = Optional[Callable[[int, int], None]]
 
 
-def _prepared(model: Model, options: Optional[ReconstructOptions], progress: Progress, settings: dict) -> tuple:
-    """The options with ``settings`` applied, the device and the network, every one checked."""
-    from ..model.io import resolve_device
-
-    options = ReconstructOptions.of(options, **settings)
+def _options(options: Optional[ReconstructOptions], progress: Progress, settings: dict) -> ReconstructOptions:
+    """The options with ``settings`` applied, and ``progress``, checked."""
     if progress is not None and not callable(progress):
         raise TypeError(f"progress: expected a callable progress(done, total) or None, got {type(progress).__name__}")
+    return ReconstructOptions.of(options, **settings)
+
+
+def _network(model: Model, options: ReconstructOptions) -> tuple:
+    """The device and the network on it."""
+    from ..model.io import resolve_device
+
     device = resolve_device(options.device)
-    return options, device, load_net(model, options.units, device)
+    return device, load_net(model, options.units, device)
 
 
 def reconstruct(video: np.ndarray, model: Model = None, options: Optional[ReconstructOptions] = None, *, progress: Progress = None, **settings: Any) -> np.ndarray:
@@ -80,13 +85,14 @@ def reconstruct(video: np.ndarray, model: Model = None, options: Optional[Recons
     To stream a long video from a file to a folder, see
     :func:`reconstruct_file`."""
     gray = to_gray(video, "video")
-    options, device, net = _prepared(model, options, progress, settings)
+    options = _options(options, progress, settings)
     file_only = [name for name in FILE_ONLY if name in options.changed()]
     if file_only:
-        raise ValueError(f"{file_only[0]}: says what reconstruct_file writes; reconstruct returns the depth")
+        raise option_error(file_only[0], "says what reconstruct_file writes; reconstruct returns the depth")
     mask = video_mask(options.mask, gray.shape, options.frames, options.roi)
     region = None if options.focal is None else sheet_region(options, gray.shape[1:3])
     video = select(gray, options.frames, options.roi)
+    device, net = _network(model, options)
     chunks = lambda: (video[a : a + CHUNK] for a in range(0, len(video), CHUNK))  # noqa: E731
     pipeline = Pipeline(video.shape[1:], chunks, net, device, options, mask)
     raw = np.concatenate(list(stitched(pipeline, progress)))
@@ -119,7 +125,8 @@ def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.
     PLYs' depth scale (:func:`~nrdepth.io.write_ply`; default: the training
     surfaces' for standard units, one frame width per pixel for pixel
     units). Returns ``out``."""
-    options, device, net = _prepared(model, options, progress, settings)
+    options = _options(options, progress, settings)
+    device, net = _network(model, options)
     out = check_output_folder(out, options.overwrite, inputs=(input,))
     source = open_video(input, "input", options.frames, options.roi)
     mask = file_mask(options.mask, source, options.frames, options.roi)

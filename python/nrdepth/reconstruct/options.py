@@ -201,6 +201,7 @@ def _differs(value: Any, default: Any) -> bool:
     return value is not default and (isinstance(value, np.ndarray) or value != default)
 
 
+_DEFAULTS = {f.name: f.default for f in fields(ReconstructOptions)}
 FILE_ONLY = ("png16", "ply", "ply_relief", "viewer", "overwrite")
 """The options that say what :func:`~nrdepth.reconstruct_file` writes."""
 
@@ -256,8 +257,10 @@ def _check(o: ReconstructOptions) -> None:
 
 def _check_sheet(o: ReconstructOptions) -> None:
     if o.focal is None:
-        if o.centre is not None or o.sheet is not None or o.isometric_template != TEMPLATES[0] or o.isometric_drop != ISOMETRIC_DROP or o.isometric_points != 400:
-            raise option_error("focal", "centre, sheet and the isometric options shape the isometric depth; they need the camera's focal length")
+        given = [name for name in ("centre", "sheet", "isometric_template", "isometric_drop", "isometric_points")
+                 if _differs(getattr(o, name), _DEFAULTS[name])]
+        if given:
+            raise option_error("focal", f"the isometric depth's options ({', '.join(given)}) need the camera's focal length")
         return
     if isinstance(o.focal, Camera):  # a camera as itself: its focal length, and its principal point unless centre says otherwise
         camera = o.focal
