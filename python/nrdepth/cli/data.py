@@ -33,7 +33,8 @@ def _shard(text: str) -> tuple:
     return i, n
 
 
-def generator_config(args: argparse.Namespace):
+def generator_config(args: argparse.Namespace) -> GeneratorConfig:
+    """The :class:`~nrdepth.GeneratorConfig` of the generator's flags (:func:`add_generator_options`)."""
     extra = {}
     if args.light_azimuth is not None:
         extra["light_azimuth"] = args.light_azimuth
