@@ -26,7 +26,7 @@ from ..camera import Camera
 from ..checks import is_number, option_error
 from ..isometric import DROP, TEMPLATES
 from .fine import check_tile
-from .stitch import ALIGNMENTS, COARSE_WEIGHT, TEMPORAL_WEIGHT, WINDOWS
+from .stitch import ALIGNMENTS, COARSE_WEIGHT, TEMPORAL_WEIGHT, WINDOWS, check_stitching
 
 __all__ = ["ReconstructOptions", "MAX_SIDE", "FINE_PASSES", "ISOMETRIC_SCALE", "ISOMETRIC_DROP", "UNITS", "add_flags", "options_from_flags"]
 
@@ -237,14 +237,7 @@ def _check(o: ReconstructOptions) -> None:
         raise option_error("fine", f"expected one of {FINE_PASSES}, got {o.fine!r}")
     if o.tile is not None:
         set_("tile", check_tile(o.tile))
-    if o.alignment not in ALIGNMENTS:
-        raise option_error("alignment", f"expected one of {ALIGNMENTS}, got {o.alignment!r}")
-    if o.window not in WINDOWS:
-        raise option_error("window", f"expected one of {WINDOWS}, got {o.window!r}")
-    if not is_number(o.coarse_weight) or not (0 < o.coarse_weight < math.inf):
-        raise option_error("coarse_weight", f"expected a finite number > 0, got {o.coarse_weight!r}")
-    if not is_number(o.temporal_weight) or not (0 <= o.temporal_weight < math.inf):
-        raise option_error("temporal_weight", f"expected a finite number ≥ 0, got {o.temporal_weight!r}")
+    check_stitching(o.alignment, o.coarse_weight, o.window, o.temporal_weight)
     _check_sheet(o)
     if o.mask is not None:
         if o.alignment != "joint":

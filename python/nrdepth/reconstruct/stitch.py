@@ -48,7 +48,7 @@ from typing import Any, NamedTuple, Optional, Tuple
 import numpy as np
 
 from .. import _core
-from ..checks import int_triple
+from ..checks import int_triple, is_number, option_error
 
 __all__ = ["PatchLayout", "patch_layout", "stitch", "temporal_align", "make_stitcher", "check_stitching", "PATCH", "ALIGNMENTS", "WINDOWS", "COARSE_WEIGHT", "TEMPORAL_WEIGHT"]
 
@@ -147,18 +147,18 @@ def stitch(
 def check_stitching(alignment: str, coarse_weight: float, window: str, temporal_weight: float) -> Tuple[float, float]:
     """``coarse_weight`` and ``temporal_weight`` as floats, once ``alignment``, they and ``window`` are valid."""
     if alignment not in ALIGNMENTS:
-        raise ValueError(f"alignment: expected one of {ALIGNMENTS}, got {alignment!r}")
+        raise option_error("alignment", f"expected one of {ALIGNMENTS}, got {alignment!r}")
     if window not in WINDOWS:
-        raise ValueError(f"window: expected one of {WINDOWS}, got {window!r}")
-    if isinstance(coarse_weight, bool) or not isinstance(coarse_weight, (int, float, np.integer, np.floating)) or not (0 < coarse_weight < math.inf):
-        raise ValueError(f"coarse_weight: expected a finite number > 0, got {coarse_weight!r}")
-    if isinstance(temporal_weight, bool) or not isinstance(temporal_weight, (int, float, np.integer, np.floating)) or not (0 <= temporal_weight < math.inf):
-        raise ValueError(f"temporal_weight: expected a finite number ≥ 0, got {temporal_weight!r}")
+        raise option_error("window", f"expected one of {WINDOWS}, got {window!r}")
+    if not is_number(coarse_weight) or not (0 < coarse_weight < math.inf):
+        raise option_error("coarse_weight", f"expected a finite number > 0, got {coarse_weight!r}")
+    if not is_number(temporal_weight) or not (0 <= temporal_weight < math.inf):
+        raise option_error("temporal_weight", f"expected a finite number ≥ 0, got {temporal_weight!r}")
     return float(coarse_weight), float(temporal_weight)
 
 
 def make_stitcher(coarse: np.ndarray, patch: Tuple[int, int, int], alignment: str, coarse_weight: float, window: str, temporal_weight: float,
-              frames: Optional[int] = None) -> Any:
+                  frames: Optional[int] = None) -> Any:
     """The streaming Rust stitcher of ``alignment`` and ``window`` over
     ``coarse``; with ``frames`` (the joint alignment only), ``coarse`` may
     hold only the first of the video's ``frames`` frames, the rest to come
