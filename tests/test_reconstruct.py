@@ -189,6 +189,33 @@ def test_interrupted_save_leaves_nothing(tmp_path, monkeypatch):
     assert list(tmp_path.iterdir()) == []
 
 
+
+def test_a_folder_that_cannot_be_written_is_refused_as_out_before_any_work(tmp_path, tiny_model, capsys, monkeypatch):
+    import os
+
+    import nrdepth.io.folder as folder
+
+    np.save(tmp_path / "good.npy", moving_texture(t=4))
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o555)
+    if os.access(locked, os.W_OK):  # root writes anywhere: answer as the check would for anyone else
+        monkeypatch.setattr(folder.os, "access", lambda path, mode: Path(path) != locked)
+    code = main(["reconstruct", str(tmp_path / "good.npy"), "-o", str(locked / "new"), "--model", str(tiny_model), "--quiet"])
+    assert code == 2
+    assert capsys.readouterr().err.strip() == f"nrdepth reconstruct: error: --out: cannot write {locked / 'new'}: no permission to write in {locked}"
+    # What the check cannot see (a read-only mount as root, a network share) is named as out too, by the writer.
+    monkeypatch.undo()
+    locked.chmod(0o755)
+
+    def refuse(self, *args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(Path, "mkdir", refuse)
+    with pytest.raises(ValueError, match=f"^out: cannot write {tmp_path / 'out'}: Permission denied in {tmp_path}$"):
+        save_reconstruction(tmp_path / "out", moving_texture(t=2), np.zeros((2, 48, 40), np.float32))
+    assert leftovers(tmp_path) == []
+
 @pytest.mark.parametrize("path", [DEFAULT_MODEL, nrdepth.model.SCALED_MODEL], ids=["default", "scaled"])
 def test_shipped_models_load_and_are_documented(path):
     meta = json.loads(path.with_suffix(".json").read_text())
@@ -239,8 +266,9 @@ def test_cli_default_output_folder_is_named_after_the_input(tmp_path, tiny_model
     (["--alignment", "coarse", "--window", "triangle"], {"alignment": "coarse", "window": "triangle"}),  # the paper's stitch
     (["--window", "triangle"], {"window": "triangle"}),
     (["--temporal-weight", "0"], {"temporal_weight": 0.0}),
-    (["--focal", "60", "--isometric-scale", "0.1"], {"focal": 60.0, "isometric_scale": 0.1}),  # the sheet's shape from inextensibility
-    (["--focal", "60", "--isometric-template", "refined", "--isometric-drop", "0.3"], {"focal": 60.0, "isometric_template": "refined", "isometric_drop": 0.3}),
+    (["--focal", "60", "--isometric-scale", "0.1", "--isometric-points", "100"], {"focal": 60.0, "isometric_scale": 0.1, "isometric_points": 100}),  # the sheet's shape from inextensibility
+    (["--focal", "60", "--isometric-template", "refined", "--isometric-drop", "0.3", "--isometric-points", "100"],
+     {"focal": 60.0, "isometric_template": "refined", "isometric_drop": 0.3, "isometric_points": 100}),
 ])
 def test_cli_stitching_options_reach_reconstruct(tmp_path, tiny_model, flags, options):
     frames = moving_texture(t=12, h=40, w=72)  # the field pass's windows of 3 frames agree too well for the temporal tie to act

@@ -57,6 +57,55 @@ def test_view_refuses_bad_input_by_name(tmp_path):
         view(tmp_path)
 
 
+
+def _damaged_folder(folder: Path, damage: str) -> None:
+    """A reconstruction folder whose depth.npz is damaged as named."""
+    import zipfile
+
+    folder.mkdir()
+    npz = folder / "depth.npz"
+    depth = np.random.default_rng(0).random((6, 8, 10)).astype(np.float32)
+    if damage == "random bytes":
+        npz.write_bytes(np.random.default_rng(1).bytes(4096))
+    elif damage == "cut in half":
+        np.savez(npz, depth=depth)
+        npz.write_bytes(npz.read_bytes()[: npz.stat().st_size // 2])
+    elif damage == "no depth":
+        np.savez(npz, range=np.array([0.0, 1.0], np.float32))
+    elif damage == "integer depth":
+        np.savez(npz, depth=(depth * 100).astype(np.int16))
+    elif damage == "one frame plane":
+        np.savez(npz, depth=depth[0])
+    elif damage == "frames missing":  # a header that promises more frames than the member holds
+        with zipfile.ZipFile(npz, "w") as archive, archive.open("depth.npy", "w") as member:
+            np.lib.format.write_array_header_2_0(member, {"descr": "<f4", "fortran_order": False, "shape": (12, 8, 10)})
+            member.write(depth.tobytes())
+
+
+DAMAGE = {
+    "random bytes": "not a readable .npz archive",
+    "cut in half": "not a readable .npz archive",
+    "no depth": "holds no array 'depth' \\(it holds range\\)",
+    "integer depth": "holds depth of int16 \\(6, 8, 10\\); expected a float depth video",
+    "one frame plane": "holds depth of float32 \\(8, 10\\); expected a float depth video",
+    "frames missing": "is cut short: its data ends in frame 6 of the 12 its header gives",
+}
+
+
+@pytest.mark.parametrize("damage", list(DAMAGE))
+def test_view_names_a_damaged_depth_npz_and_the_cli_exits_2(tmp_path, damage, capsys):
+    from nrdepth.cli import main
+
+    folder = tmp_path / "out"
+    _damaged_folder(folder, damage)
+    with pytest.raises(ValueError, match=f"^depth: {folder / 'depth.npz'}.*{DAMAGE[damage]}"):
+        view(folder)
+    capsys.readouterr()
+    assert main(["view", str(folder)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"nrdepth view: error: depth: {folder / 'depth.npz'}"), err
+    assert sorted(p.name for p in folder.iterdir()) == ["depth.npz"]  # no page, no temporary file
+
 def test_a_reconstruction_folder_gets_its_viewer_and_view_rewrites_it(tmp_path):
     import torch
 

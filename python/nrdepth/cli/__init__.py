@@ -7,6 +7,7 @@ import sys
 from typing import Optional, Sequence
 
 from .. import __version__
+from ..interrupt import raise_if_interrupted, sigint_remembered
 from . import data, job, learning
 
 
@@ -52,7 +53,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = build_parser()
     args = parser.parse_args(_join_dash_values(sys.argv[1:] if argv is None else list(argv)))
     try:
-        return args.run(args)
+        with sigint_remembered():
+            code = args.run(args)
+            raise_if_interrupted()
+        return code
     except (ValueError, TypeError, OSError, ImportError) as e:  # ImportError: an optional dependency, named with its pip extra
         print(f"nrdepth {args.command}: error: {e}", file=sys.stderr)
         return 2

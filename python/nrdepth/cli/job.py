@@ -4,12 +4,10 @@ from __future__ import annotations
 
 import argparse
 import time
-import zipfile
 from pathlib import Path
 
-import numpy as np
-
 from ..engine.preview import save_png
+from ..io.decode import npz_header
 from ..io.viewer import view
 from ..reconstruct import reconstruct_file
 from ..reconstruct.options import add_flags, flag_of, options_from_flags
@@ -47,18 +45,10 @@ def _reconstruct(args: argparse.Namespace) -> int:
         if bar is not None:
             bar.close()
     seconds = time.perf_counter() - start
-    t, h, w = _npz_shape(out / "depth.npz", "depth")
+    (t, h, w), _ = npz_header(out / "depth.npz", "depth")
     print(f"wrote {out}: depth of {t} frames of {w}×{h} in {seconds:.1f} s on {resolve_device(options.device)} "
           f"(depth.npz, depth.mp4, side_by_side.mp4{', viewer.html' if options.viewer else ''}{', png16/' if options.png16 else ''}{', ply/' if options.ply else ''})")
     return 0
-
-
-def _npz_shape(path: Path, name: str) -> tuple:
-    """The shape of array ``name`` in an .npz, read from its header alone."""
-    with zipfile.ZipFile(path) as archive, archive.open(f"{name}.npy") as f:
-        version = np.lib.format.read_magic(f)
-        read = np.lib.format.read_array_header_2_0 if version == (2, 0) else np.lib.format.read_array_header_1_0
-        return read(f)[0]
 
 
 def _demo(args: argparse.Namespace) -> int:

@@ -10,14 +10,15 @@ from __future__ import annotations
 import itertools
 import os
 import zipfile
+import zlib
 from pathlib import Path
-from typing import Iterator, NamedTuple, Optional, Tuple, Union
+from typing import BinaryIO, Iterator, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
 
 from ..checks import option_error
 
-__all__ = ["Video", "VideoSource", "open_video", "read_video", "iter_npz_frames", "read_left_half", "to_gray", "select", "IMAGE_SUFFIXES", "PathLike"]
+__all__ = ["Video", "VideoSource", "open_video", "read_video", "iter_npz_frames", "npz_header", "read_left_half", "to_gray", "select", "IMAGE_SUFFIXES", "PathLike"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 PathLike = Union[str, os.PathLike]
@@ -222,28 +223,77 @@ def read_video(path: PathLike, name: str = "input") -> Video:
     return Video(np.concatenate(list(source.chunks(64))), source.fps)
 
 
-def iter_npz_frames(path: PathLike, name: str, chunk: int = 16) -> Tuple[Tuple[int, ...], Iterator[np.ndarray]]:
-    """The shape of array ``name`` (T, ...) in an .npz and an iterator over
-    it ``chunk`` frames at a time, read from the archive as it goes (not
-    loaded whole: a 1080p depth video is GBs)."""
-    archive = zipfile.ZipFile(path)
-    member = archive.open(f"{name}.npy")
-    version = np.lib.format.read_magic(member)
-    read = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}.get(version)
-    if read is None:
-        raise option_error(name, f"unsupported .npy version {version} in {path}")
-    shape, fortran, dtype = read(member)
-    if fortran:
-        raise option_error(name, f"expected a C-ordered array in {path}")
+_UNREADABLE = (zipfile.BadZipFile, zlib.error, EOFError, ValueError, OSError)
+"""What a damaged .npz raises while read: a bad archive, a bad deflate stream, a cut member, a bad header."""
+
+
+def _open_npz_member(path: PathLike, name: str) -> Tuple[zipfile.ZipFile, BinaryIO, Tuple[int, ...], np.dtype]:
+    """The archive ``path``, its member ``name``.npy opened at the data, and
+    the array's shape and dtype, read from the header alone. A file that is
+    not a readable .npz, or holds no such array, is refused by ``name``."""
+    if not Path(path).is_file():
+        raise option_error(name, f"{path} not found (expected an .npz file)")
+    try:
+        archive = zipfile.ZipFile(path)
+    except _UNREADABLE as e:
+        raise option_error(name, f"{path} is not a readable .npz archive ({e})") from None
+    try:
+        member = archive.open(f"{name}.npy")
+    except KeyError:
+        held = sorted(n[: -len(".npy")] for n in archive.namelist() if n.endswith(".npy"))
+        archive.close()
+        raise option_error(name, f"{path} holds no array '{name}' (it holds {', '.join(held) or 'none'})") from None
+    except _UNREADABLE as e:
+        archive.close()
+        raise option_error(name, f"{path} is not a readable .npz archive ({e})") from None
+    try:
+        version = np.lib.format.read_magic(member)
+        read = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}.get(version)
+        if read is None:
+            raise ValueError(f"unsupported .npy version {version}")
+        shape, fortran, dtype = read(member)
+        if fortran:
+            raise ValueError("expected a C-ordered array")
+    except _UNREADABLE as e:
+        member.close()
+        archive.close()
+        raise option_error(name, f"{path}: the array '{name}' has no readable .npy header ({e})") from None
+    return archive, member, tuple(shape), dtype
+
+
+def npz_header(path: PathLike, name: str) -> Tuple[Tuple[int, ...], np.dtype]:
+    """The shape and dtype of array ``name`` in the .npz ``path``, read from its header alone."""
+    archive, member, shape, dtype = _open_npz_member(path, name)
+    member.close()
+    archive.close()
+    return shape, dtype
+
+
+def iter_npz_frames(path: PathLike, name: str, chunk: int = 16) -> Tuple[Tuple[int, ...], np.dtype, Iterator[np.ndarray]]:
+    """The shape and dtype of array ``name`` (T, ...) in an .npz and an
+    iterator over it ``chunk`` frames at a time, read from the archive as it
+    goes (not loaded whole: a 1080p depth video is GBs). A damaged file is
+    refused by ``name`` (ValueError), also when the damage is met mid-way."""
+    archive, member, shape, dtype = _open_npz_member(path, name)
+    if not shape:
+        member.close()
+        archive.close()
+        raise option_error(name, f"{path}: expected frames (T, ...), got a scalar '{name}'")
     per = int(np.prod(shape[1:], dtype=np.int64)) * dtype.itemsize
 
     def frames() -> Iterator[np.ndarray]:
         with archive, member:
             for start in range(0, shape[0], chunk):
                 n = min(chunk, shape[0] - start)
-                yield np.frombuffer(member.read(n * per), dtype).reshape(n, *shape[1:])
+                try:
+                    data = member.read(n * per)
+                except _UNREADABLE as e:
+                    raise option_error(name, f"{path} is damaged at frame {start} ({e})") from None
+                if len(data) != n * per:
+                    raise option_error(name, f"{path} is cut short: its data ends in frame {start + len(data) // per} of the {shape[0]} its header gives")
+                yield np.frombuffer(data, dtype).reshape(n, *shape[1:])
 
-    return tuple(shape), frames()
+    return shape, dtype, frames()
 
 
 def read_left_half(path: PathLike, size: Tuple[int, int]) -> Tuple[float, Iterator[np.ndarray]]:

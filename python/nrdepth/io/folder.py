@@ -15,6 +15,7 @@ from typing import Optional, Tuple
 import numpy as np
 
 from ..checks import is_number, option_error
+from ..interrupt import committed, raise_if_interrupted
 from .colours import colorize_depth, depth_range
 from .decode import PathLike
 from .viewer import FULL_RESOLUTION, ViewerFrames, write_page
@@ -69,6 +70,12 @@ def check_output_folder(out: PathLike, overwrite: bool = False, inputs: Tuple[Pa
         source = Path(i).resolve()
         if source == where or where in source.parents:
             raise option_error("out", f"{out} contains the input {i}; name another folder")
+    # The temporary folder goes beside ``out``: its parent, or the nearest folder that exists above it, must take it.
+    above = next(p for p in where.parents if p.exists())
+    if not above.is_dir():
+        raise option_error("out", f"cannot make {out}: {above} is a file, not a folder")
+    if not os.access(above, os.W_OK | os.X_OK):
+        raise option_error("out", f"cannot write {out}: no permission to write in {above}")
     _clean_stale(out)
     if out.is_file():
         raise option_error("out", f"{out} is a file; expected a folder")
@@ -116,10 +123,13 @@ class ReconstructionWriter:
             self.viewer = None
         self.png16_range: Optional[Tuple[float, float]] = None
         self.done = 0
-        self.out.parent.mkdir(parents=True, exist_ok=True)
         self.tmp = self.out.parent / f".{self.out.name}.partial-{os.getpid()}"
-        shutil.rmtree(self.tmp, ignore_errors=True)  # left by a killed run of this pid
-        self.tmp.mkdir()
+        try:
+            self.out.parent.mkdir(parents=True, exist_ok=True)
+            shutil.rmtree(self.tmp, ignore_errors=True)  # left by a killed run of this pid
+            self.tmp.mkdir()
+        except OSError as e:  # e.g. a read-only folder the check above could not see (root, a network share)
+            raise option_error("out", f"cannot write {self.out}: {e.strerror or e} in {self.out.parent}") from None
         try:
             (self.tmp / MARKER).write_text("written by nrdepth reconstruct; --overwrite replaces this folder\n")
             # The depth streams into the archive's member; numpy reads it back as any .npz. Stored, not
@@ -147,6 +157,7 @@ class ReconstructionWriter:
 
     def write(self, frames: np.ndarray, depth: np.ndarray) -> None:
         """The next uint8 input frames (n, H, W) and their float depth (n, H, W)."""
+        raise_if_interrupted()
         if self.value_range is None:
             raise ValueError("value_range: give the colour range (set_ranges) before the first frames")
         frames, depth = np.asarray(frames), np.asarray(depth, dtype=np.float32)
@@ -184,6 +195,7 @@ class ReconstructionWriter:
                 video.close()
             if self.viewer is not None:
                 write_page(self.tmp / "viewer.html", [("depth", self.viewer)], self.fps, f"nrdepth: {self.out.name}", FULL_RESOLUTION)
+            committed()  # a Ctrl-C before this point leaves nothing; after it, the output stands
             aside = self.out.parent / f".{self.out.name}.old-{os.getpid()}"
             if self.out.exists():
                 os.replace(self.out, aside)

@@ -36,6 +36,7 @@ from typing import Iterable, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
+from ..checks import option_error
 from .decode import iter_npz_frames, read_left_half
 
 __all__ = ["view", "ViewerFrames", "write_page", "SIDE", "SAMPLES"]
@@ -206,7 +207,9 @@ def view(
 def _view_folder(folder: Path, path: Optional[PathLike], title: str) -> Path:
     if not (folder / "depth.npz").is_file():
         raise ValueError(f"depth: {folder} holds no depth.npz (expected a folder written by nrdepth reconstruct)")
-    shape, chunks = iter_npz_frames(folder / "depth.npz", "depth")
+    shape, dtype, chunks = iter_npz_frames(folder / "depth.npz", "depth")
+    if dtype.kind != "f" or len(shape) != 3 or min(shape) < 1:
+        raise option_error("depth", f"{folder / 'depth.npz'} holds depth of {dtype} {shape}; expected a float depth video (T, H, W)")
     frames = ViewerFrames(shape)
     fps = 25.0
     greys: Iterable[Optional[np.ndarray]] = iter(lambda: None, 0)

@@ -245,9 +245,12 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
     rest = np.setdiff1d(np.arange(T), keys)
     # With the distances fixed the frames are independent: one small program each (ten times faster than
     # several frames in one), in threads (Clarabel releases the GIL; each frame's answer is the same in any thread).
-    with ThreadPoolExecutor(max_workers=max(1, min(len(rest), os.cpu_count() or 1))) as pool:
+    pool = ThreadPoolExecutor(max_workers=max(1, min(len(rest), os.cpu_count() or 1)))
+    try:
         for t, solved in zip(rest, pool.map(lambda t: _socp(rays[t : t + 1], pairs, distances, seen[t : t + 1])[0][0], rest)):
             depths[t] = solved
+    finally:
+        pool.shutdown(cancel_futures=True)  # on Ctrl-C: the frames not yet started are dropped, not waited for
     return depths
 
 

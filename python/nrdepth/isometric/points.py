@@ -16,7 +16,7 @@ import numpy as np
 
 from ..checks import option_error
 
-__all__ = ["track_grid", "track_points", "least_disagreeing", "inside", "require_isometric", "check_video", "DROP", "BORDER"]
+__all__ = ["track_grid", "start_grid", "track_points", "least_disagreeing", "inside", "require_isometric", "check_video", "DROP", "BORDER"]
 
 DROP = 0.2
 """:func:`isometric_depth`'s and ``reconstruct(focal=...)``'s share of the
@@ -73,24 +73,34 @@ def track_grid(video: np.ndarray, mask: Optional[np.ndarray] = None, points: int
     at a boundary of the motion, where the flow bleeds from one side to
     the other, whose tracks would read as stretch (docs/reconstruction.md)."""
     video = check_video(video)
-    mask = _check_mask(mask, video.shape[1:])
-    if not (isinstance(points, (int, np.integer)) and points >= 4):
-        raise ValueError(f"points: expected an int >= 4, got {points!r}")
-    if not (isinstance(drop, (int, float, np.floating)) and 0 <= drop < 1):
-        raise ValueError(f"drop: expected a share of the points in [0, 1), got {drop!r}")
     if drop > 0 and not backward:
         raise ValueError("drop: the points to leave out are found by the flow both ways: expected backward=True, or drop=0")
-    spacing = max(1.0, float(np.sqrt(mask.sum() / points)))
-    rows, cols = np.mgrid[spacing / 2 : video.shape[1] : spacing, spacing / 2 : video.shape[2] : spacing]
-    grid = np.column_stack([cols.ravel(), rows.ravel()])
-    grid = grid[mask[rows.astype(int).ravel(), cols.astype(int).ravel()] & inside(grid, video.shape[1:], border)]
-    kept = len(grid) - int(round(drop * len(grid)))
-    if kept < 4:
-        raise option_error("mask", f"expected room for at least 4 points at {points} points over its area (drop {drop:g}), got {kept}")
+    grid = start_grid(mask, video.shape[1:], points, drop, border)
     if drop == 0:
         return track_points(video, grid, window, backward, border=border)
     xy, disagreement = track_points(video, grid, window, backward, disagreement=True, border=border)
     return xy[:, least_disagreeing(disagreement, drop)]
+
+
+def start_grid(mask: Optional[np.ndarray], frame: Tuple[int, int], points: int = 400, drop: float = 0.0, border: float = BORDER) -> np.ndarray:
+    """:func:`track_grid`'s starting points (n, 2) (column, row): a square
+    grid of about ``points`` over ``mask`` (H, W) = ``frame`` (default: the
+    whole frame), at least ``border`` pixels inside its edge. A mask with
+    room for fewer than 4 once the share ``drop`` is left out is refused
+    (by the name ``mask``), before any tracking."""
+    mask = _check_mask(mask, tuple(frame))
+    if not (isinstance(points, (int, np.integer)) and points >= 4):
+        raise ValueError(f"points: expected an int >= 4, got {points!r}")
+    if not (isinstance(drop, (int, float, np.floating)) and 0 <= drop < 1):
+        raise ValueError(f"drop: expected a share of the points in [0, 1), got {drop!r}")
+    spacing = max(1.0, float(np.sqrt(mask.sum() / points)))
+    rows, cols = np.mgrid[spacing / 2 : frame[0] : spacing, spacing / 2 : frame[1] : spacing]
+    grid = np.column_stack([cols.ravel(), rows.ravel()])
+    grid = grid[mask[rows.astype(int).ravel(), cols.astype(int).ravel()] & inside(grid, tuple(frame), border)]
+    kept = len(grid) - int(round(drop * len(grid)))
+    if kept < 4:
+        raise option_error("mask", f"expected room for at least 4 points at {points} points over its area (drop {drop:g}), got {kept}")
+    return grid
 
 
 def least_disagreeing(disagreement: np.ndarray, drop: float) -> np.ndarray:

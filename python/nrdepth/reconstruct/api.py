@@ -16,6 +16,7 @@ from typing import Any, Callable, Optional, Union
 import numpy as np
 
 from ..checks import option_error
+from ..interrupt import sigint_remembered
 from ..io.decode import open_video, select, to_gray
 from ..io.folder import ReconstructionWriter, check_output_folder
 from ..io.writers import PLY_RELIEF
@@ -49,6 +50,7 @@ def _network(model: Model, options: ReconstructOptions) -> tuple:
     return device, load_net(model, options.units, device)
 
 
+@sigint_remembered()  # a Ctrl-C that a library swallows still stops the job
 def reconstruct(video: np.ndarray, model: Model = None, options: Optional[ReconstructOptions] = None, *, progress: Progress = None, **settings: Any) -> np.ndarray:
     """The depth video of ``video`` (T, H, W[, 3]; uint8, or float in
     [0, 1]; colour becomes luma): float32 (T', H', W') of the selected
@@ -102,6 +104,7 @@ def reconstruct(video: np.ndarray, model: Model = None, options: Optional[Recons
     return final(pipeline, raw, 0, len(raw), offset, -scale if options.flip else scale)
 
 
+@sigint_remembered()
 def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.PathLike[str]"], model: Model = None,
                      options: Optional[ReconstructOptions] = None, *, progress: Progress = None, **settings: Any) -> Path:
     """:func:`reconstruct` a video file, image folder or array file

@@ -12,6 +12,7 @@ from typing import Any, Callable, Iterable, Iterator, Optional, Tuple
 
 import numpy as np
 
+from ..interrupt import raise_if_interrupted
 from .coarse import coarse_half
 from .frames import Statistic, as_unit_float, frames_of, resize, working_shape
 from .options import ReconstructOptions
@@ -48,6 +49,7 @@ class Pipeline:
     def working(self) -> Iterator[np.ndarray]:
         """The video's chunks at the working resolution (float32 in [0, 1] when resized)."""
         for chunk in self.chunks():
+            raise_if_interrupted()
             if chunk.shape[1:] != self.full:
                 raise ValueError(f"video: expected frames of {self.full}, got {chunk.shape[1:]}")
             yield chunk if self.work == self.full else resize(as_unit_float(chunk), self.work)

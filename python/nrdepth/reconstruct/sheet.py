@@ -17,7 +17,7 @@ import numpy as np
 from ..baselines.tracks import densify
 from ..camera import Camera
 from ..checks import option_error
-from ..isometric import fuse, mdh_depths, require_isometric, track_grid
+from ..isometric import fuse, mdh_depths, require_isometric, start_grid, track_grid
 from .frames import as_uint8
 from .options import ReconstructOptions
 
@@ -27,8 +27,8 @@ __all__ = ["sheet_region", "sheet_depth"]
 def sheet_region(options: ReconstructOptions, frame: Tuple[int, int]) -> np.ndarray:
     """Where the points go in the first selected frame, bool (H, W) of the
     video's ``frame``: ``options.sheet`` (a box or a bool array), else
-    ``options.roi``, else the whole frame. Checks the optional
-    dependencies first, before any work."""
+    ``options.roi``, else the whole frame, with room for the points. Checks
+    the optional dependencies first, before any work."""
     require_isometric()
     H, W = frame
     sheet = options.sheet
@@ -36,14 +36,18 @@ def sheet_region(options: ReconstructOptions, frame: Tuple[int, int]) -> np.ndar
         x, y, w, h = (options.roi or (0, 0, W, H)) if sheet is None else (int(v) for v in sheet)
         if not (0 <= x and 0 <= y and w > 0 and h > 0 and x + w <= W and y + h <= H):
             raise option_error("sheet", f"expected a box x, y, width, height inside the {W}×{H} frame, got {sheet!r}")
-        points = np.zeros(frame, bool)
-        points[y : y + h, x : x + w] = True
-        return points
-    points = np.asarray(sheet)
-    if points.dtype != np.bool_ or points.shape != tuple(frame) or points.sum() < 16:
-        raise option_error("sheet", f"expected a box (x, y, w, h) or a bool array of the video's frame {tuple(frame)} with at least 16 "
-                           f"pixels on the sheet, got {points.dtype} {points.shape}")
-    return points
+        region = np.zeros(frame, bool)
+        region[y : y + h, x : x + w] = True
+    else:
+        region = np.asarray(sheet)
+        if region.dtype != np.bool_ or region.shape != tuple(frame) or region.sum() < 16:
+            raise option_error("sheet", f"expected a box (x, y, w, h) or a bool array of the video's frame {tuple(frame)} with at least 16 "
+                               f"pixels on the sheet, got {region.dtype} {region.shape}")
+    try:
+        start_grid(region, frame, int(options.isometric_points), float(options.isometric_drop))
+    except ValueError as error:  # the points' region is the user's sheet (or roi)
+        raise option_error("sheet" if sheet is not None or options.roi is None else "roi", error.detail) from None
+    return region
 
 
 def sheet_depth(raw: np.ndarray, work: Tuple[int, int], options: ReconstructOptions, camera: Camera, region: np.ndarray, video: np.ndarray) -> np.ndarray:
@@ -52,12 +56,7 @@ def sheet_depth(raw: np.ndarray, work: Tuple[int, int], options: ReconstructOpti
     sheet's inextensibility: points over ``region`` (:func:`sheet_region`) followed
     through ``video`` (the selected frames whole, (T, H, W)) and their
     depths through ``camera``, spread over the region's working frame."""
-    try:
-        xy = track_grid(as_uint8(video), region, points=int(options.isometric_points), drop=float(options.isometric_drop))
-    except ValueError as error:
-        if getattr(error, "option", None) != "mask":
-            raise
-        raise option_error("sheet", error.detail) from None  # the points' region is the user's sheet
+    xy = track_grid(as_uint8(video), region, points=int(options.isometric_points), drop=float(options.isometric_drop))
     depths = mdh_depths(xy, camera.at(video.shape[1:]), template=options.isometric_template)
     x, y, w_region, h_region = options.roi or (0, 0, video.shape[2], video.shape[1])
     h, w = work

@@ -8,6 +8,7 @@ from typing import Callable, Iterator, Optional
 
 import numpy as np
 
+from ..interrupt import raise_if_interrupted
 from .fine import counted, field_frames, field_windows, patch_depths
 from .pipeline import Pipeline
 from .stitch import PATCH, make_stitcher, patch_layout
@@ -34,6 +35,7 @@ def stitched(pipeline: Pipeline, progress: Optional[Callable[[int, int], None]] 
         video = np.concatenate(list(pipeline.working()))
         windows = counted(patch_depths(video, pipeline.net, layout, int(options.batch_size), pipeline.device), layout, progress)
     for origins, depth in windows:
+        raise_if_interrupted()
         if alignment == "joint":
             # The coarse depth a little ahead of the windows: a span is solved with the one after it.
             want = min(t, int(origins[:, 0].max()) - layout.pad[0] + 2 * PATCH[0])
