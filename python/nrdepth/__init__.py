@@ -27,7 +27,7 @@ from .engine.surface import (
     synthesize_surfaces,
 )
 from .io import view
-from .reconstruct import ReconstructOptions, reconstruct, reconstruct_file
+from .reconstruct import ReconstructOptions, reconstruct, reconstruct_file, reconstruct_many
 from .reconstruct.stitch import PatchLayout, patch_layout, stitch, temporal_align
 from .scores.metrics import flat_baseline, gbr_align, grid_contrast, mae_sn, sign_rates
 
@@ -53,6 +53,7 @@ __all__ = [
     "patch_layout",
     "reconstruct",
     "reconstruct_file",
+    "reconstruct_many",
     "view",
     "stitch",
     "temporal_align",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
@@ -10,6 +11,7 @@ from ..engine.preview import save_png
 from ..io.decode import npz_header
 from ..io.viewer import view
 from ..reconstruct import reconstruct_file
+from ..reconstruct.batch import ENGINES
 from ..reconstruct.options import add_flags, flag_of, options_from_flags
 
 __all__ = ["add_commands"]
@@ -36,11 +38,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
         options = options_from_flags(args)
         reconstruct_file(args.input, out, args.model, options, progress=progress)
     except (ValueError, TypeError) as e:
-        # The API names its arguments (error.option); the command line names its flags.
-        option = getattr(e, "option", None)
-        if option is None or option == "input":
-            raise
-        raise type(e)(f"{flag_of(option)}: {e.detail}") from None
+        raise _with_flags(e) from None
     finally:
         if bar is not None:
             bar.close()
@@ -49,6 +47,47 @@ def _reconstruct(args: argparse.Namespace) -> int:
     print(f"wrote {out}: depth of {t} frames of {w}×{h} in {seconds:.1f} s on {resolve_device(options.device)} "
           f"(depth.npz, depth.mp4, side_by_side.mp4{', viewer.html' if options.viewer else ''}{', png16/' if options.png16 else ''}{', ply/' if options.ply else ''})")
     return 0
+
+
+def _with_flags(error: Exception) -> Exception:
+    """The API names its arguments (error.option); the command line names its flags."""
+    option = getattr(error, "option", None)
+    if option is None or option in ("input", "inputs"):
+        return error
+    return type(error)(f"{flag_of(option)}: {error.detail}")
+
+
+def _reconstruct_many(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from ..reconstruct.batch import reconstruct_many
+    frames, start = 0, time.perf_counter()
+    bar = None
+
+    def progress(done: int, total: int, row) -> None:
+        nonlocal bar, frames
+        if bar is None:
+            bar = tqdm(total=total, initial=done, desc="videos", unit="video", disable=args.quiet)
+            return
+        frames += row.frames if row.status == "done" else 0
+        bar.set_postfix_str(f"{frames / (time.perf_counter() - start):.1f} frames/s", refresh=False)
+        bar.update(done - bar.n)
+        if row.status == "failed":
+            bar.write(f"failed: {row.input}: {row.error}", file=sys.stderr)
+
+    try:
+        options = options_from_flags(args)
+        rows = reconstruct_many(args.inputs, args.out, args.model, options, engine=args.engine, workers=args.workers,
+                                threads=args.threads, address=args.address, progress=progress)
+    except (ValueError, TypeError) as e:
+        raise _with_flags(e) from None
+    finally:
+        if bar is not None:
+            bar.close()
+    counts = {status: sum(r.status == status for r in rows) for status in ("done", "skipped", "failed")}
+    print(f"wrote {Path(args.out) / 'summary.csv'}: {len(rows)} videos, {counts['done']} done, {counts['skipped']} complete before, "
+          f"{counts['failed']} failed, in {time.perf_counter() - start:.1f} s")
+    return 1 if counts["failed"] else 0
 
 
 def _demo(args: argparse.Namespace) -> int:
@@ -90,6 +129,23 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     add_flags(p)  # one flag per field of nrdepth.ReconstructOptions
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=_reconstruct)
+
+    p = sub.add_parser("reconstruct-many", help="reconstruct many videos, each into its own folder, side by side (here or on Ray)",
+                       description="nrdepth reconstruct on every video of INPUTS, each into OUT/NAME, with the same options; a video whose "
+                       "folder is complete is skipped, so a rerun resumes; a video that fails is reported in OUT/summary.csv and the others "
+                       "go on. Exit status 1 if any video failed.")
+    p.add_argument("inputs", nargs="+", help="videos, image folders, folders of videos, glob patterns (quoted) or .txt files listing videos")
+    p.add_argument("-o", "--out", required=True, help="the batch's folder: a folder per video and summary.csv")
+    p.add_argument("--model", default=None, help="model.safetensors or run folder (default: the shipped model)")
+    p.add_argument("--engine", choices=ENGINES, default="local",
+                   help="local: a process pool on this machine; ray: Ray tasks on a cluster (pip install 'nrdepth[ray]')")
+    p.add_argument("--workers", type=int, default=None, help="local: videos at a time (default: one per core, or per GPU with --device cuda)")
+    p.add_argument("--threads", type=int, default=None, help="torch threads (Ray: CPUs) per video (default: local, the cores shared "
+                   "between the workers; ray, 1)")
+    p.add_argument("--address", default=None, help="ray: the cluster's address (default: a running one, else one started here)")
+    add_flags(p, leave_out=("overwrite",))  # one flag per field of nrdepth.ReconstructOptions
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(run=_reconstruct_many)
 
     p = sub.add_parser("view", help="write viewer.html, the 3-D page of a reconstruction folder (nrdepth reconstruct writes it by default)")
     p.add_argument("folder", help="a folder written by nrdepth reconstruct (depth.npz, side_by_side.mp4)")

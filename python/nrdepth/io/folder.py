@@ -17,11 +17,11 @@ import numpy as np
 from ..checks import is_number, option_error
 from ..interrupt import committed, raise_if_interrupted
 from .colours import colorize_depth, depth_range
-from .decode import PathLike
+from .decode import PathLike, npz_header
 from .viewer import FULL_RESOLUTION, ViewerFrames, write_page
 from .writers import PLY_RELIEF, Mp4Writer, write_depth_png16, write_ply
 
-__all__ = ["ReconstructionWriter", "save_reconstruction", "check_output_folder", "MARKER", "WRITTEN"]
+__all__ = ["ReconstructionWriter", "save_reconstruction", "check_output_folder", "check_complete", "MARKER", "WRITTEN"]
 
 MARKER = ".nrdepth-reconstruction"
 """Written into every output folder: ``overwrite`` replaces only folders that hold it."""
@@ -90,6 +90,38 @@ def check_output_folder(out: PathLike, overwrite: bool = False, inputs: Tuple[Pa
     return out
 
 
+def check_complete(out: PathLike, viewer: bool = True, png16: bool = False, ply: bool = False) -> int:
+    """The frame count of ``out`` if it is a reconstruction folder that was
+    finished with these outputs: its marker, ``depth.npz`` whole (a float
+    depth video and its colour range), the MP4s, and with ``viewer``,
+    ``png16`` and ``ply`` the page and a PNG and a PLY a frame. Otherwise a
+    ValueError that says what is missing (a batch redoes that video)."""
+    out = Path(out)
+    if not (out / MARKER).is_file():
+        raise option_error("out", f"{out} is not a folder nrdepth finished (no {MARKER})")
+    try:
+        with zipfile.ZipFile(out / "depth.npz") as archive:
+            held = {info.filename: info.file_size for info in archive.infolist()}
+    except (zipfile.BadZipFile, OSError) as e:
+        raise option_error("out", f"{out / 'depth.npz'} is not a readable .npz archive ({e})") from None
+    shape, dtype = npz_header(out / "depth.npz", "depth")
+    if dtype.kind != "f" or len(shape) != 3 or "range.npy" not in held or held["depth.npy"] < int(np.prod(shape)) * dtype.itemsize:
+        raise option_error("out", f"{out / 'depth.npz'} is not a whole depth video with its range")
+    wanted = ["depth.mp4", "side_by_side.mp4"] + (["viewer.html"] if viewer else [])
+    missing = [name for name in wanted if not (out / name).is_file() or (out / name).stat().st_size == 0]
+    for folder, pattern, on in (("png16", "depth_*.png", png16), ("ply", "frame_*.ply", ply)):
+        if on and len(list((out / folder).glob(pattern))) != shape[0]:
+            missing.append(f"{folder}/ ({shape[0]} files)")
+    if missing:
+        raise option_error("out", f"{out} lacks {', '.join(missing)}")
+    return shape[0]
+
+
+def _entry(name: str) -> zipfile.ZipInfo:
+    """An archive member dated 1980-01-01 (the zip epoch), not now: the same depth gives the same bytes on every run."""
+    return zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
+
+
 class ReconstructionWriter:
     """A reconstruction folder written a chunk of frames at a time, all or
     nothing: ``depth.npz`` (float32 ``depth`` (T, H, W), the colour map's
@@ -135,7 +167,7 @@ class ReconstructionWriter:
             # The depth streams into the archive's member; numpy reads it back as any .npz. Stored, not
             # deflated: float depth shrinks by ~15 % for 5 s of kinect_paper's 40 (np.savez's choice).
             self.archive = zipfile.ZipFile(self.tmp / "depth.npz", "w", compression=zipfile.ZIP_STORED)
-            self.member = self.archive.open("depth.npy", "w", force_zip64=True)
+            self.member = self.archive.open(_entry("depth.npy"), "w", force_zip64=True)
             np.lib.format.write_array_header_2_0(self.member, {"descr": "<f4", "fortran_order": False, "shape": self.shape})
             _, h, w = self.shape
             self.videos = [Mp4Writer(self.tmp / "depth.mp4", h, w, fps), Mp4Writer(self.tmp / "side_by_side.mp4", h, 2 * w, fps)]
@@ -188,7 +220,7 @@ class ReconstructionWriter:
             if self.png16:
                 extra["png16_range"] = np.array(self.png16_range or self.value_range, np.float32)
             for name, value in extra.items():
-                with self.archive.open(f"{name}.npy", "w") as f:
+                with self.archive.open(_entry(f"{name}.npy"), "w") as f:
                     np.lib.format.write_array(f, value)
             self.archive.close()
             for video in self.videos:

@@ -10,7 +10,8 @@ One file a stage, in the order they run:
 - :mod:`.stitching`: its windows aligned and overlap-added by the streaming stitcher (:mod:`.stitch`);
 - :mod:`.sheet`: with a camera's focal length, the sheet's shape from inextensibility;
 - :mod:`.export`: the depth's units and the video's resolution back;
-- :mod:`.api`: :func:`reconstruct` and :func:`reconstruct_file`, which chain them.
+- :mod:`.api`: :func:`reconstruct` and :func:`reconstruct_file`, which chain them;
+- :mod:`.batch`: :func:`reconstruct_many`, many videos side by side, here or on a Ray cluster.
 
 Frames flow through in time order: the fine pass computes a span of
 frames, the windows it completes go to the stitcher, which gives back the
@@ -21,12 +22,13 @@ the figures.
 
 from ..camera import Camera
 from .api import reconstruct, reconstruct_file
+from .batch import BatchRow, reconstruct_many
 from .coarse import coarse_depth, coarse_half
 from .fine import GPU_TILE, MARGIN, TILE, field_frames, field_windows, patch_depths, tile_plan
 from .frames import Statistic, working_shape
 from .network import inference_model
 from .options import FINE_PASSES, ISOMETRIC_DROP, ISOMETRIC_SCALE, MAX_SIDE, ReconstructOptions
 
-__all__ = ["reconstruct", "reconstruct_file", "ReconstructOptions", "Camera", "MAX_SIDE", "FINE_PASSES", "ISOMETRIC_SCALE", "ISOMETRIC_DROP",
+__all__ = ["reconstruct", "reconstruct_file", "reconstruct_many", "BatchRow", "ReconstructOptions", "Camera", "MAX_SIDE", "FINE_PASSES", "ISOMETRIC_SCALE", "ISOMETRIC_DROP",
            "coarse_depth", "coarse_half", "patch_depths", "field_frames", "field_windows", "tile_plan", "inference_model", "working_shape",
            "Statistic", "TILE", "GPU_TILE", "MARGIN"]

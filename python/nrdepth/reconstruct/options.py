@@ -278,17 +278,17 @@ def flag_of(name: str) -> str:
     return meta.get("flag") or f"--{name.replace('_', '-')}"
 
 
-def add_flags(parser: argparse.ArgumentParser) -> None:
-    """``nrdepth reconstruct``'s flags, one per field of :class:`ReconstructOptions` that has one, with its help."""
+def add_flags(parser: argparse.ArgumentParser, leave_out: Tuple[str, ...] = ()) -> None:
+    """``nrdepth reconstruct``'s flags, one per field of :class:`ReconstructOptions` that has one (but ``leave_out``), with its help."""
     for f in fields(ReconstructOptions):
-        if f.metadata.get("flag") == "":
+        if f.metadata.get("flag") == "" or f.name in leave_out:
             continue
         parser.add_argument(flag_of(f.name), dest=f.name, default=f.default, help=f.metadata["help"], **f.metadata["argparse"])
 
 
 def options_from_flags(args: argparse.Namespace) -> ReconstructOptions:
-    """The :class:`ReconstructOptions` of parsed ``nrdepth reconstruct`` flags."""
-    return ReconstructOptions.of(**{f.name: getattr(args, f.name) for f in fields(ReconstructOptions) if f.metadata.get("flag") != ""})
+    """The :class:`ReconstructOptions` of parsed ``nrdepth reconstruct`` flags (a field without its flag keeps its default)."""
+    return ReconstructOptions.of(**{f.name: getattr(args, f.name) for f in fields(ReconstructOptions) if f.metadata.get("flag") != "" and hasattr(args, f.name)})
 
 
 ReconstructOptions.__doc__ = (ReconstructOptions.__doc__ or "") + "".join(

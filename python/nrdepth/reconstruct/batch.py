@@ -1,0 +1,300 @@
+"""Many videos: :func:`reconstruct_many` runs :func:`~.api.reconstruct_file`
+on each into a folder of its own under one output folder, side by side on
+this machine (a process pool) or on a Ray cluster (``engine="ray"``, the
+``nrdepth[ray]`` extra).
+
+Each video is all or nothing (the writer's temporary folder); a video whose
+folder is complete (:func:`~nrdepth.io.check_complete`) is skipped on a
+rerun, so an interrupted batch resumes where it stopped. A video that
+fails, for any reason, is reported in ``summary.csv`` with its error and
+the batch goes on. A worker runs its videos one at a time with the torch
+threads it is given: its depth is byte-identical to a single
+``reconstruct_file`` run at that thread count (torch's convolutions round
+differently at other thread counts).
+"""
+
+from __future__ import annotations
+
+import csv
+import glob
+import io
+import os
+import signal
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import asdict, dataclass, fields
+from multiprocessing import active_children, get_context
+from pathlib import Path
+from typing import Callable, Iterable, Iterator, List, Optional, Sequence, Tuple, Union
+
+from ..checks import option_error
+from ..io.decode import IMAGE_SUFFIXES, npz_header
+from ..io.folder import check_complete
+from .options import ReconstructOptions
+
+__all__ = ["reconstruct_many", "list_videos", "BatchRow", "VIDEO_SUFFIXES", "ENGINES", "SUMMARY"]
+
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg", ".gif", ".npy", ".npz")
+"""The files a folder or glob of inputs contributes (an image folder is one video too)."""
+ENGINES = ("local", "ray")
+SUMMARY = "summary.csv"
+"""The batch's table, in the output folder: one row per video, rewritten as each one ends."""
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+
+@dataclass
+class BatchRow:
+    """One video of a batch, as ``summary.csv`` has it."""
+
+    input: str
+    output: str
+    status: str = "pending"
+    """``done`` (written now), ``skipped`` (complete from an earlier run), ``failed``, or ``pending`` (not reached)."""
+    seconds: float = 0.0
+    frames: int = 0
+    error: str = ""
+
+
+def _is_image_folder(folder: Path) -> bool:
+    return any(p.suffix.lower() in IMAGE_SUFFIXES for p in folder.iterdir())
+
+
+def _expand(item: PathLike) -> List[Path]:
+    """The videos one input names: a video, an image folder, a folder of
+    videos (and image folders), a glob pattern, or a text file listing one
+    a line (relative to the list; blank lines and ``#`` comments skipped)."""
+    text = os.fspath(item)
+    path = Path(text)
+    if path.is_dir():
+        if _is_image_folder(path) and not any(p.suffix.lower() in VIDEO_SUFFIXES for p in path.iterdir()):
+            return [path]
+        found = sorted(p for p in path.iterdir() if (p.is_file() and p.suffix.lower() in VIDEO_SUFFIXES) or (p.is_dir() and _is_image_folder(p)))
+        if not found:
+            raise option_error("inputs", f"{text} holds no video ({', '.join(VIDEO_SUFFIXES)}) and no folder of images")
+        return found
+    if path.is_file() and path.suffix.lower() == ".txt":
+        listed = [line.strip() for line in path.read_text(encoding="utf-8").splitlines()]
+        return [path.parent / line for line in listed if line and not line.startswith("#")]
+    if path.exists():
+        return [path]
+    if glob.has_magic(text):
+        found = sorted(Path(p) for p in glob.glob(text, recursive=True)
+                       if (Path(p).is_file() and Path(p).suffix.lower() in VIDEO_SUFFIXES) or (Path(p).is_dir() and _is_image_folder(Path(p))))
+        if not found:
+            raise option_error("inputs", f"the pattern {text} matches no video")
+        return found
+    return [path]  # a missing video is the batch's to report, as any video that fails
+
+
+def list_videos(inputs: Union[PathLike, Sequence[PathLike]], out: PathLike) -> List[Tuple[Path, Path]]:
+    """Each video of ``inputs`` (see :func:`reconstruct_many`) with its own
+    folder under ``out``: its name without the suffix; where names meet,
+    with it (``clip_mp4``, ``clip_avi``), or numbered in input order where
+    that is not enough (``clip_1``, ``clip_2``). A video listed twice is
+    run once."""
+    if isinstance(inputs, (str, os.PathLike)):
+        inputs = [inputs]
+    if not inputs:
+        raise option_error("inputs", "expected at least one video, folder, glob pattern or list")
+    videos: List[Path] = []
+    for item in inputs:
+        for video in _expand(item):
+            if video.resolve() not in {v.resolve() for v in videos}:
+                videos.append(video)
+    stems = [v.name if v.is_dir() else v.stem for v in videos]
+    names = list(stems)
+    for stem in set(stems):
+        group = [i for i, s in enumerate(stems) if s == stem]
+        suffixes = [videos[i].suffix.lstrip(".").lower() or "images" for i in group]
+        if len(group) > 1:
+            for k, i in enumerate(group, 1):
+                names[i] = f"{stem}_{suffixes[k - 1]}" if len(set(suffixes)) == len(group) else f"{stem}_{k}"
+    return [(video, Path(out) / name) for video, name in zip(videos, names)]
+
+
+def _one_line(error: BaseException) -> str:
+    text = " ".join(str(error).split())
+    return f"{type(error).__name__}: {text}" if text else type(error).__name__
+
+
+def _run_one(video: str, folder: str, model: Optional[str], options: ReconstructOptions, threads: int) -> BatchRow:
+    """A worker's video: its folder written, or its error; never raises but on an interrupt."""
+    import torch
+
+    from .api import reconstruct_file
+
+    torch.set_num_threads(threads)
+    row = BatchRow(video, folder)
+    start = time.perf_counter()
+    try:
+        reconstruct_file(video, folder, model, ReconstructOptions.of(options, overwrite=True))  # a folder left incomplete is redone
+        row.status, row.frames = "done", npz_header(Path(folder) / "depth.npz", "depth")[0][0]
+    except Exception as error:  # noqa: BLE001 - whatever a video does, the batch goes on and says why
+        row.status, row.error = "failed", _one_line(error)
+    row.seconds = round(time.perf_counter() - start, 2)
+    return row
+
+
+def _absolute(row: BatchRow) -> Tuple[str, str]:
+    """A video's input and output for a worker, which may start in another folder (a Ray worker does)."""
+    return os.path.abspath(row.input), os.path.abspath(row.output)
+
+
+def _write_summary(out: Path, rows: Iterable[BatchRow]) -> None:
+    """``summary.csv``, atomically: the table is whole at any moment."""
+    text = io.StringIO()
+    writer = csv.DictWriter(text, [f.name for f in fields(BatchRow)], lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow(asdict(row))
+    tmp = out / f".{SUMMARY}.partial-{os.getpid()}"
+    tmp.write_text(text.getvalue(), encoding="utf-8")
+    os.replace(tmp, out / SUMMARY)
+
+
+def _pin_gpu(counter, gpus: int) -> None:
+    """A local worker's GPU, in turn among ``gpus``: the only one it sees (set before torch starts)."""
+    with counter.get_lock():
+        index, counter.value = counter.value, counter.value + 1
+    visible = os.environ.get("CUDA_VISIBLE_DEVICES")
+    os.environ["CUDA_VISIBLE_DEVICES"] = visible.split(",")[index % gpus] if visible else str(index % gpus)
+
+
+def _local(jobs: List[Tuple[int, BatchRow]], model: Optional[str], options: ReconstructOptions, workers: int, threads: int,
+           gpus: int) -> Iterator[Tuple[int, BatchRow]]:
+    """The jobs through a pool of ``workers`` processes (spawned: a forked
+    torch may hang), each on a GPU of its own with ``gpus``. A worker that
+    dies takes its video with it (failed); the others go on in a fresh pool."""
+    context = get_context("spawn")
+    left = dict(jobs)
+    while left:
+        pinning = dict(initializer=_pin_gpu, initargs=(context.Value("i", 0), gpus)) if gpus else {}
+        pool = ProcessPoolExecutor(max_workers=min(workers, len(left)), mp_context=context, **pinning)
+        try:
+            futures = {pool.submit(_run_one, *_absolute(row), model, options, threads): i for i, row in left.items()}
+            for future in as_completed(futures):
+                i = futures[future]
+                try:
+                    row = future.result()
+                except BrokenProcessPool:
+                    # Every unfinished video sees the break, not only the one whose worker died: they are run
+                    # again one at a time, where a death names its video.
+                    if workers > 1:
+                        workers = 1
+                        break
+                    row = left[i]
+                    row.status, row.error = "failed", "the worker process died (out of memory, or a crash in native code)"
+                yield i, row
+                del left[i]
+        except KeyboardInterrupt:
+            for child in active_children():  # the workers may not have had the signal (kill -INT to this process alone)
+                os.kill(child.pid, signal.SIGINT)
+            raise
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _ray(jobs: List[Tuple[int, BatchRow]], model: Optional[str], options: ReconstructOptions, threads: int, address: Optional[str]) -> Iterator[Tuple[int, BatchRow]]:
+    """The jobs as Ray tasks: ``threads`` CPUs each, and one GPU with a CUDA device."""
+    try:
+        import ray
+    except ImportError as error:
+        raise ImportError("engine='ray' needs Ray: pip install 'nrdepth[ray]'") from error
+    started = not ray.is_initialized()
+    if started:
+        ray.init(address=address, include_dashboard=False, logging_level="ERROR", log_to_driver=False)
+    gpus = 1 if str(options.device).startswith("cuda") else 0
+    if gpus:
+        options = ReconstructOptions.of(options, device="cuda")  # Ray gives each task its GPU as the only visible one
+    task = ray.remote(num_cpus=threads, num_gpus=gpus, max_retries=0)(_run_one)
+    pending = {task.remote(*_absolute(row), model, options, threads): (i, row) for i, row in jobs}
+    try:
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1)
+            i, row = pending.pop(done[0])
+            try:
+                row = ray.get(done[0])
+            except ray.exceptions.RayError as error:  # the task's worker died, or the cluster lost it
+                row.status, row.error = "failed", _one_line(error).splitlines()[0][:500]
+            yield i, row
+    finally:
+        for ref in pending:
+            ray.cancel(ref, force=True)
+        if started:
+            ray.shutdown()
+
+
+def reconstruct_many(inputs: Union[PathLike, Sequence[PathLike]], out: PathLike, model: Optional[PathLike] = None,
+                     options: Optional[ReconstructOptions] = None, *, engine: str = "local", workers: Optional[int] = None,
+                     threads: Optional[int] = None, address: Optional[str] = None,
+                     progress: Optional[Callable[[int, int, Optional[BatchRow]], None]] = None, **settings) -> List[BatchRow]:
+    """:func:`~.api.reconstruct_file` on every video of ``inputs``, each into
+    its own folder under ``out`` (:func:`list_videos`), with the same
+    ``model`` (a path, or None for the shipped one) and options (an
+    :class:`~nrdepth.ReconstructOptions` and/or its fields as keywords).
+
+    ``inputs``: videos, image folders, folders of videos, glob patterns,
+    or text files listing videos. A video whose folder is already complete
+    is skipped; one that fails is reported and the batch goes on.
+    ``out/summary.csv`` (:class:`BatchRow`'s fields) is rewritten as each
+    video ends. Returns the rows in input order.
+
+    ``engine``: ``"local"``, a pool of ``workers`` processes on this machine
+    (default: one per core, or one per GPU with a CUDA device) of
+    ``threads`` torch threads each (default: the cores shared between
+    them); or ``"ray"``, one Ray task per video (``threads`` CPUs each, and
+    a GPU with a CUDA device) on the cluster at ``address`` (default: a
+    running one, else one started on this machine). ``progress(done,
+    total, row)`` is called once the complete folders are counted (row
+    None), then as each video ends."""
+    options = ReconstructOptions.of(options, **settings)
+    if options.overwrite:
+        raise option_error("overwrite", "a batch keeps complete folders and redoes the others; remove OUT/NAME to redo a video")
+    if engine not in ENGINES:
+        raise option_error("engine", f"expected one of {ENGINES}, got {engine!r}")
+    if progress is not None and not callable(progress):
+        raise TypeError(f"progress: expected a callable progress(done, total, row) or None, got {type(progress).__name__}")
+    cores = os.cpu_count() or 1
+    gpus = _gpu_count() if engine == "local" and options.device in ("auto", "cuda") else 0  # cuda:N: that GPU alone
+    for name, value in (("workers", workers), ("threads", threads)):
+        if value is not None and not (isinstance(value, int) and not isinstance(value, bool) and value >= 1):
+            raise option_error(name, f"expected a positive int or None, got {value!r}", TypeError if not isinstance(value, int) else ValueError)
+    out = Path(out)
+    if out.is_file():
+        raise option_error("out", f"{out} is a file; expected a folder")
+    pairs = list_videos(inputs, out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = [BatchRow(str(video), str(folder)) for video, folder in pairs]
+    todo: List[Tuple[int, BatchRow]] = []
+    for i, row in enumerate(rows):
+        try:
+            row.frames, row.status = check_complete(row.output, viewer=options.viewer, png16=options.png16, ply=options.ply), "skipped"
+        except ValueError:
+            todo.append((i, row))
+    _write_summary(out, rows)
+    model = None if model is None else os.fspath(model)
+    if engine == "local":
+        workers = workers or max(1, gpus or min(cores, len(todo)))
+        threads = threads or max(1, cores // workers)
+        results = _local(todo, model, ReconstructOptions.of(options, device="cuda") if gpus else options, workers, threads, gpus) if todo else iter(())
+    else:
+        results = _ray(todo, model, options, threads or 1, address) if todo else iter(())
+    done = len(rows) - len(todo)
+    if progress is not None:
+        progress(done, len(rows), None)
+    for i, row in results:
+        row.input, row.output = rows[i].input, rows[i].output  # as the user wrote them (the workers had them absolute)
+        rows[i] = row
+        done += 1
+        _write_summary(out, rows)
+        if progress is not None:
+            progress(done, len(rows), row)
+    return rows
+
+
+def _gpu_count() -> int:
+    import torch
+
+    return torch.cuda.device_count() if torch.cuda.is_available() else 0

@@ -1,0 +1,146 @@
+"""``nrdepth.reconstruct_many`` and ``nrdepth reconstruct-many``: a batch of
+small videos, one corrupt and one too short, through the local pool and a
+Ray cluster started here; each good video's folder byte-identical to a
+single ``reconstruct_file`` run, the bad ones reported with their errors,
+and a batch killed in the middle resumed by redoing only what was not
+finished."""
+
+from __future__ import annotations
+
+import csv
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+import nrdepth
+from nrdepth.cli import main
+from nrdepth.model import save_model
+from nrdepth.reconstruct.batch import SUMMARY, list_videos
+
+
+def drifting(t: int, seed: int, h: int = 48, w: int = 64) -> np.ndarray:
+    y, x = np.mgrid[0:h, 0:w]
+    phase = np.random.default_rng(seed).random(2) * 6
+    return np.rint(np.stack([128 + 90 * np.sin(0.3 * (x - 2 * k) + phase[0]) * np.cos(0.2 * y + phase[1]) for k in range(t)])).astype(np.uint8)
+
+
+@pytest.fixture(scope="module")
+def batch(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("batch")
+    torch.manual_seed(0)
+    save_model(nrdepth.model.UNet3D(base=2), root / "model.safetensors")
+    videos = root / "videos"
+    videos.mkdir()
+    np.save(videos / "a.npy", drifting(12, 0))
+    np.save(videos / "b.npy", drifting(10, 1))
+    nrdepth.io.write_mp4(videos / "c.mp4", np.repeat(drifting(8, 2)[..., None], 3, axis=-1))
+    (videos / "corrupt.mp4").write_bytes(b"\x00\x00\x00\x18ftypmp42" + bytes(range(256)) * 8)
+    np.save(videos / "short.npy", np.zeros((0, 48, 64), np.uint8))
+    return root
+
+
+GOOD, BAD = ["a", "b", "c"], {"corrupt": "ValueError: input: cannot decode", "short": "ValueError: input: expected a video"}
+
+
+@pytest.fixture(scope="module")
+def singles(batch) -> dict:
+    """Each good video by a single reconstruct_file run, at one torch thread (a worker's here)."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        found = {}
+        for video, _ in list_videos(batch / "videos", batch / "singles"):
+            if video.stem in GOOD:
+                found[video.stem] = nrdepth.reconstruct_file(video, batch / "singles" / video.stem, batch / "model.safetensors", device="cpu")
+        return found
+    finally:
+        torch.set_num_threads(threads)
+
+
+def summary(out: Path) -> list:
+    with open(out / SUMMARY, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def check_batch(rows, out: Path, singles: dict) -> None:
+    table = summary(out)
+    assert [r["input"] for r in table] == [r.input for r in rows] and len(rows) == 5
+    for row, line in zip(rows, table):
+        name = Path(row.output).name
+        assert line["status"] == row.status and line["error"] == row.error
+        if name in GOOD:
+            assert row.status == "done" and row.error == "" and int(line["frames"]) == {"a": 12, "b": 10, "c": 8}[name]
+            assert (out / name / "depth.npz").read_bytes() == (singles[name] / "depth.npz").read_bytes()
+        else:
+            assert row.status == "failed" and row.error.startswith(BAD[name]) and not (out / name).exists()
+    assert not [p.name for p in out.iterdir() if ".partial" in p.name]
+
+
+def test_the_local_pool_matches_single_runs_and_reports_the_bad_videos(batch, singles, tmp_path):
+    out = tmp_path / "out"
+    seen = []
+    rows = nrdepth.reconstruct_many(batch / "videos", out, batch / "model.safetensors", device="cpu", workers=2, threads=1,
+                                    progress=lambda done, total, row: seen.append((done, total)))
+    check_batch(rows, out, singles)
+    assert seen == [(0, 5)] + [(k, 5) for k in range(1, 6)]
+    # A rerun finds every good folder complete and tries the bad ones again.
+    again = nrdepth.reconstruct_many([str(batch / "videos" / "*.npy"), batch / "videos" / "c.mp4"], out, batch / "model.safetensors",
+                                     device="cpu", workers=2, threads=1)
+    assert {Path(r.output).name: r.status for r in again} == {"a": "skipped", "b": "skipped", "short": "failed", "c": "skipped"}
+
+
+def test_a_ray_cluster_started_here_gives_the_same_folders(batch, singles, tmp_path):
+    ray = pytest.importorskip("ray")
+    ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR", log_to_driver=False)
+    try:
+        rows = nrdepth.reconstruct_many(batch / "videos", tmp_path / "out", batch / "model.safetensors", device="cpu", engine="ray", threads=1)
+    finally:
+        ray.shutdown()
+    check_batch(rows, tmp_path / "out", singles)
+
+
+def test_a_batch_killed_in_the_middle_redoes_only_the_unfinished_videos(batch, singles, tmp_path):
+    out = tmp_path / "out"
+    argv = [sys.executable, "-m", "nrdepth", "reconstruct-many", str(batch / "videos"), "-o", str(out), "--model", str(batch / "model.safetensors"),
+            "--device", "cpu", "--workers", "1", "--threads", "1", "--quiet"]
+    process = subprocess.Popen(argv, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 120
+    while not (out / "a" / "depth.npz").exists() and time.time() < deadline:
+        time.sleep(0.05)
+    os.killpg(process.pid, signal.SIGKILL)  # the batch and its workers, as a crash or the OOM killer would
+    process.wait()
+    assert (out / "a" / "depth.npz").exists()
+    finished = {p.name: p.stat().st_mtime_ns for p in out.iterdir() if p.is_dir() and not p.name.startswith(".")}
+    result = subprocess.run(argv, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 1, result.stderr[-2000:]  # two videos cannot be read
+    rows = {Path(r["output"]).name: r for r in summary(out)}
+    for name in GOOD:
+        assert rows[name]["status"] == ("skipped" if name in finished else "done")
+        assert (out / name / "depth.npz").read_bytes() == (singles[name] / "depth.npz").read_bytes()
+    for name, mtime in finished.items():
+        assert (out / name).stat().st_mtime_ns == mtime  # left as it was
+    assert not [p.name for p in out.iterdir() if ".partial" in p.name]
+    assert "failed: " in result.stderr and result.stdout.startswith(f"wrote {out / SUMMARY}: 5 videos, {3 - len(finished)} done, {len(finished)} complete before, 2 failed")
+
+
+def test_inputs_are_named_and_listed_once_each(batch, tmp_path, capsys):
+    listing = tmp_path / "list.txt"
+    listing.write_text(f"# the good ones\n{batch / 'videos' / 'a.npy'}\n\n{batch / 'videos' / 'b.npy'}\n")
+    (tmp_path / "x").mkdir()
+    np.save(tmp_path / "x" / "a.npy", drifting(4, 3))
+    pairs = list_videos([listing, batch / "videos" / "a.npy", tmp_path / "x" / "a.npy"], tmp_path / "out")
+    assert [(v.name, f.name) for v, f in pairs] == [("a.npy", "a_1"), ("b.npy", "b"), ("a.npy", "a_2")]
+    assert main(["reconstruct-many", str(tmp_path / "none*.mp4"), "-o", str(tmp_path / "out")]) == 2
+    assert capsys.readouterr().err.strip().endswith("inputs: the pattern " + str(tmp_path / "none*.mp4") + " matches no video")
+    with pytest.raises(ValueError, match="^engine:"):
+        nrdepth.reconstruct_many(listing, tmp_path / "out", engine="dask")
+    with pytest.raises(ValueError, match="^overwrite:"):
+        nrdepth.reconstruct_many(listing, tmp_path / "out", overwrite=True)
+    assert not (tmp_path / "out").exists()
