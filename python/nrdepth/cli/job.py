@@ -11,7 +11,7 @@ from ..engine.preview import save_png
 from ..io.decode import npz_header
 from ..io.viewer import view
 from ..reconstruct import reconstruct_file
-from ..reconstruct.batch import ENGINES
+from ..reconstruct.batch import ENGINES, reconstruct_many
 from ..reconstruct.options import add_flags, flag_of, options_from_flags
 
 __all__ = ["add_commands"]
@@ -60,7 +60,6 @@ def _with_flags(error: Exception) -> Exception:
 def _reconstruct_many(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from ..reconstruct.batch import reconstruct_many
     frames, start = 0, time.perf_counter()
     bar = None
 

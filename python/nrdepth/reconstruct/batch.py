@@ -31,6 +31,7 @@ from typing import Callable, Iterable, Iterator, List, Optional, Sequence, Tuple
 from ..checks import option_error
 from ..io.decode import IMAGE_SUFFIXES, npz_header
 from ..io.folder import check_complete
+from .api import reconstruct_file
 from .options import ReconstructOptions
 
 __all__ = ["reconstruct_many", "list_videos", "BatchRow", "VIDEO_SUFFIXES", "ENGINES", "SUMMARY"]
@@ -122,8 +123,6 @@ def _one_line(error: BaseException) -> str:
 def _run_one(video: str, folder: str, model: Optional[str], options: ReconstructOptions, threads: int) -> BatchRow:
     """A worker's video: its folder written, or its error; never raises but on an interrupt."""
     import torch
-
-    from .api import reconstruct_file
 
     torch.set_num_threads(threads)
     row = BatchRow(video, folder)
