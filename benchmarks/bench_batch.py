@@ -42,6 +42,8 @@ def main() -> None:
     parser.add_argument("--copies", type=int, default=8)
     parser.add_argument("--frames", type=int, default=64)
     parser.add_argument("--engines", default="loop,local,ray", help="which of loop, local, ray")
+    parser.add_argument("--workers", type=int, default=None, help="local: reconstruct-many's --workers (default: its own)")
+    parser.add_argument("--threads", type=int, default=None, help="local and ray: reconstruct-many's --threads (default: its own)")
     args = parser.parse_args()
     cores = os.cpu_count() or 1
     print(f"{args.copies} copies of kinect_paper's first {args.frames} frames (640×480 H.264), {cores} cores, "
@@ -54,16 +56,18 @@ def main() -> None:
         for k in range(1, args.copies):
             shutil.copy(root / "in" / "clip_0.mp4", root / "in" / f"clip_{k}.mp4")
         nrdepth = [sys.executable, "-m", "nrdepth"]
+        ray_split = ["--threads", str(args.threads)] if args.threads else []  # Ray has no --workers: its cluster's CPUs decide
+        split = (["--workers", str(args.workers)] if args.workers else []) + ray_split
         runs = {
             "loop": lambda: sum(timed(nrdepth + ["reconstruct", str(v), "-o", str(root / "loop" / v.stem), "--device", "cpu", "--quiet"])
                                 for v in sorted((root / "in").iterdir())),
-            "local": lambda: timed(nrdepth + ["reconstruct-many", str(root / "in"), "-o", str(root / "local"), "--device", "cpu", "--quiet"]),
+            "local": lambda: timed(nrdepth + ["reconstruct-many", str(root / "in"), "-o", str(root / "local"), "--device", "cpu", "--quiet", *split]),
             "ray": lambda: timed(nrdepth + ["reconstruct-many", str(root / "in"), "-o", str(root / "ray"), "--device", "cpu", "--quiet",
-                                            "--engine", "ray"]),
+                                            "--engine", "ray", *ray_split]),
         }
         what = {"loop": f"a shell loop of nrdepth reconstruct ({torch.get_num_threads()} torch threads each)",
-                "local": f"reconstruct-many, local pool ({cores} workers × 1 torch thread)",
-                "ray": f"reconstruct-many --engine ray, a Ray cluster started here ({cores} tasks × 1 CPU)"}
+                "local": f"reconstruct-many, local pool ({' '.join(split) or 'its defaults'})",
+                "ray": f"reconstruct-many --engine ray, a Ray cluster started here ({' '.join(ray_split) or 'its defaults'})"}
         seconds = {}
         for engine in args.engines.split(","):
             seconds[engine] = runs[engine]()

@@ -11,7 +11,7 @@ from ..engine.preview import save_png
 from ..io.decode import npz_header
 from ..io.viewer import view
 from ..reconstruct import reconstruct_file
-from ..reconstruct.batch import ENGINES, reconstruct_many
+from ..reconstruct.batch import ENGINES, THREADS, reconstruct_many
 from ..reconstruct.options import add_flags, flag_of, options_from_flags
 
 __all__ = ["add_commands"]
@@ -138,9 +138,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--model", default=None, help="model.safetensors or run folder (default: the shipped model)")
     p.add_argument("--engine", choices=ENGINES, default="local",
                    help="local: a process pool on this machine; ray: Ray tasks on a cluster (pip install 'nrdepth[ray]')")
-    p.add_argument("--workers", type=int, default=None, help="local: videos at a time (default: one per core, or per GPU with --device cuda)")
+    p.add_argument("--workers", type=int, default=None, help=f"local: videos at a time (default: one per {THREADS} cores, or per GPU with "
+                   "--device cuda)")
     p.add_argument("--threads", type=int, default=None, help="torch threads (Ray: CPUs) per video (default: local, the cores shared "
-                   "between the workers; ray, 1)")
+                   f"between the workers; ray, {THREADS} or a node's CPUs if fewer)")
     p.add_argument("--address", default=None, help="ray: the cluster's address (default: a running one, else one started here)")
     add_flags(p, leave_out=("overwrite",))  # one flag per field of nrdepth.ReconstructOptions
     p.add_argument("--quiet", action="store_true", help="no progress bar")

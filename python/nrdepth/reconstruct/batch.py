@@ -29,21 +29,22 @@ from pathlib import Path
 from typing import Callable, Iterable, Iterator, List, Optional, Sequence, Tuple, Union
 
 from ..checks import option_error
-from ..io.decode import IMAGE_SUFFIXES, npz_header
+from ..io.decode import IMAGE_SUFFIXES, PathLike, npz_header
 from ..io.folder import check_complete
 from .api import reconstruct_file
 from .options import ReconstructOptions
 
-__all__ = ["reconstruct_many", "list_videos", "BatchRow", "VIDEO_SUFFIXES", "ENGINES", "SUMMARY"]
+__all__ = ["reconstruct_many", "list_videos", "BatchRow", "VIDEO_SUFFIXES", "ENGINES", "SUMMARY", "THREADS"]
 
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg", ".gif", ".npy", ".npz")
 """The files a folder or glob of inputs contributes (an image folder is one video too)."""
 ENGINES = ("local", "ray")
+THREADS = 4
+"""Torch threads a video by default (fewer on a smaller machine or node): on this project's 2 cores one video on
+both ran 8 copies of a 640×480×64 clip at 2.82 videos a minute, two videos on one each at 2.30
+(``benchmarks/bench_batch.py``, docs/reconstruction.md#many-videos); fewer workers also hold less memory."""
 SUMMARY = "summary.csv"
 """The batch's table, in the output folder: one row per video, rewritten as each one ends."""
-
-PathLike = Union[str, "os.PathLike[str]"]
-
 
 @dataclass
 class BatchRow:
@@ -195,7 +196,7 @@ def _local(jobs: List[Tuple[int, BatchRow]], model: Optional[str], options: Reco
             pool.shutdown(wait=True, cancel_futures=True)
 
 
-def _ray(jobs: List[Tuple[int, BatchRow]], model: Optional[str], options: ReconstructOptions, threads: int, address: Optional[str]) -> Iterator[Tuple[int, BatchRow]]:
+def _ray(jobs: List[Tuple[int, BatchRow]], model: Optional[str], options: ReconstructOptions, threads: Optional[int], address: Optional[str]) -> Iterator[Tuple[int, BatchRow]]:
     """The jobs as Ray tasks: ``threads`` CPUs each, and one GPU with a CUDA device."""
     try:
         import ray
@@ -204,6 +205,8 @@ def _ray(jobs: List[Tuple[int, BatchRow]], model: Optional[str], options: Recons
     started = not ray.is_initialized()
     if started:
         ray.init(address=address, include_dashboard=False, logging_level="ERROR", log_to_driver=False)
+    # No more CPUs a task than a node has: a task that fits nowhere would wait for ever.
+    threads = min(threads or THREADS, max(int(node["Resources"].get("CPU", 1)) for node in ray.nodes() if node["Alive"]))
     gpus = 1 if str(options.device).startswith("cuda") else 0
     if gpus:
         options = ReconstructOptions.of(options, device="cuda")  # Ray gives each task its GPU as the only visible one
@@ -241,11 +244,12 @@ def reconstruct_many(inputs: Union[PathLike, Sequence[PathLike]], out: PathLike,
     video ends. Returns the rows in input order.
 
     ``engine``: ``"local"``, a pool of ``workers`` processes on this machine
-    (default: one per core, or one per GPU with a CUDA device) of
-    ``threads`` torch threads each (default: the cores shared between
-    them); or ``"ray"``, one Ray task per video (``threads`` CPUs each, and
-    a GPU with a CUDA device) on the cluster at ``address`` (default: a
-    running one, else one started on this machine). ``progress(done,
+    (default: one per :data:`THREADS` cores, or one per GPU with a CUDA
+    device) of ``threads`` torch threads each (default: the cores shared
+    between them); or ``"ray"``, one Ray task per video (``threads`` CPUs
+    each, default :data:`THREADS` or a node's CPUs if fewer, and a GPU with a
+    CUDA device) on the cluster at ``address`` (default: a running one,
+    else one started on this machine). ``progress(done,
     total, row)`` is called once the complete folders are counted (row
     None), then as each video ends."""
     options = ReconstructOptions.of(options, **settings)
@@ -275,11 +279,11 @@ def reconstruct_many(inputs: Union[PathLike, Sequence[PathLike]], out: PathLike,
     _write_summary(out, rows)
     model = None if model is None else os.fspath(model)
     if engine == "local":
-        workers = workers or max(1, gpus or min(cores, len(todo)))
+        workers = workers or max(1, gpus or min(cores // THREADS, len(todo)))
         threads = threads or max(1, cores // workers)
         results = _local(todo, model, ReconstructOptions.of(options, device="cuda") if gpus else options, workers, threads, gpus) if todo else iter(())
     else:
-        results = _ray(todo, model, options, threads or 1, address) if todo else iter(())
+        results = _ray(todo, model, options, threads, address) if todo else iter(())
     done = len(rows) - len(todo)
     if progress is not None:
         progress(done, len(rows), None)
