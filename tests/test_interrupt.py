@@ -20,10 +20,10 @@ import torch
 import nrdepth
 from nrdepth.model import save_model
 
-# Runs the CLI with SIGINT sent to itself shortly after TARGET (module:attribute) is first entered.
+# Runs the CLI with SIGINT sent to itself as TARGET (module:attribute) is first entered.
 # With SWALLOW the first KeyboardInterrupt is caught inside the stage, as a library may do.
 HOOKED_CLI = textwrap.dedent("""
-    import importlib, os, signal, sys, threading, time
+    import importlib, os, signal, sys, time
     target, swallow = sys.argv[1], sys.argv[2] == "swallow"
     module_name, _, attribute = target.rpartition(":")
     owner = importlib.import_module(module_name)
@@ -43,7 +43,7 @@ HOOKED_CLI = textwrap.dedent("""
                 except KeyboardInterrupt:
                     pass
             else:
-                threading.Timer(0.01, os.kill, (os.getpid(), signal.SIGINT)).start()
+                os.kill(os.getpid(), signal.SIGINT)  # handled before the stage's first line: on a loaded machine a timer may miss it
         return original(*args, **kwargs)
 
     hooked.fired = False
@@ -115,7 +115,7 @@ def test_ctrl_c_from_outside_mid_run_is_honoured_and_a_rerun_succeeds(job, tmp_p
     process.send_signal(signal.SIGINT)
     rest = process.communicate(timeout=60)[1]
     assert process.returncode == 130 and rest.strip().endswith("nrdepth reconstruct: interrupted"), (process.returncode, rest[-2000:])
-    assert time.perf_counter() - sent < 5.0
+    assert time.perf_counter() - sent < 10.0  # a second or two here; a loaded machine takes longer
     assert leftovers(tmp_path) == []
     rerun = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=120)
     assert rerun.returncode == 0, rerun.stderr[-2000:]
