@@ -17,7 +17,10 @@ import numpy as np
 
 from .checks import is_number, option_error
 
-__all__ = ["Camera"]
+__all__ = ["Camera", "WIDEST"]
+
+WIDEST = 170.0
+"""Degrees: the widest view across a frame a pinhole camera is taken to have (wider is a fisheye, or a mistaken focal length)."""
 
 
 def _pair(value: Any, name: str, what: str, positive: bool) -> Tuple[float, float]:
@@ -66,7 +69,15 @@ class Camera:
         return (w - 1) / 2, (h - 1) / 2
 
     def at(self, frame: Tuple[int, int]) -> "Camera":
-        """This camera with its principal point fixed for frames of ``frame`` (H, W) pixels."""
+        """This camera with its principal point fixed for frames of ``frame``
+        (H, W) pixels; refused if it would see more than :data:`WIDEST` across
+        them (no pinhole does: a focal length that small is a mistake)."""
+        h, w = frame
+        for side, f, axis in ((w, self.focal[0], "f_x"), (h, self.focal[1], "f_y")):
+            seen = 2 * math.degrees(math.atan(side / 2 / f))
+            if seen > WIDEST:
+                raise option_error("focal", f"{axis} = {f:g} px sees {seen:.1f}° across the frame's {side} pixels; a pinhole camera sees under "
+                                   f"{WIDEST:g}° (a focal length above {side / 2 / math.tan(math.radians(WIDEST / 2)):.1f} px)")
         return Camera(self.focal, self.principal_point(frame))
 
     def rays(self, xy: np.ndarray, frame: Optional[Tuple[int, int]] = None) -> np.ndarray:

@@ -30,6 +30,7 @@ def sheet_region(options: ReconstructOptions, frame: Tuple[int, int]) -> np.ndar
     ``options.roi``, else the whole frame, with room for the points. Checks
     the optional dependencies first, before any work."""
     require_isometric()
+    options.camera.at(frame)  # a focal length no pinhole has is refused here, before any work
     H, W = frame
     sheet = options.sheet
     if sheet is None or (np.ndim(sheet) == 1 and len(sheet) == 4):
