@@ -24,6 +24,7 @@ from nrdepth.model import save_model
 # With SWALLOW the first KeyboardInterrupt is caught inside the stage, as a library may do.
 HOOKED_CLI = textwrap.dedent("""
     import importlib, os, signal, sys, time
+    signal.signal(signal.SIGINT, signal.default_int_handler)  # as in a terminal: a background job starts with SIGINT ignored
     target, swallow = sys.argv[1], sys.argv[2] == "swallow"
     module_name, _, attribute = target.rpartition(":")
     owner = importlib.import_module(module_name)
@@ -105,7 +106,8 @@ def test_ctrl_c_from_outside_mid_run_is_honoured_and_a_rerun_succeeds(job, tmp_p
     """SIGINT from another process, as a terminal sends it, once the progress bar shows."""
     env = dict(os.environ, OMP_NUM_THREADS="1")
     argv = [sys.executable, "-m", "nrdepth", *reconstruct_argv(job, tmp_path / "out")]
-    process = subprocess.Popen(argv, env=env, stderr=subprocess.PIPE, text=True)
+    # As from a terminal: a test run started in the background (nohup, CI) hands its children SIGINT ignored.
+    process = subprocess.Popen(argv, env=env, stderr=subprocess.PIPE, text=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     seen = ""
     while "frames:" not in seen:
         piece = process.stderr.read(1)
