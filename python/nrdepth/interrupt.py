@@ -1,8 +1,7 @@
 """Ctrl-C that is never lost, and never lost half-way. Python turns SIGINT
 into a KeyboardInterrupt wherever the main thread happens to be, and some
-libraries swallow it there: one sent during ``import torch`` is caught
-inside the import about one time in ten, and the run went on to write its
-output. Inside :func:`sigint_remembered` the signal is also remembered, and
+libraries swallow it there: of 12 sent during ``import torch``, one was
+caught inside the import, and the run went on to write its output. Inside :func:`sigint_remembered` the signal is also remembered, and
 :func:`raise_if_interrupted`, called between the main job's stages and
 before its output is renamed into place, raises it again. Once the output
 is being renamed into place (:func:`committed`) the job is done: a later

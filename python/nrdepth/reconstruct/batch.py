@@ -101,9 +101,11 @@ def list_videos(inputs: Union[PathLike, Sequence[PathLike]], out: PathLike) -> L
     if not inputs:
         raise option_error("inputs", "expected at least one video, folder, glob pattern or list")
     videos: List[Path] = []
+    seen = set()
     for item in inputs:
         for video in _expand(item):
-            if video.resolve() not in {v.resolve() for v in videos}:
+            if video.resolve() not in seen:
+                seen.add(video.resolve())
                 videos.append(video)
     stems = [v.name if v.is_dir() else v.stem for v in videos]
     names = list(stems)
@@ -171,16 +173,19 @@ def _local(jobs: List[Tuple[int, BatchRow]], model: Optional[str], options: Reco
     left = dict(jobs)
     while left:
         pinning = dict(initializer=_pin_gpu, initargs=(context.Value("i", 0), gpus)) if gpus else {}
+        ours = {child.pid for child in active_children()}  # the caller's own children, not to be signalled below
         pool = ProcessPoolExecutor(max_workers=min(workers, len(left)), mp_context=context, **pinning)
         try:
-            futures = {pool.submit(_run_one, *_absolute(row), model, options, threads): i for i, row in left.items()}
+            # After a worker died: one video a pool, so that a death names its video and spares the others.
+            submitted = list(left.items()) if workers > 1 else list(left.items())[:1]
+            futures = {pool.submit(_run_one, *_absolute(row), model, options, threads): i for i, row in submitted}
             for future in as_completed(futures):
                 i = futures[future]
                 try:
                     row = future.result()
                 except BrokenProcessPool:
                     # Every unfinished video sees the break, not only the one whose worker died: they are run
-                    # again one at a time, where a death names its video.
+                    # again one at a time.
                     if workers > 1:
                         workers = 1
                         break
@@ -190,7 +195,8 @@ def _local(jobs: List[Tuple[int, BatchRow]], model: Optional[str], options: Reco
                 del left[i]
         except KeyboardInterrupt:
             for child in active_children():  # the workers may not have had the signal (kill -INT to this process alone)
-                os.kill(child.pid, signal.SIGINT)
+                if child.pid not in ours:
+                    os.kill(child.pid, signal.SIGINT)
             raise
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
