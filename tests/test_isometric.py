@@ -157,6 +157,48 @@ def test_track_grid_follows_a_shift():
     np.testing.assert_allclose(isometric.track_points(video, anywhere)[-1] - anywhere, [[8.0, 4.0]] * 2, atol=0.15)
 
 
+def shifted_texture(frames: int = 5, size: int = 160, window: int = 100) -> np.ndarray:
+    """A smooth random texture whose content moves +2 x, +1 y a frame, (T, window, window) uint8."""
+    from scipy.ndimage import gaussian_filter
+
+    texture = gaussian_filter(np.random.default_rng(3).random((size, size)), 2.0)
+    texture = np.rint(255 * (texture - texture.min()) / np.ptp(texture)).astype(np.uint8)
+    return np.stack([texture[20 - t : 20 + window - t, 20 - 2 * t : 20 + window - 2 * t] for t in range(frames)])
+
+
+def test_the_flow_over_the_points_box_follows_as_the_whole_frames_does():
+    video = shifted_texture()
+    mask = np.zeros(video.shape[1:], bool)
+    mask[30:60, 30:60] = True
+    whole = isometric.track_grid(video, mask, points=16)
+    boxed = isometric.track_grid(video, mask, points=16, margin=24)  # a margin past the flow's window: the same tracks
+    np.testing.assert_allclose(boxed, whole, atol=0.01)
+    assert not np.array_equal(boxed, whole)  # though the box did change the flow's input
+    tight = isometric.track_grid(video, mask, points=16, margin=0)  # none: the box's edge pulls the flow
+    assert np.abs(tight - whole).max() > 0.1
+    dis = isometric.track_grid(video, mask, points=16, flow="dis", margin=24)  # DIS follows it too
+    np.testing.assert_allclose(dis[-1] - dis[0], np.broadcast_to([8.0, 4.0], dis[0].shape), atol=0.25)
+    with pytest.raises(ValueError, match="flow"):
+        isometric.track_grid(video, mask, flow="lucas")
+    with pytest.raises(ValueError, match="margin"):
+        isometric.track_grid(video, mask, margin=-1)
+
+
+def test_mdh_every_nth_frame_solves_those_and_is_linear_in_time_between():
+    xy, _ = rolled_sheet(frames=9)
+    xy[6:, :3] = np.nan  # three points leave the view from frame 6
+    every_frame = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=3)
+    third = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=3, every=3)
+    solved = [0, 3, 4, 6, 8]  # every third, the keyframes (0, 4, 8) and the last
+    np.testing.assert_array_equal(third[solved], every_frame[solved])
+    np.testing.assert_allclose(third[1], (2 * third[0] + third[3]) / 3)
+    np.testing.assert_allclose(third[5, 3:], (third[4, 3:] + third[6, 3:]) / 2)
+    np.testing.assert_array_equal(third[5, :3], third[4, :3])  # in view at 4 only: the nearer solved frame's
+    assert np.isnan(third[7, :3]).all()
+    with pytest.raises(ValueError, match="every"):
+        isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), every=0)
+
+
 def test_track_points_loses_a_point_that_leaves_the_frame():
     rng = np.random.default_rng(6)
     from scipy.ndimage import gaussian_filter

@@ -177,7 +177,7 @@ def _check_template(template: str) -> None:
 
 
 def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]], centre: Optional[Tuple[float, float]] = None, pairs: Optional[np.ndarray] = None, neighbours: int = 20,
-               keyframes: int = 24, far: int = 0, reach: int = 0, template="joint", evaluations: int = 100) -> np.ndarray:
+               keyframes: int = 24, far: int = 0, reach: int = 0, template="joint", evaluations: int = 100, every: int = 1) -> np.ndarray:
     """Depths (T, n) of tracked points ``xy`` (T, n, 2) by the maximum-depth
     heuristic (module docstring); NaN where ``xy`` is NaN, a point out of
     view in that frame (:func:`track_points`), whose pairs bind nothing
@@ -200,7 +200,10 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
     fronto-parallel (docs/reconstruction.md). Or the distances themselves,
     (E,) positive, one for each of ``pairs`` (given), as a template of
     the sheet gives them (shape from template): the depths come out in
-    their units."""
+    their units. ``every``: only every ``every``-th frame (and the last) is
+    solved; each point's depth in the frames between is linear in time
+    between the two solved around it (a sheet's large-scale shape changes
+    little in a few frames)."""
     camera = camera if isinstance(camera, Camera) else Camera(camera, centre)
     if camera.centre is None:
         raise ValueError("centre: expected the principal point (c_x, c_y) in pixels, got None")
@@ -209,6 +212,8 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
         raise ValueError(f"xy: expected tracks (T, n, 2) with T >= 2 and n >= 3, finite in the first frame (NaN: out of view), got shape {xy.shape}")
     if not (isinstance(keyframes, (int, np.integer)) and keyframes >= 2):
         raise ValueError(f"keyframes: expected an int >= 2, got {keyframes!r}")
+    if not (isinstance(every, (int, np.integer)) and every >= 1):
+        raise ValueError(f"every: expected an int >= 1 (1: every frame solved), got {every!r}")
     if not (isinstance(evaluations, (int, np.integer)) and evaluations >= 1):
         raise ValueError(f"evaluations: expected an int >= 1, got {evaluations!r}")
     if isinstance(template, str):
@@ -242,7 +247,9 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
         if not np.all(distances > 0):
             raise ValueError("xy: two paired points share a position in the first frame")
         distances *= len(pairs) / distances.sum()  # the joint program's units: Σ D = the number of pairs
-    rest = np.setdiff1d(np.arange(T), keys)
+    anchors = np.union1d(keys, np.arange(0, T, every)) if every > 1 else np.arange(T)
+    anchors = np.union1d(anchors, [T - 1])
+    rest = np.setdiff1d(anchors, keys)
     # With the distances fixed the frames are independent: one small program each (ten times faster than
     # several frames in one), in threads (Clarabel releases the GIL; each frame's answer is the same in any thread).
     pool = ThreadPoolExecutor(max_workers=max(1, min(len(rest), os.cpu_count() or 1)))
@@ -251,7 +258,27 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
             depths[t] = solved
     finally:
         pool.shutdown(cancel_futures=True)  # on Ctrl-C: the frames not yet started are dropped, not waited for
+    if len(anchors) < T:
+        _between(depths, anchors, seen)
     return depths
+
+
+def _between(depths: np.ndarray, anchors: np.ndarray, seen: np.ndarray) -> None:
+    """Fills in place the frames of ``depths`` (T, n) between the solved
+    ``anchors``: each point's depth linear in time between the two solved
+    frames around (the nearer one's where it is in view in only one; NaN
+    where ``seen`` (T, n) says it is out of view)."""
+    T = len(depths)
+    after = np.searchsorted(anchors, np.arange(T))
+    for t in np.setdiff1d(np.arange(T), anchors):
+        a, b = anchors[after[t] - 1], anchors[after[t]]
+        w = (t - a) / (b - a)
+        left, right = depths[a], depths[b]
+        near = left if w <= 0.5 else right
+        blend = (1 - w) * left + w * right
+        both = np.isfinite(left) & np.isfinite(right)
+        row = np.where(both, blend, np.where(np.isfinite(near), near, np.where(np.isfinite(left), left, right)))
+        depths[t] = np.where(seen[t], row, np.nan)
 
 
 def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.ndarray] = None, points: int = 400,

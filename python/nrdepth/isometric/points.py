@@ -16,7 +16,7 @@ import numpy as np
 
 from ..checks import option_error
 
-__all__ = ["track_grid", "start_grid", "track_points", "least_disagreeing", "inside", "require_isometric", "check_video", "DROP", "BORDER"]
+__all__ = ["track_grid", "start_grid", "track_points", "least_disagreeing", "inside", "require_isometric", "check_video", "DROP", "BORDER", "FLOWS"]
 
 DROP = 0.2
 """:func:`isometric_depth`'s and ``reconstruct(focal=...)``'s share of the
@@ -61,7 +61,8 @@ def _check_mask(mask: Optional[np.ndarray], shape: Tuple[int, int]) -> np.ndarra
 
 
 def track_grid(video: np.ndarray, mask: Optional[np.ndarray] = None, points: int = 400, window: int = 21,
-               backward: bool = True, drop: float = 0.0, border: float = BORDER) -> np.ndarray:
+               backward: bool = True, drop: float = 0.0, border: float = BORDER, flow: str = "farneback",
+               margin: Optional[int] = None) -> np.ndarray:
     """Tracks (T, n, 2) (column, row) of about ``points`` points on a square
     grid over ``mask`` (H, W) of the first frame (default: the whole frame)
     at least ``border`` pixels inside the frame's edge, moved through
@@ -77,8 +78,8 @@ def track_grid(video: np.ndarray, mask: Optional[np.ndarray] = None, points: int
         raise ValueError("drop: the points to leave out are found by the flow both ways: expected backward=True, or drop=0")
     grid = start_grid(mask, video.shape[1:], points, drop, border)
     if drop == 0:
-        return track_points(video, grid, window, backward, border=border)
-    xy, disagreement = track_points(video, grid, window, backward, disagreement=True, border=border)
+        return track_points(video, grid, window, backward, border=border, flow=flow, margin=margin)
+    xy, disagreement = track_points(video, grid, window, backward, disagreement=True, border=border, flow=flow, margin=margin)
     return xy[:, least_disagreeing(disagreement, drop)]
 
 
@@ -112,7 +113,7 @@ def least_disagreeing(disagreement: np.ndarray, drop: float) -> np.ndarray:
 
 
 def track_points(video: np.ndarray, start: np.ndarray, window: int = 21, backward: bool = True,
-                 disagreement: bool = False, border: float = BORDER):
+                 disagreement: bool = False, border: float = BORDER, flow: str = "farneback", margin: Optional[int] = None):
     """Tracks (T, n, 2) (column, row) of the points ``start`` (n, 2) of the
     first frame, moved through ``video`` (T, H, W) uint8 by Farneback optical
     flow (5 pyramid levels, ``window``-pixel windows) from each frame to the
@@ -125,7 +126,9 @@ def track_points(video: np.ndarray, start: np.ndarray, window: int = 21, backwar
     flow cannot follow what leaves the view, and would hold it at the edge.
     With ``disagreement`` (needs ``backward``), also (n,): each point's
     distance between where the two flows take it, its mean over the steps
-    it stays in view (pixels; 0 for a point lost at once)."""
+    it stays in view (pixels; 0 for a point lost at once). ``flow``: one of
+    :data:`FLOWS`; ``margin``: the flow is computed over the points' bounding
+    box grown by this many pixels (None: over the whole frame)."""
     from scipy.ndimage import map_coordinates
 
     cv2 = require_isometric()
@@ -140,12 +143,16 @@ def track_points(video: np.ndarray, start: np.ndarray, window: int = 21, backwar
     if disagreement and not backward:
         raise ValueError("disagreement: the forward and backward flows' disagreement needs backward=True")
 
-    def flow(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return cv2.calcOpticalFlowFarneback(a, b, None, 0.5, 5, window, 5, 7, 1.5, 0)
+    if flow not in FLOWS:
+        raise ValueError(f"flow: expected one of {FLOWS}, got {flow!r}")
+    if margin is not None and not (isinstance(margin, (int, np.integer)) and margin >= 0):
+        raise ValueError(f"margin: expected pixels >= 0 or None (the whole frame), got {margin!r}")
+    dense = _flow(cv2, flow, window)
 
     def at(field: np.ndarray, where: np.ndarray) -> np.ndarray:  # bilinear
         return np.stack([map_coordinates(field[..., c], [where[:, 1], where[:, 0]], order=1, mode="nearest") for c in (0, 1)], axis=1)
 
+    H, W = video.shape[1:]
     xy = np.full((len(video), len(start), 2), np.nan)
     xy[0] = start
     alive = np.arange(len(start))
@@ -154,12 +161,16 @@ def track_points(video: np.ndarray, start: np.ndarray, window: int = 21, backwar
         if not len(alive):
             break
         was = xy[t - 1, alive]
-        ahead = was + at(flow(video[t - 1], video[t]), was)
+        # The flow over the points' box and a margin, not the whole frame: its cost goes with the area.
+        x0, y0 = (0, 0) if margin is None else (max(0, int(np.floor(was[:, k].min())) - margin) for k in (0, 1))
+        x1, y1 = (W, H) if margin is None else (min(n, int(np.ceil(was[:, k].max())) + margin + 1) for k, n in ((0, W), (1, H)))
+        a, b, corner = video[t - 1, y0:y1, x0:x1], video[t, y0:y1, x0:x1], np.array([x0, y0], np.float64)
+        ahead = was + at(dense(a, b), was - corner)
         now = ahead
         if backward:
-            field, back = flow(video[t], video[t - 1]), ahead
+            field, back = dense(b, a), ahead
             for _ in range(3):  # the point p whose backward flow lands on xy[t − 1]: p = xy[t − 1] − field(p)
-                back = was - at(field, back)
+                back = was - at(field, back - corner)
             now = (ahead + back) / 2
         stays = inside(now, video.shape[1:], border)
         alive, now = alive[stays], now[stays]
@@ -168,6 +179,19 @@ def track_points(video: np.ndarray, start: np.ndarray, window: int = 21, backwar
             apart[alive] += np.linalg.norm(ahead[stays] - back[stays], axis=1)
             steps[alive] += 1
     return (xy, apart / np.maximum(steps, 1)) if disagreement else xy
+
+
+FLOWS = ("farneback", "dis")
+""":func:`track_points`' dense flows: OpenCV's Farneback (5 pyramid levels,
+``window``-pixel windows) or DIS (its "medium" preset; ``window`` unused)."""
+
+
+def _flow(cv2, name: str, window: int):
+    """The dense flow from one uint8 frame to another, (H, W, 2) float32 (column, row)."""
+    if name == "farneback":
+        return lambda a, b: cv2.calcOpticalFlowFarneback(a, b, None, 0.5, 5, window, 5, 7, 1.5, 0)
+    dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
+    return lambda a, b: dis.calc(np.ascontiguousarray(a), np.ascontiguousarray(b), None)
 
 
 def inside(xy: np.ndarray, shape: Tuple[int, int], border: float) -> np.ndarray:

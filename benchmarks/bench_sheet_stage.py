@@ -1,0 +1,94 @@
+"""The sheet stage's cost on ``kinect_paper`` (191 frames, 640×480), lever by
+lever, with what each costs in accuracy: the stage's parts (the points
+followed, the cone programs) timed for each setting given, the whole
+sheet's error (mm, per-frame GBR) of the network's depth fused with each
+setting's isometric depth (the Kinect's focal length, points over the
+print, as ``reconstruct(focal=..., sheet=...)`` runs it), and the rest of
+the job (``reconstruct`` without ``focal``) timed in the same run, beside a
+2048² sgemm measured before and after (machines here differ by 1.5×).
+
+A setting is ``key=value`` pairs joined by ``:``: ``margin`` (the flow over
+the points' box and this many pixels, or ``none``: the whole frame),
+``flow`` (farneback, dis), ``keyframes``, ``neighbours``, ``every`` (only every
+n-th frame's program solved, the rest linear in time), ``points``.
+
+    python benchmarks/bench_sheet_stage.py [--threads 2] [--settings margin=none,margin=48,margin=48:keyframes=12:every=3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+
+def sgemm() -> float:
+    import torch
+
+    a = torch.randn(2048, 2048)
+    a @ a
+    start, n = time.perf_counter(), 0
+    while time.perf_counter() - start < 1.0:
+        a @ a
+        n += 1
+    return 2 * 2048**3 * n / (time.perf_counter() - start) / 1e9
+
+
+def parse(setting: str) -> dict:
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400}
+    for item in filter(None, setting.split(":")):
+        key, _, value = item.partition("=")
+        if key not in out:
+            raise SystemExit(f"--settings: unknown lever {key!r} (known: {', '.join(out)})")
+        out[key] = value if key == "flow" else (None if value == "none" else int(value))
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--settings", default="margin=none,margin=48", help="comma-separated settings (module docstring)")
+    args = parser.parse_args()
+
+    import cv2
+    import torch
+
+    import nrdepth
+    from nrdepth import isometric
+    from nrdepth.baselines.tracks import densify
+    from nrdepth.reconstruct.options import ISOMETRIC_DROP, ISOMETRIC_SCALE
+    from nrdepth.scores.real import KINECT_INNER, KINECT_ROI, data_folder, kinect_references, kinect_score, kinect_truth, kinect_video
+
+    torch.set_num_threads(args.threads)
+    cv2.setNumThreads(args.threads)
+    print(f"sgemm 2048²: {sgemm():.0f} GFLOP/s, {args.threads} threads", flush=True)
+    frames = kinect_video()
+    K = np.load(data_folder("kinect_paper") / "gt_mdh.npz")["K"].astype(np.float64)
+    camera = nrdepth.Camera.from_matrix(K)
+    truth = kinect_truth()
+    x, y, w, h = KINECT_INNER
+    box = np.zeros(frames.shape[1:], bool)
+    box[y : y + h, x : x + w] = True
+    rx, ry, rw, rh = KINECT_ROI
+    start = time.perf_counter()
+    network = nrdepth.reconstruct(frames, roi=KINECT_ROI).astype(np.float64)
+    rest = time.perf_counter() - start
+    print(f"the rest of the job (reconstruct, roi, no focal): {rest:.1f} s; network alone {kinect_score(network, truth):.2f} mm, "
+          f"fixed bowl {kinect_references(truth, KINECT_ROI)['bowl']:.2f} mm", flush=True)
+    for setting in args.settings.split(","):
+        lever = parse(setting)
+        start = time.perf_counter()
+        xy = isometric.track_grid(frames, box, points=lever["points"], drop=ISOMETRIC_DROP, flow=lever["flow"], margin=lever["margin"])
+        tracked = time.perf_counter()
+        depths = isometric.mdh_depths(xy, camera, keyframes=lever["keyframes"], neighbours=lever["neighbours"], every=lever["every"])
+        solved = time.perf_counter()
+        fused = isometric.fuse(network, densify(xy - np.array([rx, ry]), depths, network.shape), ISOMETRIC_SCALE * min(rw, rh))
+        mm = kinect_score(fused, truth)
+        print(f"{setting:40s} points {tracked - start:5.1f} s, programs {solved - tracked:5.1f} s, stage {solved - start:5.1f} s "
+              f"({(solved - start) / rest:.2f}× the rest): {mm:.2f} mm", flush=True)
+    print(f"sgemm 2048²: {sgemm():.0f} GFLOP/s", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,130 @@
+"""The sheet stage's speed levers on generated long sheets (issue 71): does a
+cheaper setting of the stage read the sheets as the default does?
+
+Each video (``--videos`` per light, lit from below and from above; 256² ×
+``--frames`` in ``--phases`` bends; through a pinhole of 40–80°; a seed
+and ``--start`` no earlier run read) is read by the network once, then by
+each ``--settings`` of the sheet stage with the camera's true focal length,
+the stage's defaults otherwise (``reconstruct(focal=...)``'s points, drop
+and scale): per-frame MAE-SN of each, and its seconds for the points and
+the programs. A setting is ``key=value`` pairs joined by ``:``, as in
+``benchmarks/bench_sheet_stage.py`` (``margin``, ``flow``, ``keyframes``,
+``neighbours``, ``points``); the first is the reference, each
+other is paired against it. ``--every``: each setting also with only every
+n-th frame's program solved, the rest linear in time (``mdh_depths``'s
+``every``; read off the setting's own every-frame depths, which it
+solves alike in those frames, so it costs nothing more here). The rule that reads this is in
+docs/campaign.md ("The sheet stage's cost").
+
+    python experiments/sheet_levers.py [--videos 16] [--start 64] [--settings ",keyframes=12"] [--every 1,2,3,4] [--csv out.csv]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+import nrdepth
+from nrdepth import GeneratorConfig, generate_clips, isometric
+from nrdepth.baselines.tracks import densify
+from nrdepth.isometric.mdh import _between
+from nrdepth.reconstruct.options import ISOMETRIC_DROP, ISOMETRIC_SCALE
+from nrdepth.scores.generated import SHEET_FAMILIES
+from nrdepth.scores.metrics import dense_baselines, mae_sn
+
+sys.path.insert(0, str(Path(__file__).parent))
+sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
+from bench_sheet_stage import parse  # noqa: E402
+from isometric_generated import SEED, camera  # noqa: E402
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--videos", type=int, default=16, help="videos per light")
+    parser.add_argument("--start", type=int, default=64, help="the first video's index in the held-out seed's draws")
+    parser.add_argument("--frames", type=int, default=64)
+    parser.add_argument("--phases", type=int, default=4)
+    parser.add_argument("--settings", default=",margin=48", help="comma-separated settings; the first (default: the stage's defaults) is the reference")
+    parser.add_argument("--every", default="1", help="comma-separated: each setting with only every n-th frame's program solved")
+    parser.add_argument("--margin-check", type=int, default=None,
+                        help="also follow the reference's points with the flow over their box and this margin: how far (px) its tracks move")
+    parser.add_argument("--csv", type=Path, default=None)
+    args = parser.parse_args()
+    settings = args.settings.split(",")
+    levers = [parse(s) for s in settings]
+    if any(lever["every"] != 1 for lever in levers):
+        parser.error("--settings: give every as --every (each setting is read at each)")
+    everies = [int(n) for n in args.every.split(",")]
+    label = lambda name, n: name if n == 1 else (f"{name}:every={n}" if name != "default" else f"every={n}")  # noqa: E731
+    names = [label(s or "default", n) for s in settings for n in everies]
+    rows = []
+    for light, azimuth in (("below", (math.pi - 1.22, math.pi + 1.22)), ("above", None)):
+        extra = {} if azimuth is None else {"light_azimuth": azimuth}
+        config = GeneratorConfig(frames=args.frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=args.phases,
+                                 texture_families=SHEET_FAMILIES, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
+        clips = generate_clips(args.videos, seed=SEED, config=config, start=args.start)
+        for k, (video, truth, params) in enumerate(zip(clips.video, clips.depth, clips.params)):
+            focal, centre = camera(params, config.size)
+            network = nrdepth.reconstruct(video).astype(np.float64)
+            row = {"light": light, "clip": args.start + k, "network per frame": mae_sn(network, truth)}
+            base = dense_baselines(truth)
+            row["plane per frame"], row["bowl per frame"] = base["plane"], base["bowl"]
+            tracks = {}
+            for name, lever in zip([s or "default" for s in settings], levers):
+                start = time.perf_counter()
+                key = (lever["flow"], lever["margin"], lever["points"])
+                if key not in tracks:
+                    tracks[key] = isometric.track_grid(video, points=lever["points"], drop=ISOMETRIC_DROP, flow=lever["flow"], margin=lever["margin"])
+                xy = tracks[key]
+                tracked = time.perf_counter()
+                depths = isometric.mdh_depths(xy, focal, centre, keyframes=lever["keyframes"], neighbours=lever["neighbours"])
+                solved = time.perf_counter()
+                for n in everies:
+                    kept = depths.copy()
+                    if n > 1:
+                        keys = np.unique(np.rint(np.linspace(0, len(xy) - 1, min(lever["keyframes"], len(xy)))).astype(int))
+                        anchors = np.union1d(np.union1d(keys, np.arange(0, len(xy), n)), [len(xy) - 1])
+                        _between(kept, anchors, np.isfinite(xy).all(axis=2))
+                    fused = isometric.fuse(network, densify(xy, kept, video.shape), ISOMETRIC_SCALE * config.size)
+                    row[f"{label(name, n)} per frame"] = mae_sn(fused, truth)
+                row[f"{name} points s"], row[f"{name} programs s"] = tracked - start, solved - tracked  # with every frame solved
+            if args.margin_check is not None:
+                reference = levers[0]
+                every_point = [isometric.track_grid(video, points=reference["points"], flow=reference["flow"], margin=margin)
+                               for margin in (reference["margin"], args.margin_check)]  # drop 0: the same points both ways
+                shift = np.linalg.norm(every_point[1] - every_point[0], axis=2)
+                row["margin shift median px"], row["margin shift max px"] = float(np.nanmedian(shift)), float(np.nanmax(shift))
+            rows.append(row)
+            print(f"{light} {args.start + k}: " + ", ".join(f"{n} {row[f'{n} per frame']:.4f}" for n in ["network", *names]), flush=True)
+    report(rows, names)
+    if args.csv is not None:
+        with open(args.csv, "w", newline="") as out:
+            writer = csv.DictWriter(out, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows({k: (f"{v:.5f}" if isinstance(v, float) else v) for k, v in row.items()} for row in rows)
+        print(f"wrote {args.csv}")
+
+
+def report(rows: list, names: list) -> None:
+    print(f"{len(rows)} sheets:")
+    for name in ["network", *names, "plane", "bowl"]:
+        line = f"  {name:>32s}: per frame {np.mean([r[f'{name} per frame'] for r in rows]):.4f}"
+        if f"{name} points s" in rows[0]:
+            line += f", points {np.mean([r[f'{name} points s'] for r in rows]):.1f} s, programs {np.mean([r[f'{name} programs s'] for r in rows]):.1f} s"
+        if name in names[1:]:
+            difference = np.array([r[f"{name} per frame"] - r[f"{names[0]} per frame"] for r in rows])
+            line += f", against {names[0]} {difference.mean():+.5f} ± {difference.std(ddof=1) / math.sqrt(len(rows)):.5f} (better on {int((difference < 0).sum())})"
+        print(line)
+    if "margin shift max px" in rows[0]:
+        print(f"  the flow over the points' box moves their tracks by a median {np.median([r['margin shift median px'] for r in rows]):.4f} px "
+              f"(per video; at most {max(r['margin shift max px'] for r in rows):.3f} px)")
+
+
+if __name__ == "__main__":
+    main()
