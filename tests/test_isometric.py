@@ -184,6 +184,21 @@ def test_the_flow_over_the_points_box_follows_as_the_whole_frames_does():
         isometric.track_grid(video, mask, margin=-1)
 
 
+def test_a_stream_of_frames_is_followed_as_the_array_is():
+    video = shifted_texture(frames=6)
+    mask = np.zeros(video.shape[1:], bool)
+    mask[30:60, 30:60] = True
+    whole = isometric.track_grid(video, mask, points=16, drop=0.25, margin=24)
+    streamed = isometric.track_grid((frame for frame in video), mask, points=16, drop=0.25, margin=24)
+    np.testing.assert_array_equal(streamed, whole)
+    with pytest.raises(ValueError, match="video: expected uint8 frames of the first one's shape .* at frame 3"):
+        isometric.track_grid(iter([*video[:3], video[3, :50]]), mask, points=16)
+    with pytest.raises(ValueError, match="video: expected at least 2 frames"):
+        isometric.track_grid(iter(video[:1]), mask, points=16)
+    with pytest.raises(ValueError, match="video: expected .* got nothing first"):
+        isometric.track_grid(iter([]), mask, points=16)
+
+
 def test_mdh_every_nth_frame_solves_those_and_is_linear_in_time_between():
     xy, _ = rolled_sheet(frames=9)
     xy[6:, :3] = np.nan  # three points leave the view from frame 6

@@ -10,13 +10,14 @@ integers); NaN from the frame where a point leaves the view.
 
 from __future__ import annotations
 
-from typing import Optional, Tuple
+import itertools
+from typing import Iterable, Iterator, Optional, Tuple, Union
 
 import numpy as np
 
 from ..checks import option_error
 
-__all__ = ["track_grid", "start_grid", "track_points", "least_disagreeing", "inside", "require_isometric", "check_video", "DROP", "BORDER", "FLOWS"]
+__all__ = ["track_grid", "start_grid", "track_points", "least_disagreeing", "inside", "require_isometric", "check_video", "frames_of", "DROP", "BORDER", "FLOWS"]
 
 DROP = 0.2
 """:func:`isometric_depth`'s and ``reconstruct(focal=...)``'s share of the
@@ -51,6 +52,34 @@ def check_video(video: np.ndarray) -> np.ndarray:
     return video
 
 
+def frames_of(video: Union[np.ndarray, Iterable[np.ndarray]]) -> Tuple[np.ndarray, Iterator[np.ndarray]]:
+    """The first frame of ``video`` and an iterator over the rest, each
+    checked as it comes: ``video`` a (T, H, W) uint8 array, or any iterable
+    of (H, W) uint8 frames (a stream, read once), at least 2 frames of at
+    least 8×8."""
+    if isinstance(video, np.ndarray):
+        video = check_video(video)
+        return video[0], iter(video[1:])
+    frames = iter(video)
+    first = next(frames, None)
+    if not (isinstance(first, np.ndarray) and first.ndim == 2 and first.dtype == np.uint8 and min(first.shape) >= 8):
+        got = "nothing" if first is None else f"{getattr(first, 'dtype', type(first).__name__)} {getattr(first, 'shape', '')}"
+        raise ValueError(f"video: expected a (T, H, W) uint8 grayscale video or uint8 frames (H, W) of at least 8×8, got {got} first")
+
+    def rest() -> Iterator[np.ndarray]:
+        count = 1
+        for frame in frames:
+            if not (isinstance(frame, np.ndarray) and frame.dtype == np.uint8 and frame.shape == first.shape):
+                raise ValueError(f"video: expected uint8 frames of the first one's shape {first.shape}, got "
+                                 f"{getattr(frame, 'dtype', type(frame).__name__)} {getattr(frame, 'shape', '')} at frame {count}")
+            count += 1
+            yield frame
+        if count < 2:
+            raise ValueError("video: expected at least 2 frames, got 1")
+
+    return first, rest()
+
+
 def _check_mask(mask: Optional[np.ndarray], shape: Tuple[int, int]) -> np.ndarray:
     if mask is None:
         return np.ones(shape, bool)
@@ -60,23 +89,24 @@ def _check_mask(mask: Optional[np.ndarray], shape: Tuple[int, int]) -> np.ndarra
     return mask
 
 
-def track_grid(video: np.ndarray, mask: Optional[np.ndarray] = None, points: int = 400, window: int = 21,
+def track_grid(video: Union[np.ndarray, Iterable[np.ndarray]], mask: Optional[np.ndarray] = None, points: int = 400, window: int = 21,
                backward: bool = True, drop: float = 0.0, border: float = BORDER, flow: str = "farneback",
                margin: Optional[int] = None) -> np.ndarray:
     """Tracks (T, n, 2) (column, row) of about ``points`` points on a square
     grid over ``mask`` (H, W) of the first frame (default: the whole frame)
     at least ``border`` pixels inside the frame's edge, moved through
-    ``video`` (T, H, W) uint8 by :func:`track_points` (``window``,
+    ``video`` ((T, H, W) uint8, or a stream of frames: :func:`frames_of`) by :func:`track_points` (``window``,
     ``backward``, ``border``: NaN from the frame where a point leaves the
     view). ``drop``: the share of the points left out,
     those whose forward and backward flows disagree most over the video
     (:func:`track_points`' ``disagreement``; needs ``backward``): points
     at a boundary of the motion, where the flow bleeds from one side to
     the other, whose tracks would read as stretch (docs/reconstruction.md)."""
-    video = check_video(video)
+    first, rest = frames_of(video)
+    video = itertools.chain([first], rest)
     if drop > 0 and not backward:
         raise ValueError("drop: the points to leave out are found by the flow both ways: expected backward=True, or drop=0")
-    grid = start_grid(mask, video.shape[1:], points, drop, border)
+    grid = start_grid(mask, first.shape, points, drop, border)
     if drop == 0:
         return track_points(video, grid, window, backward, border=border, flow=flow, margin=margin)
     xy, disagreement = track_points(video, grid, window, backward, disagreement=True, border=border, flow=flow, margin=margin)
@@ -112,11 +142,11 @@ def least_disagreeing(disagreement: np.ndarray, drop: float) -> np.ndarray:
     return np.sort(np.argsort(disagreement, kind="stable")[:kept])
 
 
-def track_points(video: np.ndarray, start: np.ndarray, window: int = 21, backward: bool = True,
+def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarray, window: int = 21, backward: bool = True,
                  disagreement: bool = False, border: float = BORDER, flow: str = "farneback", margin: Optional[int] = None):
     """Tracks (T, n, 2) (column, row) of the points ``start`` (n, 2) of the
-    first frame, moved through ``video`` (T, H, W) uint8 by Farneback optical
-    flow (5 pyramid levels, ``window``-pixel windows) from each frame to the
+    first frame, moved through ``video`` ((T, H, W) uint8, or a stream of
+    frames: :func:`frames_of`) by dense optical flow (``flow``) from each frame to the
     next: the mean of where the forward flow takes a point and where the
     backward flow says it came from (both real videos read better, generated
     sheets within 0.0005 per frame: docs/reconstruction.md), or with
@@ -132,17 +162,16 @@ def track_points(video: np.ndarray, start: np.ndarray, window: int = 21, backwar
     from scipy.ndimage import map_coordinates
 
     cv2 = require_isometric()
-    video = check_video(video)
+    first, rest = frames_of(video)
     start = np.asarray(start, np.float64)
     if start.ndim != 2 or start.shape[1] != 2 or not np.isfinite(start).all():
         raise ValueError(f"start: expected finite points (n, 2) (column, row), got shape {start.shape}")
     if not (isinstance(window, (int, np.integer)) and window >= 3):
         raise ValueError(f"window: expected an int >= 3 (pixels), got {window!r}")
-    if not (isinstance(border, (int, float, np.integer, np.floating)) and 0 <= border < min(video.shape[1:]) / 2):
-        raise ValueError(f"border: expected pixels in [0, {min(video.shape[1:]) / 2:g}) (half the frame's shorter side), got {border!r}")
+    if not (isinstance(border, (int, float, np.integer, np.floating)) and 0 <= border < min(first.shape) / 2):
+        raise ValueError(f"border: expected pixels in [0, {min(first.shape) / 2:g}) (half the frame's shorter side), got {border!r}")
     if disagreement and not backward:
         raise ValueError("disagreement: the forward and backward flows' disagreement needs backward=True")
-
     if flow not in FLOWS:
         raise ValueError(f"flow: expected one of {FLOWS}, got {flow!r}")
     if margin is not None and not (isinstance(margin, (int, np.integer)) and margin >= 0):
@@ -152,32 +181,35 @@ def track_points(video: np.ndarray, start: np.ndarray, window: int = 21, backwar
     def at(field: np.ndarray, where: np.ndarray) -> np.ndarray:  # bilinear
         return np.stack([map_coordinates(field[..., c], [where[:, 1], where[:, 0]], order=1, mode="nearest") for c in (0, 1)], axis=1)
 
-    H, W = video.shape[1:]
-    xy = np.full((len(video), len(start), 2), np.nan)
-    xy[0] = start
+    H, W = first.shape
+    xy = [start]
     alive = np.arange(len(start))
     apart, steps = np.zeros(len(start)), np.zeros(len(start))
-    for t in range(1, len(video)):
-        if not len(alive):
-            break
-        was = xy[t - 1, alive]
-        # The flow over the points' box and a margin, not the whole frame: its cost goes with the area.
-        x0, y0 = (0, 0) if margin is None else (max(0, int(np.floor(was[:, k].min())) - margin) for k in (0, 1))
-        x1, y1 = (W, H) if margin is None else (min(n, int(np.ceil(was[:, k].max())) + margin + 1) for k, n in ((0, W), (1, H)))
-        a, b, corner = video[t - 1, y0:y1, x0:x1], video[t, y0:y1, x0:x1], np.array([x0, y0], np.float64)
-        ahead = was + at(dense(a, b), was - corner)
-        now = ahead
-        if backward:
-            field, back = dense(b, a), ahead
-            for _ in range(3):  # the point p whose backward flow lands on xy[t − 1]: p = xy[t − 1] − field(p)
-                back = was - at(field, back - corner)
-            now = (ahead + back) / 2
-        stays = inside(now, video.shape[1:], border)
-        alive, now = alive[stays], now[stays]
-        xy[t, alive] = now
-        if backward:
-            apart[alive] += np.linalg.norm(ahead[stays] - back[stays], axis=1)
-            steps[alive] += 1
+    previous = first
+    for frame in rest:  # two frames held at a time: a stream is read once
+        now_xy = np.full_like(start, np.nan)
+        if len(alive):
+            was = xy[-1][alive]
+            # The flow over the points' box and a margin, not the whole frame: its cost goes with the area.
+            x0, y0 = (0, 0) if margin is None else (max(0, int(np.floor(was[:, k].min())) - margin) for k in (0, 1))
+            x1, y1 = (W, H) if margin is None else (min(n, int(np.ceil(was[:, k].max())) + margin + 1) for k, n in ((0, W), (1, H)))
+            a, b, corner = previous[y0:y1, x0:x1], frame[y0:y1, x0:x1], np.array([x0, y0], np.float64)
+            ahead = was + at(dense(a, b), was - corner)
+            now = ahead
+            if backward:
+                field, back = dense(b, a), ahead
+                for _ in range(3):  # the point p whose backward flow lands on xy[t − 1]: p = xy[t − 1] − field(p)
+                    back = was - at(field, back - corner)
+                now = (ahead + back) / 2
+            stays = inside(now, (H, W), border)
+            alive, now = alive[stays], now[stays]
+            now_xy[alive] = now
+            if backward:
+                apart[alive] += np.linalg.norm(ahead[stays] - back[stays], axis=1)
+                steps[alive] += 1
+        xy.append(now_xy)
+        previous = frame
+    xy = np.stack(xy)
     return (xy, apart / np.maximum(steps, 1)) if disagreement else xy
 
 

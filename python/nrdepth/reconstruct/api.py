@@ -99,7 +99,7 @@ def reconstruct(video: np.ndarray, model: Model = None, options: Optional[Recons
     pipeline = Pipeline(video.shape[1:], chunks, net, device, options, mask)
     raw = np.concatenate(list(stitched(pipeline, progress)))
     if region is not None:
-        raw = sheet_depth(raw, pipeline.work, options, options.camera, region, select(gray, options.frames, None))
+        sheet_depth(raw, pipeline.work, options, options.camera, region, iter(select(gray, options.frames, None)))
     offset, scale = units_of(pipeline, raw, options.temporal, options.units)
     return final(pipeline, raw, 0, len(raw), offset, -scale if options.flip else scale)
 
@@ -119,9 +119,9 @@ def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.
     statistic and coarse pass, fine pass, writing), the stitched depth
     waits on disk in the output's temporary folder at the working
     resolution, and memory does not grow with the video's length, except
-    by the coarse pass's 20 kB a frame (and with ``temporal``, which aligns
-    the whole video in memory, ``fine="patches"``, which holds it, or
-    ``focal``, which holds the selected frames, a byte a pixel). ``mask``
+    by the coarse pass's 20 kB a frame and, with ``focal``, the sheet's
+    points' 6 kB a frame (and with ``temporal``, which aligns the whole
+    video in memory, or ``fine="patches"``, which holds it). ``mask``
     may also be a file: one image (for every frame) or a video, image
     folder or array of the input's frame count, of the input's frame size;
     pixels of 128 or more (of 255) are on the surface. ``ply_relief``: the
@@ -145,8 +145,8 @@ def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.
         for chunk in stitched(pipeline, progress):
             raw.append(chunk)
         if region is not None:
-            whole = np.concatenate(list(open_video(input, "input", options.frames, None).chunks(CHUNK)))
-            raw[:] = sheet_depth(raw[:], pipeline.work, options, options.camera, region, whole)
+            whole = (frame for chunk in open_video(input, "input", options.frames, None).chunks(CHUNK) for frame in chunk)  # streamed
+            sheet_depth(raw, pipeline.work, options, options.camera, region, whole)
         offset, scale = units_of(pipeline, raw, options.temporal, options.units)
         scale = -scale if options.flip else scale
         # The ranges from the working resolution (bilinear resizing makes no new extremes), a chunk at a time.

@@ -116,12 +116,11 @@ class DiskFrames:
         return np.frombuffer(self.file.read(n * per * 4), np.float32).reshape(n, *self.frame).copy()
 
     def __setitem__(self, frames: slice, values: np.ndarray) -> None:
-        if frames != slice(None):
-            raise ValueError("frames: only the whole video can be rewritten")
-        self.file.seek(0)
-        self.file.truncate()
-        self.count = 0
-        self.append(values)
+        start, stop, step = frames.indices(self.count)
+        if step != 1 or np.shape(values) != (max(stop - start, 0), *self.frame):
+            raise ValueError(f"frames: expected a contiguous slice of frames in place and values of its shape, got {frames} and {np.shape(values)}")
+        self.file.seek(start * self.frame[0] * self.frame[1] * 4)
+        self.file.write(np.ascontiguousarray(values, dtype=np.float32).tobytes())
 
     def __array__(self, dtype: Any = None, copy: Any = None) -> np.ndarray:
         whole = self[:]

@@ -10,7 +10,7 @@ over the region's working frame and fused with the network's depth.
 
 from __future__ import annotations
 
-from typing import Tuple
+from typing import Iterable, Tuple
 
 import numpy as np
 
@@ -18,10 +18,15 @@ from ..baselines.tracks import densify
 from ..camera import Camera
 from ..checks import option_error
 from ..isometric import fuse, mdh_depths, require_isometric, start_grid, track_grid
-from .frames import as_uint8
+from .frames import CHUNK, as_uint8
 from .options import ReconstructOptions
 
-__all__ = ["sheet_region", "sheet_depth"]
+__all__ = ["sheet_region", "sheet_depth", "MARGIN"]
+
+MARGIN = 48
+"""The sheet's points are followed by the flow over their box and this
+many pixels, not over the whole frame (the same tracks for a fraction of
+the cost: docs/campaign.md, "The sheet stage's cost")."""
 
 
 def sheet_region(options: ReconstructOptions, frame: Tuple[int, int]) -> np.ndarray:
@@ -51,18 +56,26 @@ def sheet_region(options: ReconstructOptions, frame: Tuple[int, int]) -> np.ndar
     return region
 
 
-def sheet_depth(raw: np.ndarray, work: Tuple[int, int], options: ReconstructOptions, camera: Camera, region: np.ndarray, video: np.ndarray) -> np.ndarray:
-    """The stitched depth ``raw`` (T, h, w) at the working resolution
-    ``work`` with its shape above ``options.isometric_scale`` from the
-    sheet's inextensibility: points over ``region`` (:func:`sheet_region`) followed
-    through ``video`` (the selected frames whole, (T, H, W)) and their
-    depths through ``camera``, spread over the region's working frame."""
-    xy = track_grid(as_uint8(video), region, points=int(options.isometric_points), drop=float(options.isometric_drop))
-    depths = mdh_depths(xy, camera.at(video.shape[1:]), template=options.isometric_template)
-    x, y, w_region, h_region = options.roi or (0, 0, video.shape[2], video.shape[1])
+def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera: Camera, region: np.ndarray,
+                frames: Iterable[np.ndarray]) -> None:
+    """Gives the stitched depth ``raw`` (T, h, w; an array or
+    :class:`~.frames.DiskFrames`, changed in place, a chunk at a time) at
+    the working resolution ``work`` its shape above
+    ``options.isometric_scale`` from the sheet's inextensibility: points
+    over ``region`` (:func:`sheet_region`, bool (H, W)) followed through
+    ``frames`` (the selected frames whole, each (H, W), read once as they
+    come: two are held at a time) and their depths through ``camera``,
+    spread over the region's working frame."""
+    xy = track_grid((as_uint8(frame) for frame in frames), region, points=int(options.isometric_points),
+                    drop=float(options.isometric_drop), margin=MARGIN)
+    depths = mdh_depths(xy, camera.at(region.shape), template=options.isometric_template)
+    x, y, w_region, h_region = options.roi or (0, 0, region.shape[1], region.shape[0])
     h, w = work
     # Into the region's working frame: area-averaged resizes keep pixel centres' relative places.
     working = (xy - np.array([x, y]) + 0.5) * np.array([w / w_region, h / h_region]) - 0.5
-    on = np.isfinite(raw)
-    fused = fuse(np.where(on, raw, 0.0), densify(working, depths, raw.shape), float(options.isometric_scale) * min(h, w), mask=on)
-    return np.where(on, fused, np.nan).astype(np.float32)
+    for a in range(0, len(xy), CHUNK):  # each frame is fused alone: memory stays a chunk's
+        b = min(a + CHUNK, len(xy))
+        chunk = np.asarray(raw[a:b])
+        on = np.isfinite(chunk)
+        fused = fuse(np.where(on, chunk, 0.0), densify(working[a:b], depths[a:b], chunk.shape), float(options.isometric_scale) * min(h, w), mask=on)
+        raw[a:b] = np.where(on, fused, np.nan).astype(np.float32)
