@@ -16,7 +16,8 @@ n-th frame's program solved, the rest linear in time (``mdh_depths``'s
 solves alike in those frames, so it costs nothing more here). The rule that reads this is in
 docs/campaign.md ("The sheet stage's cost").
 
-    python experiments/sheet_levers.py [--videos 16] [--start 64] [--settings ",keyframes=12"] [--every 1,2,3,4] [--csv out.csv]
+    python experiments/sheet_levers.py [--videos 16] [--start 64] [--settings ",keyframes=12"] [--every 1,2,3,4] [--lights below,above] [--csv out.csv]
+    python experiments/paired.py A.csv "keyframes=12 per frame" A.csv "default per frame"   # two runs' CSVs: concatenate them first
 """
 
 from __future__ import annotations
@@ -54,7 +55,8 @@ def main() -> None:
     parser.add_argument("--every", default="1", help="comma-separated: each setting with only every n-th frame's program solved")
     parser.add_argument("--margin-check", type=int, default=None,
                         help="also follow the reference's points with the flow over their box and this margin: how far (px) its tracks move")
-    parser.add_argument("--csv", type=Path, default=None)
+    parser.add_argument("--lights", default="below,above", help="the sheets lit from below, above, or both (each its own --videos)")
+    parser.add_argument("--csv", type=Path, default=None, help="each video's row, written as it is read")
     args = parser.parse_args()
     settings = args.settings.split(",")
     levers = [parse(s) for s in settings]
@@ -65,6 +67,8 @@ def main() -> None:
     names = [label(s or "default", n) for s in settings for n in everies]
     rows = []
     for light, azimuth in (("below", (math.pi - 1.22, math.pi + 1.22)), ("above", None)):
+        if light not in args.lights.split(","):
+            continue
         extra = {} if azimuth is None else {"light_azimuth": azimuth}
         config = GeneratorConfig(frames=args.frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=args.phases,
                                  texture_families=SHEET_FAMILIES, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
@@ -101,14 +105,13 @@ def main() -> None:
                 shift = np.linalg.norm(every_point[1] - every_point[0], axis=2)
                 row["margin shift median px"], row["margin shift max px"] = float(np.nanmedian(shift)), float(np.nanmax(shift))
             rows.append(row)
+            if args.csv is not None:  # rewritten whole after each video: a stopped run keeps what it read
+                with open(args.csv, "w", newline="") as out:
+                    writer = csv.DictWriter(out, fieldnames=list(rows[0]))
+                    writer.writeheader()
+                    writer.writerows({k: (f"{v:.5f}" if isinstance(v, float) else v) for k, v in r.items()} for r in rows)
             print(f"{light} {args.start + k}: " + ", ".join(f"{n} {row[f'{n} per frame']:.4f}" for n in ["network", *names]), flush=True)
     report(rows, names)
-    if args.csv is not None:
-        with open(args.csv, "w", newline="") as out:
-            writer = csv.DictWriter(out, fieldnames=list(rows[0]))
-            writer.writeheader()
-            writer.writerows({k: (f"{v:.5f}" if isinstance(v, float) else v) for k, v in row.items()} for row in rows)
-        print(f"wrote {args.csv}")
 
 
 def report(rows: list, names: list) -> None:

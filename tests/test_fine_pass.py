@@ -129,26 +129,6 @@ def test_a_file_streamed_to_a_folder_matches_the_in_memory_reconstruction(tmp_pa
     assert len(list((tmp_path / "out" / "png16").iterdir())) == 34
 
 
-def test_a_sheet_streamed_from_a_file_matches_the_in_memory_reconstruction(tmp_path):
-    pytest.importorskip("cv2")
-    pytest.importorskip("clarabel")
-    from scipy.ndimage import gaussian_filter
-
-    torch.manual_seed(0)
-    model = nrdepth.model.UNet3D(base=2)
-    texture = gaussian_filter(np.random.default_rng(2).random((120, 160)), 2.0)
-    texture = np.rint(255 * (texture - texture.min()) / np.ptp(texture)).astype(np.uint8)
-    video = np.stack([texture[30 - t // 2 : 70 - t // 2, 40 - t : 96 - t] for t in range(37)])  # a moving print, 37 frames: 3 chunks
-    np.save(tmp_path / "clip.npy", video)
-    options = {"roi": (4, 2, 48, 36), "frames": slice(3, None), "max_side": 32, "focal": 60.0, "isometric_points": 36}
-    expected = nrdepth.reconstruct(video, model, device="cpu", **options)
-    reconstruct_file(tmp_path / "clip.npy", tmp_path / "out", model, device="cpu", **options)
-    with np.load(tmp_path / "out" / "depth.npz") as saved:
-        np.testing.assert_allclose(saved["depth"], expected, atol=1e-5)
-    without = nrdepth.reconstruct(video, model, device="cpu", **{k: v for k, v in options.items() if k not in ("focal", "isometric_points")})
-    assert np.abs(expected - without).max() > 0.1  # the sheet's shape did change the depth
-
-
 def test_a_mask_file_streamed_to_a_folder_matches_the_in_memory_masked_reconstruction_and_every_output_marks_it(tmp_path, capsys):
     import base64
     import struct

@@ -3,14 +3,20 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
+import warnings
 from pathlib import Path
+
+import numpy as np
 
 from ..engine.preview import save_png
 from ..io.decode import npz_header
 from ..io.viewer import view
 from ..reconstruct import reconstruct_file
+from ..reconstruct.api import SheetFallback
+from ..reconstruct.sheet import SheetDecision
 from ..reconstruct.batch import ENGINES, THREADS, reconstruct_many
 from ..reconstruct.options import add_flags, flag_of, options_from_flags
 
@@ -36,7 +42,9 @@ def _reconstruct(args: argparse.Namespace) -> int:
     try:
         # Everything that can be refused is checked before any work or writing.
         options = options_from_flags(args)
-        reconstruct_file(args.input, out, args.model, options, progress=progress)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", SheetFallback)  # said below, in the sheet's line
+            reconstruct_file(args.input, out, args.model, options, progress=progress)
     except (ValueError, TypeError) as e:
         raise _with_flags(e) from None
     finally:
@@ -44,6 +52,9 @@ def _reconstruct(args: argparse.Namespace) -> int:
             bar.close()
     seconds = time.perf_counter() - start
     (t, h, w), _ = npz_header(out / "depth.npz", "depth")
+    if options.focal is not None:  # the sheet stage's decision, in one line (depth.npz keeps it as "sheet")
+        with np.load(out / "depth.npz") as saved:
+            print(SheetDecision(**json.loads(str(saved["sheet"]))).line())
     print(f"wrote {out}: depth of {t} frames of {w}×{h} in {seconds:.1f} s on {resolve_device(options.device)} "
           f"(depth.npz, depth.mp4, side_by_side.mp4{', viewer.html' if options.viewer else ''}{', png16/' if options.png16 else ''}{', ply/' if options.ply else ''})")
     return 0

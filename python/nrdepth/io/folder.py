@@ -5,6 +5,7 @@ killed runs."""
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import shutil
@@ -154,6 +155,7 @@ class ReconstructionWriter:
         else:
             self.viewer = None
         self.png16_range: Optional[Tuple[float, float]] = None
+        self.metadata: dict = {}
         self.done = 0
         self.tmp = self.out.parent / f".{self.out.name}.partial-{os.getpid()}"
         try:
@@ -187,6 +189,13 @@ class ReconstructionWriter:
         self.value_range = value_range
         self.png16_range = value_range if png16_range is None else png16_range
 
+    def set_metadata(self, name: str, value: dict) -> None:
+        """A record kept in ``depth.npz`` as JSON under ``name`` (a 0-d string
+        array: ``json.loads(str(np.load(path)[name]))``), before :meth:`close`."""
+        if name in ("depth", "range", "png16_range") or not name.isidentifier():
+            raise ValueError(f"name: expected a new identifier for depth.npz's member, got {name!r}")
+        self.metadata[name] = json.dumps(value, sort_keys=True)
+
     def write(self, frames: np.ndarray, depth: np.ndarray) -> None:
         """The next uint8 input frames (n, H, W) and their float depth (n, H, W)."""
         raise_if_interrupted()
@@ -219,6 +228,7 @@ class ReconstructionWriter:
             extra = {"range": np.array(self.value_range, np.float32)}
             if self.png16:
                 extra["png16_range"] = np.array(self.png16_range or self.value_range, np.float32)
+            extra.update((name, np.array(text)) for name, text in self.metadata.items())
             for name, value in extra.items():
                 with self.archive.open(_entry(f"{name}.npy"), "w") as f:
                     np.lib.format.write_array(f, value)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 from pathlib import Path
 from typing import Any, Callable, Optional, Union
 
@@ -26,10 +27,10 @@ from .mask import file_mask, video_mask
 from .network import load_net
 from .options import FILE_ONLY, ReconstructOptions
 from .pipeline import Pipeline
-from .sheet import sheet_depth, sheet_region
+from .sheet import SheetDecision, sheet_depth, sheet_region
 from .stitching import stitched
 
-__all__ = ["reconstruct", "reconstruct_file"]
+__all__ = ["reconstruct", "reconstruct_file", "SheetFallback"]
 
 Model = Union[None, str, "os.PathLike[str]", "torch.nn.Module"]  # noqa: F821
 Progress = Optional[Callable[[int, int], None]]
@@ -48,6 +49,18 @@ def _network(model: Model, options: ReconstructOptions) -> tuple:
 
     device = resolve_device(options.device)
     return device, load_net(model, options.units, device)
+
+
+def _said(decision: SheetDecision) -> SheetDecision:
+    """The sheet stage's decision, said: a warning where it left the network's depth alone."""
+    if not decision.used:
+        warnings.warn(decision.line(), SheetFallback, stacklevel=3)
+    return decision
+
+
+class SheetFallback(UserWarning):
+    """With ``focal``, the sheet stage left the network's depth alone (the
+    warning says why: :class:`~nrdepth.reconstruct.sheet.SheetDecision`)."""
 
 
 @sigint_remembered()  # a Ctrl-C that a library swallows still stops the job
@@ -99,7 +112,7 @@ def reconstruct(video: np.ndarray, model: Model = None, options: Optional[Recons
     pipeline = Pipeline(video.shape[1:], chunks, net, device, options, mask)
     raw = np.concatenate(list(stitched(pipeline, progress)))
     if region is not None:
-        sheet_depth(raw, pipeline.work, options, options.camera, region, iter(select(gray, options.frames, None)))
+        _said(sheet_depth(raw, pipeline.work, options, options.camera, region, iter(select(gray, options.frames, None))))
     offset, scale = units_of(pipeline, raw, options.temporal, options.units)
     return final(pipeline, raw, 0, len(raw), offset, -scale if options.flip else scale)
 
@@ -146,7 +159,7 @@ def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.
             raw.append(chunk)
         if region is not None:
             whole = (frame for chunk in open_video(input, "input", options.frames, None).chunks(CHUNK) for frame in chunk)  # streamed
-            sheet_depth(raw, pipeline.work, options, options.camera, region, whole)
+            writer.set_metadata("sheet", _said(sheet_depth(raw, pipeline.work, options, options.camera, region, whole)).as_dict())
         offset, scale = units_of(pipeline, raw, options.temporal, options.units)
         scale = -scale if options.flip else scale
         # The ranges from the working resolution (bilinear resizing makes no new extremes), a chunk at a time.

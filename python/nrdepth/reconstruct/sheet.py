@@ -10,6 +10,8 @@ over the region's working frame and fused with the network's depth.
 
 from __future__ import annotations
 
+import itertools
+from dataclasses import asdict, dataclass
 from typing import Iterable, Tuple
 
 import numpy as np
@@ -21,12 +23,55 @@ from ..isometric import fuse, mdh_depths, require_isometric, start_grid, track_g
 from .frames import CHUNK, as_uint8
 from .options import ReconstructOptions
 
-__all__ = ["sheet_region", "sheet_depth", "MARGIN"]
+__all__ = ["sheet_region", "sheet_depth", "SheetDecision", "FLOW_MARGIN", "MIN_FRAMES", "MIN_TEXTURE", "MIN_MOTION"]
 
-MARGIN = 48
+FLOW_MARGIN = 48
 """The sheet's points are followed by the flow over their box and this
 many pixels, not over the whole frame (the same tracks for a fraction of
 the cost: docs/campaign.md, "The sheet stage's cost")."""
+
+MIN_FRAMES = 16
+"""Fewer selected frames than this and the sheet stage leaves the network's
+depth alone: the shortest clips the sheet's shape was read on (16 frames
+barely bend a sheet: docs/reconstruction.md)."""
+
+MIN_TEXTURE = 1.0
+"""The median gray-level step between neighbouring pixels of the sheet's
+region in the first frame below which the flow has nothing to follow
+(a uniform or blurred region): the stage leaves the network's depth alone."""
+
+MIN_MOTION = 0.5
+"""Pixels: the median over the points of the farthest each moves from
+where it starts, below which the video does not move, and the stage
+leaves the network's depth alone; half the flow's own median error on
+the paper's true points (docs/findings.md)."""
+
+
+@dataclass(frozen=True)
+class SheetDecision:
+    """What the sheet stage did: ``used`` its shape, or left the network's
+    depth alone for ``reason``; the camera's ``focal`` and ``centre``
+    (pixels), the ``frames`` read, the ``points`` followed (after the drop),
+    the median ``texture`` (gray levels a pixel) and ``motion`` (pixels) its
+    checks measured (NaN where not reached). :meth:`line` is the job's log
+    line; ``depth.npz`` keeps :meth:`as_dict` as JSON under ``sheet``."""
+
+    used: bool
+    reason: str
+    focal: Tuple[float, float]
+    centre: Tuple[float, float]
+    frames: int
+    points: int = 0
+    texture: float = float("nan")
+    motion: float = float("nan")
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+    def line(self) -> str:
+        what = "the sheet's shape from inextensibility" if self.used else "the network's depth alone"
+        return (f"sheet: {what} ({self.reason}; focal {self.focal[0]:g},{self.focal[1]:g} px, {self.frames} frames, "
+                f"{self.points} points, texture {self.texture:.2f}, motion {self.motion:.2f} px)")
 
 
 def sheet_region(options: ReconstructOptions, frame: Tuple[int, int]) -> np.ndarray:
@@ -57,7 +102,7 @@ def sheet_region(options: ReconstructOptions, frame: Tuple[int, int]) -> np.ndar
 
 
 def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera: Camera, region: np.ndarray,
-                frames: Iterable[np.ndarray]) -> None:
+                frames: Iterable[np.ndarray]) -> SheetDecision:
     """Gives the stitched depth ``raw`` (T, h, w; an array or
     :class:`~.frames.DiskFrames`, changed in place, a chunk at a time) at
     the working resolution ``work`` its shape above
@@ -65,10 +110,27 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
     over ``region`` (:func:`sheet_region`, bool (H, W)) followed through
     ``frames`` (the selected frames whole, each (H, W), read once as they
     come: two are held at a time) and their depths through ``camera``,
-    spread over the region's working frame."""
-    xy = track_grid((as_uint8(frame) for frame in frames), region, points=int(options.isometric_points),
-                    drop=float(options.isometric_drop), margin=MARGIN)
-    depths = mdh_depths(xy, camera.at(region.shape), template=options.isometric_template)
+    spread over the region's working frame. Unless the video gives the
+    shape nothing to read (fewer than :data:`MIN_FRAMES` frames, a region
+    with less texture than :data:`MIN_TEXTURE`, points that move less than
+    :data:`MIN_MOTION`): then ``raw`` is left alone. Returns what it did."""
+    camera = camera.at(region.shape)
+    T = len(raw)
+    record = dict(focal=tuple(map(float, camera.focal)), centre=tuple(map(float, camera.centre)), frames=T)
+    if T < MIN_FRAMES:
+        return SheetDecision(False, f"{T} frames, fewer than the {MIN_FRAMES} the sheet's shape needs", **record)
+    frames = iter(frames)
+    first = as_uint8(next(frames))
+    texture = _texture(first, region)
+    if texture < MIN_TEXTURE:
+        return SheetDecision(False, f"the sheet's region has no texture for the flow to follow ({texture:.2f} < {MIN_TEXTURE:g})", texture=texture, **record)
+    xy = track_grid((as_uint8(frame) for frame in itertools.chain([first], frames)), region, points=int(options.isometric_points),
+                    drop=float(options.isometric_drop), margin=FLOW_MARGIN)
+    motion = float(np.median(np.nanmax(np.linalg.norm(xy - xy[:1], axis=2), axis=0)))
+    record.update(points=xy.shape[1], texture=texture, motion=motion)
+    if not motion >= MIN_MOTION:
+        return SheetDecision(False, f"the video does not move (the points {motion:.2f} px at most from where they start, < {MIN_MOTION:g})", **record)
+    depths = mdh_depths(xy, camera, template=options.isometric_template)
     x, y, w_region, h_region = options.roi or (0, 0, region.shape[1], region.shape[0])
     h, w = work
     # Into the region's working frame: area-averaged resizes keep pixel centres' relative places.
@@ -79,3 +141,11 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
         on = np.isfinite(chunk)
         fused = fuse(np.where(on, chunk, 0.0), densify(working[a:b], depths[a:b], chunk.shape), float(options.isometric_scale) * min(h, w), mask=on)
         raw[a:b] = np.where(on, fused, np.nan).astype(np.float32)
+    return SheetDecision(True, "the video moves the textured sheet", **record)
+
+
+def _texture(frame: np.ndarray, region: np.ndarray) -> float:
+    """The median absolute gray-level step to the next pixel right and down, over ``region``."""
+    f = frame.astype(np.float32)
+    steps = np.concatenate([np.abs(np.diff(f, axis=1))[region[:, 1:] & region[:, :-1]], np.abs(np.diff(f, axis=0))[region[1:] & region[:-1]]])
+    return float(np.median(steps)) if steps.size else 0.0

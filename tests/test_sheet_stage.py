@@ -1,0 +1,78 @@
+"""The sheet stage (``reconstruct(focal=...)``): it reads a bending sheet
+alike streamed from a file or held in memory, says what it did (a log
+line, ``depth.npz``'s ``sheet``), and leaves the network's depth alone,
+with its reason, where the video gives the shape nothing to read: too few
+frames, no texture, no motion."""
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+import torch
+
+pytest.importorskip("cv2")
+pytest.importorskip("clarabel")
+
+import nrdepth  # noqa: E402
+import nrdepth.model  # noqa: E402
+from nrdepth.model import save_model  # noqa: E402
+from nrdepth import GeneratorConfig, generate_clips  # noqa: E402
+from nrdepth.reconstruct import SheetFallback, reconstruct_file  # noqa: E402
+from nrdepth.reconstruct.sheet import MIN_FRAMES, MIN_MOTION  # noqa: E402
+
+OPTIONS = {"max_side": 32, "focal": 60.0, "isometric_points": 36}
+
+
+@pytest.fixture(scope="module")
+def model():
+    torch.manual_seed(0)
+    return nrdepth.model.UNet3D(base=2)
+
+
+@pytest.fixture(scope="module")
+def bending():
+    """A generated sheet bending two ways over 37 frames (3 chunks), 64×64."""
+    config = GeneratorConfig(frames=37, size=64, grid=64, sheet_probability=1.0, sheet_phases=2, camera_fov=(1.0, 1.0), crop_share=(1.0, 1.0))
+    return generate_clips(1, seed=5, config=config).video[0]
+
+
+def network_alone(video, model, **options):
+    return nrdepth.reconstruct(video, model, device="cpu", max_side=OPTIONS["max_side"], **options)
+
+
+def test_a_bending_sheet_streamed_from_a_file_reads_as_in_memory_and_says_so(tmp_path, model, bending, capsys):
+    options = {**OPTIONS, "roi": (4, 2, 56, 52), "frames": slice(3, None)}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SheetFallback)  # it must not fall back
+        expected = nrdepth.reconstruct(bending, model, device="cpu", **options)
+    np.save(tmp_path / "clip.npy", bending)
+    reconstruct_file(tmp_path / "clip.npy", tmp_path / "out", model, device="cpu", **options)
+    with np.load(tmp_path / "out" / "depth.npz") as saved:
+        np.testing.assert_allclose(saved["depth"], expected, atol=1e-5)
+        sheet = json.loads(str(saved["sheet"]))
+    assert sheet["used"] and sheet["frames"] == 34 and sheet["focal"] == [60.0, 60.0] and sheet["motion"] >= MIN_MOTION
+    assert 20 <= sheet["points"] <= 40  # about 36 on the grid, a fifth left out
+    without = network_alone(bending, model, roi=options["roi"], frames=options["frames"])
+    assert np.abs(expected - without).max() > 0.1  # the sheet's shape did change the depth
+    from nrdepth.cli import main
+
+    save_model(model, tmp_path / "model.safetensors")
+    np.save(tmp_path / "grey.npy", np.full((24, 48, 56), 128, np.uint8))
+    for clip, says in (("clip", "the sheet's shape from inextensibility (the video moves the textured sheet"), ("grey", "the network's depth alone (the sheet's region has no texture")):
+        assert main(["reconstruct", str(tmp_path / f"{clip}.npy"), "-o", str(tmp_path / f"cli_{clip}"), "--model", str(tmp_path / "model.safetensors"),
+                     "--device", "cpu", "--max-side", "32", "--focal", "60", "--isometric-points", "36"]) == 0
+        out, err = capsys.readouterr()
+        assert f"sheet: {says}" in out and "SheetFallback" not in err  # one line, not a warning as well
+
+
+@pytest.mark.parametrize("case", ["short", "grey", "still"])
+def test_a_video_with_nothing_to_read_falls_back_to_the_network_and_says_why(case, model, bending):
+    video, says = {
+        "short": (bending[: MIN_FRAMES - 1], f"fewer than the {MIN_FRAMES}"),
+        "grey": (np.full((24, 48, 56), 128, np.uint8), "no texture"),
+        "still": (np.repeat(bending[:1], 24, axis=0), "does not move"),
+    }[case]
+    with pytest.warns(SheetFallback, match=f"sheet: the network's depth alone \\(.*{says}"):
+        depth = nrdepth.reconstruct(video, model, device="cpu", **OPTIONS)
+    np.testing.assert_array_equal(depth, network_alone(video, model))
