@@ -55,8 +55,10 @@ def main() -> None:
     parser.add_argument("--every", default="1", help="comma-separated: each setting with only every n-th frame's program solved")
     parser.add_argument("--margin-check", type=int, default=None,
                         help="also follow the reference's points with the flow over their box and this margin: how far (px) its tracks move")
+    parser.add_argument("--margin-only", action="store_true", help="with --margin-check: that check alone (no network, no programs)")
     parser.add_argument("--lights", default="below,above", help="the sheets lit from below, above, or both (each its own --videos)")
-    parser.add_argument("--csv", type=Path, default=None, help="each video's row, written as it is read")
+    parser.add_argument("--csv", type=Path, default=None, help="each video's row, written as it is read; a CSV already there is resumed "
+                        "(its rows kept, its videos not read again)")
     args = parser.parse_args()
     settings = args.settings.split(",")
     levers = [parse(s) for s in settings]
@@ -66,6 +68,10 @@ def main() -> None:
     label = lambda name, n: name if n == 1 else (f"{name}:every={n}" if name != "default" else f"every={n}")  # noqa: E731
     names = [label(s or "default", n) for s in settings for n in everies]
     rows = []
+    if args.csv is not None and args.csv.exists():  # a stopped run's rows: kept, their videos skipped
+        with open(args.csv, newline="") as file:
+            rows = [{k: (v if k == "light" else int(v) if k == "clip" else float(v)) for k, v in row.items()} for row in csv.DictReader(file)]
+    done = {(row["light"], row["clip"]) for row in rows}
     for light, azimuth in (("below", (math.pi - 1.22, math.pi + 1.22)), ("above", None)):
         if light not in args.lights.split(","):
             continue
@@ -74,6 +80,16 @@ def main() -> None:
                                  texture_families=SHEET_FAMILIES, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
         clips = generate_clips(args.videos, seed=SEED, config=config, start=args.start)
         for k, (video, truth, params) in enumerate(zip(clips.video, clips.depth, clips.params)):
+            if (light, args.start + k) in done:
+                continue
+            if args.margin_only:
+                reference = levers[0]
+                every_point = [isometric.track_grid(video, points=reference["points"], flow=reference["flow"], margin=margin)
+                               for margin in (reference["margin"], args.margin_check)]
+                shift = np.linalg.norm(every_point[1] - every_point[0], axis=2)
+                rows.append({"light": light, "clip": args.start + k, "margin shift median px": float(np.nanmedian(shift)), "margin shift max px": float(np.nanmax(shift))})
+                print(f"{light} {args.start + k}: the box moves the tracks by a median {rows[-1]['margin shift median px']:.4f} px, at most {rows[-1]['margin shift max px']:.3f}", flush=True)
+                continue
             focal, centre = camera(params, config.size)
             network = nrdepth.reconstruct(video).astype(np.float64)
             row = {"light": light, "clip": args.start + k, "network per frame": mae_sn(network, truth)}
@@ -111,6 +127,10 @@ def main() -> None:
                     writer.writeheader()
                     writer.writerows({k: (f"{v:.5f}" if isinstance(v, float) else v) for k, v in r.items()} for r in rows)
             print(f"{light} {args.start + k}: " + ", ".join(f"{n} {row[f'{n} per frame']:.4f}" for n in ["network", *names]), flush=True)
+    if args.margin_only:
+        print(f"{len(rows)} sheets: the flow over the points' box and {args.margin_check} px moves their tracks by a median "
+              f"{np.median([r['margin shift median px'] for r in rows]):.4f} px (the videos' medians' median; at most {max(r['margin shift max px'] for r in rows):.3f} px)")
+        return
     report(rows, names)
 
 

@@ -1,6 +1,8 @@
 """Bad input from a careful user and a hostile one, every case in its own
 process (a 60 s limit): an abort, a hang or a crash fails its case instead of
-killing the test run. Each case must raise the named exception with a message
+killing the test run. The processes fork from a server that imported
+nrdepth and torch once (``multiprocessing``'s forkserver), so a case costs
+no interpreter start. Each case must raise the named exception with a message
 that names the argument or file (API), or exit 2 with one line that does
 (CLI), and must write nothing it should not."""
 
@@ -183,12 +185,66 @@ def assets(tmp_path_factory):
     return root
 
 
-def run_case(code: str, cwd: Path, assets: Path) -> subprocess.CompletedProcess:
-    if "nrdepth.model" in code:
-        code = "import nrdepth.model\n" + code  # torch only where a case needs it
+class Case:
+    """What a case's process did: its exit status and what it wrote."""
+
+    def __init__(self, returncode: int, stdout: str, stderr: str) -> None:
+        self.returncode, self.stdout, self.stderr = returncode, stdout, stderr
+
+
+def _case_process(code, argv, cwd, env, out, err):  # in the forked process
+    import torch
+
+    os.chdir(cwd)
+    os.environ.update(env)
+    torch.set_num_threads(1)
+    for fd, path in ((1, out), (2, err)):
+        os.dup2(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC), fd)
+    try:
+        if argv is None:
+            exec(compile(PRELUDE + code, "<case>", "exec"), {"__name__": "__case__"})
+            status = 0
+        else:
+            from nrdepth.cli import main
+
+            status = main(argv)  # as `python -m nrdepth` runs it: sys.exit(main())
+    except SystemExit as e:
+        status = e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(status)
+
+
+def in_its_own_process(*, code: str = None, argv: list = None, cwd: Path, env: dict) -> Case:
+    """``code`` (after PRELUDE) or the CLI's ``argv`` in a process forked from the server, at most 60 s."""
+    import multiprocessing
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as streams:  # outside cwd: a case must write nothing there
+        out, err = Path(streams) / "stdout", Path(streams) / "stderr"
+        process = multiprocessing.get_context("forkserver").Process(target=_case_process, args=(code, argv, str(cwd), env, str(out), str(err)))
+        process.start()
+        process.join(60)
+        if process.is_alive():
+            process.kill()
+            process.join()
+            raise AssertionError("the case hung for 60 s")
+        return Case(process.exitcode, *(path.read_text() if path.exists() else "" for path in (out, err)))
+
+
+@pytest.fixture(scope="module", autouse=True)
+def case_server():
+    """The server the cases fork from, with nrdepth, its CLI and torch imported."""
+    import multiprocessing
+
+    multiprocessing.set_forkserver_preload(["numpy", "torch", "nrdepth", "nrdepth.model", "nrdepth.cli"])
+    yield
+
+
+def run_case(code: str, cwd: Path, assets: Path) -> Case:
     body = "try:\n" + textwrap.indent(code, "    ") + "\nexcept BaseException as e:\n    print(f'RAISED {type(e).__name__}: {e}')\nelse:\n    print('OK')\n"
-    env = dict(os.environ, CASE_MODEL=str(assets / "model.safetensors"), CASE_DATA=str(assets / "data"), OMP_NUM_THREADS="1")
-    return subprocess.run([sys.executable, "-c", PRELUDE + body], cwd=cwd, env=env, capture_output=True, text=True, timeout=60)
+    env = dict(CASE_MODEL=str(assets / "model.safetensors"), CASE_DATA=str(assets / "data"))
+    return in_its_own_process(code=body, cwd=cwd, env=env)
 
 
 @pytest.mark.parametrize("code, expected", [c[1:] for c in API_CASES], ids=[c[0] for c in API_CASES])
@@ -217,8 +273,7 @@ def test_cli_bad_input_is_one_line_and_exit_2(argv, expected, tmp_path, assets):
     (tmp_path / "bad" / "model.json").write_text(json.dumps({"architecture": "unet3d", "config": {"base": 2}}))
     before = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*"))
     argv = [a.format(model=assets / "model.safetensors", small_data=assets / "small_data") for a in argv]
-    env = dict(os.environ, OMP_NUM_THREADS="1")
-    result = subprocess.run([sys.executable, "-m", "nrdepth", *argv], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60)
+    result = in_its_own_process(argv=argv, cwd=tmp_path, env={})
     assert result.returncode == 2, (result.returncode, result.stderr[-2000:])
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"nrdepth {argv[0]}: error: {expected}"), result.stderr
