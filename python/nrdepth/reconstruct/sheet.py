@@ -5,14 +5,16 @@ shape above a length scale from the sheet's inextensibility
 Points over the sheet are followed through the selected frames whole (not
 cut to the region: points near its edge stay in view), their depths come
 from the maximum-depth heuristic through the camera, and they are spread
-over the region's working frame and fused with the network's depth.
+over the region's working frame and fused with the network's depth. A
+video that gives the shape nothing to read keeps the network's depth;
+either way the stage returns what it did (:class:`SheetDecision`).
 """
 
 from __future__ import annotations
 
 import itertools
 from dataclasses import asdict, dataclass
-from typing import Iterable, Tuple
+from typing import Iterable, Optional, Tuple
 
 import numpy as np
 
@@ -36,9 +38,11 @@ depth alone: the shortest clips the sheet's shape was read on (16 frames
 barely bend a sheet: docs/reconstruction.md)."""
 
 MIN_TEXTURE = 1.0
-"""The median gray-level step between neighbouring pixels of the sheet's
-region in the first frame below which the flow has nothing to follow
-(a uniform or blurred region): the stage leaves the network's depth alone."""
+"""The gray-level step between neighbouring pixels of the sheet's region
+in the first frame that a tenth of them must reach, or the flow has
+nothing to follow (a uniform or blurred region) and the stage leaves the
+network's depth alone. A tenth, not half: white paper with print on it
+is flat between its lines."""
 
 MIN_MOTION = 0.5
 """Pixels: the median over the points of the farthest each moves from
@@ -52,8 +56,8 @@ class SheetDecision:
     """What the sheet stage did: ``used`` its shape, or left the network's
     depth alone for ``reason``; the camera's ``focal`` and ``centre``
     (pixels), the ``frames`` read, the ``points`` followed (after the drop),
-    the median ``texture`` (gray levels a pixel) and ``motion`` (pixels) its
-    checks measured (NaN where not reached). :meth:`line` is the job's log
+    the ``texture`` (gray levels, :data:`MIN_TEXTURE`) and ``motion``
+    (pixels, :data:`MIN_MOTION`) its checks measured (None where not reached). :meth:`line` is the job's log
     line; ``depth.npz`` keeps :meth:`as_dict` as JSON under ``sheet``."""
 
     used: bool
@@ -62,16 +66,16 @@ class SheetDecision:
     centre: Tuple[float, float]
     frames: int
     points: int = 0
-    texture: float = float("nan")
-    motion: float = float("nan")
+    texture: Optional[float] = None
+    motion: Optional[float] = None
 
     def as_dict(self) -> dict:
         return asdict(self)
 
     def line(self) -> str:
         what = "the sheet's shape from inextensibility" if self.used else "the network's depth alone"
-        return (f"sheet: {what} ({self.reason}; focal {self.focal[0]:g},{self.focal[1]:g} px, {self.frames} frames, "
-                f"{self.points} points, texture {self.texture:.2f}, motion {self.motion:.2f} px)")
+        measured = "".join(f", {name} {value:.2f}" for name, value in (("texture", self.texture), ("motion px", self.motion)) if value is not None)
+        return f"sheet: {what} ({self.reason}; focal {self.focal[0]:g},{self.focal[1]:g} px, {self.frames} frames, {self.points} points{measured})"
 
 
 def sheet_region(options: ReconstructOptions, frame: Tuple[int, int]) -> np.ndarray:
@@ -145,7 +149,7 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
 
 
 def _texture(frame: np.ndarray, region: np.ndarray) -> float:
-    """The median absolute gray-level step to the next pixel right and down, over ``region``."""
+    """The 90th percentile of the absolute gray-level steps to the next pixel right and down, over ``region``."""
     f = frame.astype(np.float32)
     steps = np.concatenate([np.abs(np.diff(f, axis=1))[region[:, 1:] & region[:, :-1]], np.abs(np.diff(f, axis=0))[region[1:] & region[:-1]]])
-    return float(np.median(steps)) if steps.size else 0.0
+    return float(np.percentile(steps, 90)) if steps.size else 0.0
