@@ -25,12 +25,21 @@ from ..isometric import fuse, mdh_depths, require_isometric, start_grid, track_g
 from .frames import CHUNK, as_uint8
 from .options import ReconstructOptions
 
-__all__ = ["sheet_region", "sheet_depth", "SheetDecision", "FLOW_MARGIN", "MIN_FRAMES", "MIN_TEXTURE", "MIN_MOTION"]
+__all__ = ["sheet_region", "sheet_depth", "SheetDecision", "FLOW_MARGIN", "KEYFRAMES", "EVERY", "MIN_FRAMES", "MIN_TEXTURE", "MIN_MOTION"]
 
 FLOW_MARGIN = 48
 """The sheet's points are followed by the flow over their box and this
 many pixels, not over the whole frame (the same tracks for a fraction of
 the cost: docs/campaign.md, "The sheet stage's cost")."""
+
+KEYFRAMES, EVERY = 12, 4
+"""The sheet's joint cone program runs over this many keyframes, and only
+every :data:`EVERY`-th other frame's program is solved (the frames
+between linear in time): of the settings that read 32 generated long
+sheets as 24 keyframes and every frame did, the cheapest on kinect_paper
+(a rule fixed before they were read: docs/campaign.md, "The sheet
+stage's cost"). With the default template, "joint", the one the rule
+read; the others keep 24 keyframes and every frame."""
 
 MIN_FRAMES = 16
 """Fewer selected frames than this and the sheet stage leaves the network's
@@ -134,7 +143,8 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
     record.update(points=xy.shape[1], texture=texture, motion=motion)
     if not motion >= MIN_MOTION:
         return SheetDecision(False, f"the video does not move (the points {motion:.2f} px at most from where they start, < {MIN_MOTION:g})", **record)
-    depths = mdh_depths(xy, camera, template=options.isometric_template)
+    cheaper = {"keyframes": KEYFRAMES, "every": EVERY} if options.isometric_template == "joint" else {}  # what the rule read
+    depths = mdh_depths(xy, camera, template=options.isometric_template, **cheaper)
     x, y, w_region, h_region = options.roi or (0, 0, region.shape[1], region.shape[0])
     h, w = work
     # Into the region's working frame: area-averaged resizes keep pixel centres' relative places.
