@@ -83,11 +83,7 @@ def main() -> None:
             if (light, args.start + k) in done:
                 continue
             if args.margin_only:
-                reference = levers[0]
-                every_point = [isometric.track_grid(video, points=reference["points"], flow=reference["flow"], margin=margin)
-                               for margin in (reference["margin"], args.margin_check)]
-                shift = np.linalg.norm(every_point[1] - every_point[0], axis=2)
-                rows.append({"light": light, "clip": args.start + k, "margin shift median px": float(np.nanmedian(shift)), "margin shift max px": float(np.nanmax(shift))})
+                rows.append({"light": light, "clip": args.start + k, **margin_shift(video, levers[0], args.margin_check)})
                 print(f"{light} {args.start + k}: the box moves the tracks by a median {rows[-1]['margin shift median px']:.4f} px, at most {rows[-1]['margin shift max px']:.3f}", flush=True)
                 continue
             focal, centre = camera(params, config.size)
@@ -115,11 +111,7 @@ def main() -> None:
                     row[f"{label(name, n)} per frame"] = mae_sn(fused, truth)
                 row[f"{name} points s"], row[f"{name} programs s"] = tracked - start, solved - tracked  # with every frame solved
             if args.margin_check is not None:
-                reference = levers[0]
-                every_point = [isometric.track_grid(video, points=reference["points"], flow=reference["flow"], margin=margin)
-                               for margin in (reference["margin"], args.margin_check)]  # drop 0: the same points both ways
-                shift = np.linalg.norm(every_point[1] - every_point[0], axis=2)
-                row["margin shift median px"], row["margin shift max px"] = float(np.nanmedian(shift)), float(np.nanmax(shift))
+                row.update(margin_shift(video, levers[0], args.margin_check))
             rows.append(row)
             if args.csv is not None:  # rewritten whole after each video: a stopped run keeps what it read
                 with open(args.csv, "w", newline="") as out:
@@ -132,6 +124,14 @@ def main() -> None:
               f"{np.median([r['margin shift median px'] for r in rows]):.4f} px (the videos' medians' median; at most {max(r['margin shift max px'] for r in rows):.3f} px)")
         return
     report(rows, names)
+
+
+def margin_shift(video: np.ndarray, reference: dict, margin: int) -> dict:
+    """How far (px) the flow over the points' box and ``margin`` moves the reference's tracks: median and largest."""
+    every_point = [isometric.track_grid(video, points=reference["points"], flow=reference["flow"], margin=m)
+                   for m in (reference["margin"], margin)]  # drop 0: the same points both ways
+    shift = np.linalg.norm(every_point[1] - every_point[0], axis=2)
+    return {"margin shift median px": float(np.nanmedian(shift)), "margin shift max px": float(np.nanmax(shift))}
 
 
 def report(rows: list, names: list) -> None:
