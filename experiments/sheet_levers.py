@@ -9,8 +9,8 @@ the stage's defaults otherwise (``reconstruct(focal=...)``'s points, drop
 and scale): per-frame MAE-SN of each, and its seconds for the points and
 the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 ``benchmarks/bench_sheet_stage.py`` (``margin``, ``flow``, ``keyframes``,
-``neighbours``, ``points``); the first is the reference, each
-other is paired against it. ``--every``: each setting also with only every
+``neighbours``, ``points``, ``hold``, ``backward``, ``drop``); the first is the reference, each
+other is paired against it. ``--scales``: each also fused at each scale. ``--every``: each setting also with only every
 n-th frame's program solved, the rest linear in time (``mdh_depths``'s
 ``every``; read off the setting's own every-frame depths, which it
 solves alike in those frames, so it costs nothing more here). The rule that reads this is in
@@ -35,7 +35,7 @@ import nrdepth
 from nrdepth import GeneratorConfig, generate_clips, isometric
 from nrdepth.baselines.tracks import densify
 from nrdepth.isometric.mdh import _between
-from nrdepth.reconstruct.options import ISOMETRIC_DROP, ISOMETRIC_SCALE
+from nrdepth.reconstruct.options import ISOMETRIC_SCALE
 from nrdepth.scores.generated import SHEET_FAMILIES
 from nrdepth.scores.metrics import dense_baselines, mae_sn
 
@@ -56,6 +56,10 @@ def main() -> None:
     parser.add_argument("--margin-check", type=int, default=None,
                         help="also follow the reference's points with the flow over their box and this margin: how far (px) its tracks move")
     parser.add_argument("--margin-only", action="store_true", help="with --margin-check: that check alone (no network, no programs)")
+    parser.add_argument("--scales", default=str(ISOMETRIC_SCALE), help="comma-separated fusion scales (fractions of the frame's side): each "
+                        "setting fused at each; the first is the setting's own name")
+    parser.add_argument("--min-held", type=float, default=0.0, help="a setting's points held (hold=1) in fewer than this share of the "
+                        "point-frames, or too few in a frame for the programs: the stage steps aside, the sheet reads as the network")
     parser.add_argument("--lights", default="below,above", help="the sheets lit from below, above, or both (each its own --videos)")
     parser.add_argument("--csv", type=Path, default=None, help="each video's row, written as it is read; a CSV already there is resumed "
                         "(its rows kept, its videos not read again)")
@@ -65,8 +69,10 @@ def main() -> None:
     if any(lever["every"] != 1 for lever in levers):
         parser.error("--settings: give every as --every (each setting is read at each)")
     everies = [int(n) for n in args.every.split(",")]
-    label = lambda name, n: name if n == 1 else (f"{name}:every={n}" if name != "default" else f"every={n}")  # noqa: E731
-    names = [label(s or "default", n) for s in settings for n in everies]
+    scales = [float(v) for v in args.scales.split(",")]
+    every_label = lambda name, n: name if n == 1 else (f"{name}:every={n}" if name != "default" else f"every={n}")  # noqa: E731
+    label = lambda name, n, scale=scales[0]: every_label(name, n) + ("" if scale == scales[0] else f":scale={scale:g}")  # noqa: E731
+    names = [label(s or "default", n, scale) for s in settings for n in everies for scale in scales]
     rows = []
     if args.csv is not None and args.csv.exists():  # a stopped run's rows: kept, their videos skipped
         with open(args.csv, newline="") as file:
@@ -94,22 +100,38 @@ def main() -> None:
             tracks = {}
             for name, lever in zip([s or "default" for s in settings], levers):
                 start = time.perf_counter()
-                key = (lever["flow"], lever["margin"], lever["points"])
+                key = (lever["flow"], lever["margin"], lever["points"], lever["hold"], lever["backward"], lever["drop"])
                 if key not in tracks:
-                    tracks[key] = isometric.track_grid(video, points=lever["points"], drop=ISOMETRIC_DROP, flow=lever["flow"], margin=lever["margin"])
+                    tracks[key] = isometric.track_grid(video, points=lever["points"], drop=lever["drop"], flow=lever["flow"], margin=lever["margin"],
+                                                       hold=bool(lever["hold"]), backward=bool(lever["backward"]))
                 xy = tracks[key]
                 tracked = time.perf_counter()
-                depths = isometric.mdh_depths(xy, focal, centre, keyframes=lever["keyframes"], neighbours=lever["neighbours"])
+                held = float(np.isfinite(xy[1:]).all(axis=2).mean())
+                row[f"{name} held"] = held
+                try:
+                    if held < args.min_held:
+                        raise ValueError(f"{held:.2f} of the point-frames held")
+                    # One every: solved as the stage solves it; several: read off the every-frame solution
+                    depths = isometric.mdh_depths(xy, focal, centre, keyframes=lever["keyframes"], neighbours=lever["neighbours"],
+                                                  every=everies[0] if len(everies) == 1 else 1)
+                except ValueError as error:  # the stage steps aside: the network's depth
+                    print(f"  {name}: steps aside ({error})", flush=True)
+                    for n in everies:
+                        for scale in scales:
+                            row[f"{label(name, n, scale)} per frame"] = row["network per frame"]
+                    row[f"{name} points s"], row[f"{name} programs s"] = tracked - start, 0.0
+                    continue
                 solved = time.perf_counter()
                 for n in everies:
                     kept = depths.copy()
-                    if n > 1:
+                    if n > 1 and len(everies) > 1:
                         keys = np.unique(np.rint(np.linspace(0, len(xy) - 1, min(lever["keyframes"], len(xy)))).astype(int))
                         anchors = np.union1d(np.union1d(keys, np.arange(0, len(xy), n)), [len(xy) - 1])
                         _between(kept, anchors, np.isfinite(xy).all(axis=2))
-                    fused = isometric.fuse(network, densify(xy, kept, video.shape), ISOMETRIC_SCALE * config.size)
-                    row[f"{label(name, n)} per frame"] = mae_sn(fused, truth)
-                row[f"{name} points s"], row[f"{name} programs s"] = tracked - start, solved - tracked  # with every frame solved
+                    dense = densify(xy, kept, video.shape)
+                    for scale in scales:
+                        row[f"{label(name, n, scale)} per frame"] = mae_sn(isometric.fuse(network, dense, scale * config.size), truth)
+                row[f"{name} points s"], row[f"{name} programs s"] = tracked - start, solved - tracked
             if args.margin_check is not None:
                 row.update(margin_shift(video, levers[0], args.margin_check))
             rows.append(row)
