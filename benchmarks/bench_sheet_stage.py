@@ -10,7 +10,10 @@ the job (``reconstruct`` without ``focal``) timed in the same run, beside a
 A setting is ``key=value`` pairs joined by ``:``: ``margin`` (the flow over
 the points' box and this many pixels, or ``none``: the whole frame),
 ``flow`` (farneback, dis), ``keyframes``, ``neighbours``, ``every`` (only every
-n-th frame's program solved, the rest linear in time), ``points``.
+n-th frame's program solved, the rest linear in time), ``points``, ``hold``
+(1: each point found again by its look in the first frame), ``backward``
+(0: the forward flow alone), ``drop`` (the share of points left out; 0 with
+``backward=0``).
 
     python benchmarks/bench_sheet_stage.py [--threads 2] [--settings margin=none,margin=48,margin=48:keyframes=12:every=3]
 """
@@ -36,12 +39,16 @@ def sgemm() -> float:
 
 
 def parse(setting: str) -> dict:
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400}
+    from nrdepth.isometric import DROP
+
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
             raise SystemExit(f"--settings: unknown lever {key!r} (known: {', '.join(out)})")
-        out[key] = value if key == "flow" else (None if value == "none" else int(value))
+        out[key] = value if key == "flow" else float(value) if key == "drop" else (None if value == "none" else int(value))
+    if not out["backward"] and out["drop"]:
+        raise SystemExit(f"--settings {setting!r}: drop needs the flow both ways: give drop=0 with backward=0")
     return out
 
 
@@ -72,7 +79,7 @@ def main() -> None:
     import nrdepth
     from nrdepth import isometric
     from nrdepth.baselines.tracks import densify
-    from nrdepth.reconstruct.options import ISOMETRIC_DROP, ISOMETRIC_SCALE
+    from nrdepth.reconstruct.options import ISOMETRIC_SCALE
     from nrdepth.scores.real import KINECT_INNER, KINECT_ROI, data_folder, kinect_references, kinect_score, kinect_truth, kinect_video
 
     torch.set_num_threads(args.threads)
@@ -96,7 +103,8 @@ def main() -> None:
     for setting in args.settings.split(","):
         lever = parse(setting)
         start = time.perf_counter()
-        xy = isometric.track_grid(frames, box, points=lever["points"], drop=ISOMETRIC_DROP, flow=lever["flow"], margin=lever["margin"])
+        xy = isometric.track_grid(frames, box, points=lever["points"], drop=lever["drop"], flow=lever["flow"], margin=lever["margin"],
+                                  hold=bool(lever["hold"]), backward=bool(lever["backward"]))
         tracked = time.perf_counter()
         depths = isometric.mdh_depths(xy, camera, keyframes=lever["keyframes"], neighbours=lever["neighbours"], every=lever["every"])
         solved = time.perf_counter()

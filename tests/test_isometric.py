@@ -184,6 +184,61 @@ def test_the_flow_over_the_points_box_follows_as_the_whole_frames_does():
         isometric.track_grid(video, mask, margin=-1)
 
 
+def bent_texture(frames: int = 24, size: int = 96, amplitude: float = 6.0) -> np.ndarray:
+    """A smooth random texture bent by smooth random displacements (pixels,
+    at most ``amplitude``) along a loop that ends where it began: the last
+    frame is the first, (T, size, size) uint8."""
+    import cv2
+    from scipy.ndimage import gaussian_filter
+
+    rng = np.random.default_rng(3)
+    texture = gaussian_filter(rng.random((size, size)), 1.5)
+    texture = (255 * (texture - texture.min()) / np.ptp(texture)).astype(np.float32)
+    rows, cols = np.mgrid[0:size, 0:size].astype(np.float32)
+    fields = [gaussian_filter(rng.standard_normal((size, size)), 12) for _ in range(4)]
+    fields = [(f / np.abs(f).max()).astype(np.float32) for f in fields]
+    video = []
+    for t in range(frames):
+        a, b = amplitude * np.sin(np.pi * t / (frames - 1)) ** 2, amplitude * np.sin(2 * np.pi * t / (frames - 1))
+        dx, dy = a * fields[0] + b * fields[2], a * fields[1] + b * fields[3]
+        video.append(cv2.remap(texture, (cols - dx).astype(np.float32), (rows - dy).astype(np.float32), cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT))
+    return np.rint(np.stack(video)).clip(0, 255).astype(np.uint8)
+
+
+def test_held_points_come_back_where_a_loop_ends_and_the_chained_flow_drifts():
+    video = bent_texture()
+    np.testing.assert_array_equal(video[-1], video[0])
+    mask = np.zeros(video.shape[1:], bool)
+    mask[24:72, 24:72] = True
+    chained = isometric.track_grid(video, mask, points=25)
+    held = isometric.track_grid(video, mask, points=25, hold=True)
+    assert np.isfinite(held).all()  # nothing hidden, nothing lost
+    assert np.median(np.linalg.norm(chained[-1] - chained[0], axis=1)) > 0.05  # the chained flow's drift adds up...
+    assert np.linalg.norm(held[-1] - held[0], axis=1).max() < 0.05  # ...the held points' does not
+    forward = isometric.track_grid(video, mask, points=25, hold=True, backward=False)  # held, the forward flow is enough
+    assert np.linalg.norm(forward[-1] - forward[0], axis=1).max() < 0.05
+
+
+def test_a_held_point_hidden_is_lost_not_dragged_and_found_again():
+    video = shifted_texture(frames=9).copy()  # the content moves +2 x, +1 y a frame
+    mask = np.zeros(video.shape[1:], bool)
+    mask[20:80, 20:80] = True
+    card = np.array([57.0, 53.0])  # a flat grey card, 30 px square, in front of the sheet for three frames
+    video[3:6, 38:68, 42:72] = 128
+    start = isometric.start_grid(mask, video.shape[1:], points=36)
+    truth = start + np.arange(9)[:, None, None] * np.array([2.0, 1.0])
+    held = isometric.track_points(video, start, hold=True)
+    for t in range(3, 6):
+        behind = (np.abs(truth[t] - card) < 8).all(axis=1)  # most of the point's window covered
+        clear = (np.abs(truth[t] - card) > 15 + 10).any(axis=1)  # none of it
+        assert behind.any() and np.isnan(held[t, behind]).all()  # hidden: NaN, not dragged
+        assert clear.any()
+        np.testing.assert_allclose(held[t, clear], truth[t, clear], atol=0.25)
+    np.testing.assert_allclose(held[6:], truth[6:], atol=0.25)  # the card gone, every point is found again
+    chained = isometric.track_points(video, start)
+    assert np.isfinite(chained[3:6]).all() and np.abs(chained[6:] - truth[6:]).max() > 1.0  # the flow alone drags them
+
+
 def test_a_stream_of_frames_is_followed_as_the_array_is():
     video = shifted_texture(frames=6)
     mask = np.zeros(video.shape[1:], bool)

@@ -12,7 +12,11 @@ away through perspective. Three steps:
   tracker would lose it; one that leaves the frame is lost from there on
   (NaN). The share ``drop`` of the points whose two flows disagree most
   over the video is left out: points where the motion breaks (near a
-  border), which the flow drags.
+  border), which the flow drags. With ``hold``, each step of the flow is
+  checked against the first frame: every point is found again by its look
+  there, through a smooth warp of the sheet fitted to all the points
+  (:mod:`~nrdepth.isometric.hold`), so that the flow's drift does not add
+  up, and a point not found again is NaN in that frame, not dragged.
 - :func:`mdh_depths`: the depth of every point in every frame by the
   maximum-depth heuristic of inextensible NRSfM (Chhatkuli, Pizarro,
   Collins and Bartoli, TPAMI 2018): maximise the sum of the depths subject

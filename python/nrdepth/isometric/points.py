@@ -1,11 +1,13 @@
 """Points followed through a video of a sheet, for its shape from
 inextensibility (:mod:`nrdepth.isometric`): a grid over the sheet in the
 first frame, moved from frame to frame by OpenCV's Farneback dense optical
-flow, forward and backward; the points where the two flows disagree most
-left out.
+flow, forward and backward; with ``hold``, found again after each step by
+their look in the first frame (:mod:`nrdepth.isometric.hold`); the points
+where the two flows disagree most left out.
 
 Frames and units: pixel coordinates (column x, row y, pixel centres at
-integers); NaN from the frame where a point leaves the view.
+integers); NaN from the frame where a point leaves the view (with
+``hold``: in each frame where it is not found again).
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from typing import Iterable, Iterator, Optional, Tuple, Union
 import numpy as np
 
 from ..checks import option_error
+from .hold import Anchor
 
 __all__ = ["track_grid", "start_grid", "track_points", "least_disagreeing", "inside", "require_isometric", "check_video", "frames_of", "DROP", "BORDER", "FLOWS"]
 
@@ -91,13 +94,12 @@ def _check_mask(mask: Optional[np.ndarray], shape: Tuple[int, int]) -> np.ndarra
 
 def track_grid(video: Union[np.ndarray, Iterable[np.ndarray]], mask: Optional[np.ndarray] = None, points: int = 400, window: int = 21,
                backward: bool = True, drop: float = 0.0, border: float = BORDER, flow: str = "farneback",
-               margin: Optional[int] = None) -> np.ndarray:
+               margin: Optional[int] = None, hold: bool = False) -> np.ndarray:
     """Tracks (T, n, 2) (column, row) of about ``points`` points on a square
     grid over ``mask`` (H, W) of the first frame (default: the whole frame)
     at least ``border`` pixels inside the frame's edge, moved through
     ``video`` ((T, H, W) uint8, or a stream of frames: :func:`frames_of`) by :func:`track_points` (``window``,
-    ``backward``, ``border``: NaN from the frame where a point leaves the
-    view). ``drop``: the share of the points left out,
+    ``backward``, ``border``, ``flow``, ``margin``, ``hold``). ``drop``: the share of the points left out,
     those whose forward and backward flows disagree most over the video
     (:func:`track_points`' ``disagreement``; needs ``backward``): points
     at a boundary of the motion, where the flow bleeds from one side to
@@ -108,8 +110,8 @@ def track_grid(video: Union[np.ndarray, Iterable[np.ndarray]], mask: Optional[np
         raise ValueError("drop: the points to leave out are found by the flow both ways: expected backward=True, or drop=0")
     grid = start_grid(mask, first.shape, points, drop, border)
     if drop == 0:
-        return track_points(video, grid, window, backward, border=border, flow=flow, margin=margin)
-    xy, disagreement = track_points(video, grid, window, backward, disagreement=True, border=border, flow=flow, margin=margin)
+        return track_points(video, grid, window, backward, border=border, flow=flow, margin=margin, hold=hold)
+    xy, disagreement = track_points(video, grid, window, backward, disagreement=True, border=border, flow=flow, margin=margin, hold=hold)
     return xy[:, least_disagreeing(disagreement, drop)]
 
 
@@ -143,7 +145,8 @@ def least_disagreeing(disagreement: np.ndarray, drop: float) -> np.ndarray:
 
 
 def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarray, window: int = 21, backward: bool = True,
-                 disagreement: bool = False, border: float = BORDER, flow: str = "farneback", margin: Optional[int] = None):
+                 disagreement: bool = False, border: float = BORDER, flow: str = "farneback", margin: Optional[int] = None,
+                 hold: bool = False):
     """Tracks (T, n, 2) (column, row) of the points ``start`` (n, 2) of the
     first frame, moved through ``video`` ((T, H, W) uint8, or a stream of
     frames: :func:`frames_of`) by dense optical flow (``flow``) from each frame to the
@@ -158,7 +161,14 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
     distance between where the two flows take it, its mean over the steps
     it stays in view (pixels; 0 for a point lost at once). ``flow``: one of
     :data:`FLOWS`; ``margin``: the flow is computed over the points' bounding
-    box grown by this many pixels (None: over the whole frame)."""
+    box grown by this many pixels (None: over the whole frame).
+
+    ``hold``: each point the flow moves is then found again by its look in
+    the first frame (:mod:`nrdepth.isometric.hold`), so that the chained
+    flow's drift does not add up; a point not found again is NaN in that
+    frame, not dragged, and may be found again later (NaN also where it
+    is outside the frame). ``disagreement`` then averages over the frames
+    where a point is held."""
     from scipy.ndimage import map_coordinates
 
     cv2 = require_isometric()
@@ -177,19 +187,21 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
     if margin is not None and not (isinstance(margin, (int, np.integer)) and margin >= 0):
         raise ValueError(f"margin: expected pixels >= 0 or None (the whole frame), got {margin!r}")
     dense = _flow(cv2, flow, window)
+    H, W = first.shape
+    anchor = Anchor(cv2, first, start, max(H, W) if margin is None else margin) if hold else None
 
     def at(field: np.ndarray, where: np.ndarray) -> np.ndarray:  # bilinear
         return np.stack([map_coordinates(field[..., c], [where[:, 1], where[:, 0]], order=1, mode="nearest") for c in (0, 1)], axis=1)
 
-    H, W = first.shape
     xy = [start]
     alive = np.arange(len(start))
+    carried = start  # with hold: every point's place, held or carried on by the warp
     apart, steps = np.zeros(len(start)), np.zeros(len(start))
     previous = first
     for frame in rest:  # two frames held at a time: a stream is read once
         now_xy = np.full_like(start, np.nan)
         if len(alive):
-            was = xy[-1][alive]
+            was = carried if hold else xy[-1][alive]
             # The flow over the points' box and a margin, not the whole frame: its cost goes with the area.
             x0, y0 = (0, 0) if margin is None else (max(0, int(np.floor(was[:, k].min())) - margin) for k in (0, 1))
             x1, y1 = (W, H) if margin is None else (min(n, int(np.ceil(was[:, k].max())) + margin + 1) for k, n in ((0, W), (1, H)))
@@ -201,12 +213,20 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
                 for _ in range(3):  # the point p whose backward flow lands on xy[t − 1]: p = xy[t − 1] − field(p)
                     back = was - at(field, back - corner)
                 now = (ahead + back) / 2
-            stays = inside(now, (H, W), border)
-            alive, now = alive[stays], now[stays]
-            now_xy[alive] = now
+            if hold:  # every point stays alive: where it is not held it is NaN, and carried on
+                now, held, carried = anchor.hold(frame, now)
+                carried = np.where(held[:, None], now, carried)
+                stays = held & inside(now, (H, W), border)
+                now_xy[stays] = now[stays]
+                counted = stays
+            else:
+                stays = inside(now, (H, W), border)
+                alive, now = alive[stays], now[stays]
+                now_xy[alive] = now
+                counted = alive
             if backward:
-                apart[alive] += np.linalg.norm(ahead[stays] - back[stays], axis=1)
-                steps[alive] += 1
+                apart[counted] += np.linalg.norm(ahead[stays] - back[stays], axis=1)
+                steps[counted] += 1
         xy.append(now_xy)
         previous = frame
     xy = np.stack(xy)

@@ -1,0 +1,154 @@
+"""How well points are followed through a video (issue 72), tracker by
+tracker, on three kinds of truth:
+
+- ``kinect_paper``: the 301 MDH points followed from the first frame with
+  truth (8) through all 191 frames, their distance (px) from the truth's
+  image positions in each of the 23 frames with truth;
+- ``phisft_R1`` (no 2-D truth): points on the cloth (its silhouette, 4×4
+  binned) followed to the last frame, then back to the first by the same
+  tracker started afresh on every other frame in reverse (other frame
+  pairs than the way there: the flow both ways would retrace its own
+  steps exactly): the closed loop's distance (px) from where each began;
+- generated long sheets (256² × ``--frames``, ``--phases`` bends, through
+  pinholes of 40–80°, lit from below and from above, seed
+  ``isometric_generated.SEED`` from ``--start``): the mesh vertices nearest a
+  400-point grid followed from their true positions in the first frame,
+  their distance (px) from the true ones (``nrdepth.image_points``) in every
+  frame while in view.
+
+Each line: median, 95th percentile and largest distance, the share of
+point-frames lost (NaN), and the seconds; for the sheets, the videos'
+95th percentiles' median. A tracker is ``key=value`` pairs joined by ``:``
+(``track_points``' ``hold``, ``backward``, ``flow``, ``margin``; an empty one
+is its defaults).
+
+    python benchmarks/bench_tracks.py [--trackers ",margin=48:hold=1"] [--videos 16] [--start 96] [--skip generated]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parents[1] / "experiments"))
+
+
+def parse(tracker: str) -> dict:
+    out = {}
+    for item in filter(None, tracker.split(":")):
+        key, _, value = item.partition("=")
+        if key in ("hold", "backward"):
+            out[key] = bool(int(value))
+        elif key == "flow":
+            out[key] = value
+        elif key == "margin":
+            out[key] = None if value == "none" else int(value)
+        else:
+            raise SystemExit(f"--trackers: unknown key {key!r} (hold, backward, flow, margin)")
+    return out
+
+
+def summary(errors: np.ndarray) -> str:
+    """Median, 95th percentile, largest of the finite distances and the share of NaN."""
+    seen = errors[np.isfinite(errors)]
+    return (f"median {np.median(seen):.2f}, p95 {np.percentile(seen, 95):.2f}, max {seen.max():.1f} px, "
+            f"lost {100 * (1 - seen.size / errors.size):.1f} %")
+
+
+def kinect(trackers: list) -> None:
+    from nrdepth.isometric import track_points
+    from nrdepth.scores.real import kinect_truth, kinect_video
+
+    frames, truth = kinect_video(), kinect_truth()
+    first, uv = truth["frames"][0], truth["uv"].transpose(0, 2, 1)  # (23, 301, 2)
+    for name in trackers:
+        start = time.perf_counter()
+        xy = track_points(frames[first:], uv[0], **parse(name))
+        seconds = time.perf_counter() - start
+        errors = np.linalg.norm(xy[truth["frames"] - first] - uv, axis=2)
+        print(f"kinect_paper {name or 'default':32s} {summary(errors[1:])}; {seconds:.1f} s", flush=True)
+
+
+def phisft(trackers: list) -> None:
+    from scipy.ndimage import binary_erosion
+
+    from nrdepth.isometric import start_grid, track_points
+    from nrdepth.scores.real import data_folder
+
+    gray = np.load(data_folder("phisft_R1") / "derived_q4.npz")["gray"]
+    cloth = binary_erosion(gray[0] > 0, iterations=4)  # off the silhouette's edge, where the window sees the background
+    grid = start_grid(cloth, gray.shape[1:], points=400)
+    # Back by every other frame: frame pairs the way there never used, or the flow both ways would undo its own steps exactly.
+    returning = np.r_[np.arange(len(gray) - 1, 0, -2), 0]
+    for name in trackers:
+        start = time.perf_counter()
+        there = track_points(gray, grid, **parse(name))[-1]
+        kept = np.isfinite(there).all(axis=1)
+        back = np.full_like(grid, np.nan)
+        back[kept] = track_points(gray[returning], there[kept], **parse(name))[-1]
+        seconds = time.perf_counter() - start
+        print(f"phisft_R1 closed loop {name or 'default':26s} {summary(np.linalg.norm(back - grid, axis=1))}; {seconds:.1f} s", flush=True)
+
+
+def generated(trackers: list, videos: int, start: int, frames: int, phases: int) -> None:
+    from isometric_generated import SEED, in_view, true_tracks
+
+    from nrdepth import GeneratorConfig, generate_clips
+    from nrdepth.isometric import track_points
+    from nrdepth.scores.generated import SHEET_FAMILIES
+
+    per_video = {name: [] for name in trackers}
+    pooled = {name: [] for name in trackers}
+    seconds = {name: 0.0 for name in trackers}
+    for light, azimuth in (("below", (math.pi - 1.22, math.pi + 1.22)), ("above", None)):
+        extra = {} if azimuth is None else {"light_azimuth": azimuth}
+        config = GeneratorConfig(frames=frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=phases,
+                                 texture_families=SHEET_FAMILIES, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
+        clips = generate_clips(videos, seed=SEED, config=config, start=start, vertices=True)
+        for k, (video, params) in enumerate(zip(clips.video, clips.params)):
+            truth, _ = true_tracks(clips.vertices[k], params, config.size)
+            visible = in_view(truth, config.size)
+            for name in trackers:
+                begin = time.perf_counter()
+                xy = track_points(video, truth[0], **parse(name))
+                seconds[name] += time.perf_counter() - begin
+                errors = np.where(visible, np.linalg.norm(xy - truth, axis=2), np.inf)[1:]
+                errors = errors[np.isfinite(errors) | np.isnan(errors)]  # in view: a distance, or NaN where the tracker lost it
+                per_video[name].append(np.nanpercentile(errors, 95))
+                pooled[name].append(errors)
+            print(f"  {light} {start + k}: " + ", ".join(f"{name or 'default'} p95 {per_video[name][-1]:.2f}" for name in trackers), flush=True)
+    for name in trackers:
+        print(f"generated sheets ({2 * videos}) {name or 'default':22s} {summary(np.concatenate(pooled[name]))}; the videos' p95s' median "
+              f"{np.median(per_video[name]):.2f} px; {seconds[name]:.1f} s", flush=True)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--trackers", default=",margin=48:hold=1", help="comma-separated trackers (module docstring)")
+    parser.add_argument("--videos", type=int, default=16, help="generated sheets per light")
+    parser.add_argument("--start", type=int, default=96, help="the first sheet's index in the held-out seed's draws")
+    parser.add_argument("--frames", type=int, default=64)
+    parser.add_argument("--phases", type=int, default=4)
+    parser.add_argument("--threads", type=int, default=1, help="OpenCV's threads")
+    parser.add_argument("--skip", default="", help="comma-separated: kinect, phisft, generated")
+    args = parser.parse_args()
+    import cv2
+
+    cv2.setNumThreads(args.threads)
+    trackers = args.trackers.split(",")
+    skip = set(filter(None, args.skip.split(",")))
+    if "kinect" not in skip:
+        kinect(trackers)
+    if "phisft" not in skip:
+        phisft(trackers)
+    if "generated" not in skip:
+        generated(trackers, args.videos, args.start, args.frames, args.phases)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,153 @@
+"""Points held to their look in the first frame, so that chained flow
+cannot drift (:func:`~nrdepth.isometric.track_points`' ``hold``).
+
+Algorithm: the flow carries every point from one frame to the next (its
+prediction). A smooth warp of the sheet is fitted to the predictions: the
+affine moving-least-squares deformation (Schaefer et al. 2006, Gaussian
+weights of :data:`SPREAD` times the points' spacing), which maps a place
+of the first frame to its place in the current one and is linear in the
+predictions, so its matrix is built once. The current frame is pulled
+back through it into the first frame's geometry; there each point's
+first-frame neighbourhood is found again by pyramidal Lucas–Kanade
+(OpenCV), on frames whose local mean and contrast are taken out, since a
+bending sheet's shading changes as it turns. Where it is found, mapped
+forward through the warp, is the point's position. A point is *held*
+where Lucas–Kanade converges, comes back to where it started (within
+:data:`HOLD_FB` px) and finds a window that correlates with the first
+frame's (:data:`HOLD_NCC`); elsewhere it is NaN in that frame, and the
+warp carries it on, so it may be held again later.
+
+Frames and units: pixel coordinates (column x, row y, pixel centres at
+integers), as :mod:`nrdepth.isometric` counts them.
+"""
+
+from __future__ import annotations
+
+from typing import Tuple
+
+import numpy as np
+
+__all__ = ["Anchor", "SPREAD", "STEP", "HOLD_FB", "HOLD_NCC", "HOLD_WINDOW", "HOLD_LEVELS", "OUTLIER", "CONTRAST"]
+
+SPREAD = 1.5
+"""The warp's Gaussian weights' width in the points' spacings: wide enough
+that one point's error moves the warp by a fraction of it."""
+
+STEP = 8
+"""Pixels between the nodes where the warp is evaluated, interpolated
+linearly between them (a sheet's warp is smooth at this scale)."""
+
+HOLD_FB = 0.5
+"""Pixels: a point is held where Lucas–Kanade, run back from where it
+found the point, lands within this of where it started."""
+
+HOLD_NCC = 0.5
+"""A point is held only where its window in the first frame and where it
+was found correlate at least this much (zero-mean normalised): Lucas–Kanade
+also comes back to where it started on a flat card hiding the point."""
+
+HOLD_WINDOW, HOLD_LEVELS = 21, 2
+"""Lucas–Kanade's window (pixels) and pyramid levels above the frame: the
+window the flow uses; two levels reach a prediction about 20 px off."""
+
+OUTLIER = 3.0
+"""Pixels: a prediction this far from the warp fitted to all of them is
+replaced by the warp's before the warp is fitted again (one point
+dragged by the flow would bend the warp around it)."""
+
+CONTRAST = 5.0
+"""Pixels: the Gaussian over which each frame's local mean and contrast
+are taken out before matching."""
+
+
+def _normalised(cv2, frame: np.ndarray) -> np.ndarray:
+    """``frame`` with its local mean and contrast taken out, as uint8 around 128."""
+    f = frame.astype(np.float32)
+    mean = cv2.GaussianBlur(f, (0, 0), CONTRAST)
+    spread = np.sqrt(cv2.GaussianBlur((f - mean) ** 2, (0, 0), CONTRAST)) + 4.0  # + 4: flat paper's noise stays noise
+    return np.clip(128 + 40 * (f - mean) / spread, 0, 255).astype(np.uint8)
+
+
+def _correlation(a: np.ndarray, at_a: np.ndarray, b: np.ndarray, at_b: np.ndarray) -> np.ndarray:
+    """(n,): the zero-mean normalised correlation of the :data:`HOLD_WINDOW`-pixel
+    windows of image ``a`` around ``at_a`` (n, 2) and of ``b`` around ``at_b``."""
+    from scipy.ndimage import map_coordinates
+
+    offsets = np.arange(HOLD_WINDOW) - (HOLD_WINDOW - 1) / 2
+    def windows(image, at):
+        rows = at[:, 1, None, None] + offsets[None, :, None]
+        cols = at[:, 0, None, None] + offsets[None, None, :]
+        w = map_coordinates(image.astype(np.float32), [np.broadcast_to(rows, cols.shape[:1] + (HOLD_WINDOW, HOLD_WINDOW)).ravel(),
+                                                        np.broadcast_to(cols, rows.shape[:1] + (HOLD_WINDOW, HOLD_WINDOW)).ravel()],
+                            order=1, mode="nearest").reshape(len(at), -1)
+        w -= w.mean(axis=1, keepdims=True)
+        return w / (np.linalg.norm(w, axis=1, keepdims=True) + 1e-6)
+    return (windows(a, at_a) * windows(b, at_b)).sum(axis=1)
+
+
+def _mls(nodes: np.ndarray, anchors: np.ndarray, sigma: float) -> np.ndarray:
+    """(m, n): where the affine moving-least-squares deformation takes ``nodes``
+    (m, 2) is this matrix times where it takes ``anchors`` (n, 2)."""
+    weights = np.exp(-((nodes[:, None, :] - anchors[None]) ** 2).sum(-1) / (2 * sigma**2)) + 1e-12  # + 1e-12: far nodes stay defined
+    A = np.column_stack([anchors, np.ones(len(anchors))])
+    G = np.column_stack([nodes, np.ones(len(nodes))])
+    moments = np.einsum("mi,ia,ib->mab", weights, A, A)
+    return weights * (A @ np.linalg.solve(moments, G[:, :, None])[..., 0].T).T
+
+
+class Anchor:
+    """The first frame's look of the points ``start`` (n, 2) in ``first``
+    (H, W) uint8, and the warp's matrices, for :meth:`hold`."""
+
+    def __init__(self, cv2, first: np.ndarray, start: np.ndarray, margin: int):
+        self.cv2, self.start, self.shape = cv2, np.asarray(start, np.float64), first.shape
+        H, W = first.shape
+        x0, y0 = (max(0, int(np.floor(self.start[:, k].min())) - margin) for k in (0, 1))
+        x1, y1 = min(W, int(np.ceil(self.start[:, 0].max())) + margin + 1), min(H, int(np.ceil(self.start[:, 1].max())) + margin + 1)
+        self.corner = np.array([x0, y0], np.float64)
+        nodes_y, nodes_x = np.mgrid[y0 : y1 + STEP : STEP, x0 : x1 + STEP : STEP].astype(np.float64)
+        self.nodes_shape = nodes_x.shape
+        hull = cv2.contourArea(cv2.convexHull(self.start.astype(np.float32))) if len(self.start) >= 3 else 0.0
+        sigma = SPREAD * max(np.sqrt(hull / len(self.start)), 1.0)
+        self.to_nodes = _mls(np.column_stack([nodes_x.ravel(), nodes_y.ravel()]), self.start, sigma)
+        self.to_points = _mls(self.start, self.start, sigma)
+        self.look = np.ascontiguousarray(_normalised(cv2, first)[y0:y1, x0:x1])
+        shift = (STEP - 1) / 2  # cv2.resize puts node k at pixel k·STEP + (STEP − 1)/2
+        rows, cols = np.mgrid[0 : y1 - y0, 0 : x1 - x0].astype(np.float32)
+        self.upsample = (cols + shift, rows + shift)
+        self.lk = dict(winSize=(HOLD_WINDOW, HOLD_WINDOW), maxLevel=HOLD_LEVELS,
+                       criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01), flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
+
+    def _warp(self, predicted: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """The warp's maps over the first frame's box: where each of its pixels is in the current frame."""
+        cv2, at_nodes = self.cv2, self.to_nodes @ predicted
+        maps = []
+        for c in (0, 1):
+            coarse = at_nodes[:, c].reshape(self.nodes_shape).astype(np.float32)
+            fine = cv2.resize(coarse, (coarse.shape[1] * STEP, coarse.shape[0] * STEP), interpolation=cv2.INTER_LINEAR)
+            maps.append(cv2.remap(fine, *self.upsample, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE))
+        return maps[0], maps[1]
+
+    def hold(self, frame: np.ndarray, predicted: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every point's position in ``frame`` from the flow's ``predicted``
+        (n, 2), finite: (n, 2) where each is found again by its look in the
+        first frame, whether it was (``held`` (n,)), and (n, 2) the
+        predictions with those far from the warp replaced by it
+        (:data:`OUTLIER`), to carry the points not held to the next frame."""
+        from scipy.ndimage import map_coordinates
+
+        cv2 = self.cv2
+        smooth = self.to_points @ predicted
+        predicted = np.where((np.linalg.norm(smooth - predicted, axis=1) > OUTLIER)[:, None], smooth, predicted)
+        map_x, map_y = self._warp(predicted)
+        pulled = cv2.remap(_normalised(cv2, frame), map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=128)
+        origin = (self.start - self.corner).astype(np.float32).reshape(-1, 1, 2)
+        found, ok, _ = cv2.calcOpticalFlowPyrLK(self.look, pulled, origin, origin.copy(), **self.lk)
+        back, ok_back, _ = cv2.calcOpticalFlowPyrLK(pulled, self.look, found, origin.copy(), **self.lk)
+        found = found.reshape(-1, 2).astype(np.float64)
+        h, w = self.look.shape
+        held = ((ok.ravel() == 1) & (ok_back.ravel() == 1) & (np.linalg.norm(back.reshape(-1, 2) - origin.reshape(-1, 2), axis=1) < HOLD_FB)
+                & (found[:, 0] >= 0) & (found[:, 1] >= 0) & (found[:, 0] <= w - 1) & (found[:, 1] <= h - 1))
+        held &= _correlation(self.look, origin.reshape(-1, 2), pulled, found) >= HOLD_NCC
+        position = np.stack([map_coordinates(m, [found[:, 1], found[:, 0]], order=1, mode="nearest") for m in (map_x, map_y)], axis=1).astype(np.float64)
+        return position, held, predicted
