@@ -70,6 +70,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--settings", default="margin=none,margin=48", help="comma-separated settings (module docstring)")
+    parser.add_argument("--scales", default=None, help="comma-separated fusion scales (fractions of the roi's shorter side) each "
+                        "setting's whole sheet is read at (default: the stage's)")
     parser.add_argument("--no-box-check", action="store_true", help="skip following every point with and without the box first")
     args = parser.parse_args()
 
@@ -108,10 +110,11 @@ def main() -> None:
         tracked = time.perf_counter()
         depths = isometric.mdh_depths(xy, camera, keyframes=lever["keyframes"], neighbours=lever["neighbours"], every=lever["every"])
         solved = time.perf_counter()
-        fused = isometric.fuse(network, densify(xy - np.array([rx, ry]), depths, network.shape), ISOMETRIC_SCALE * min(rw, rh))
-        mm = kinect_score(fused, truth)
+        dense = densify(xy - np.array([rx, ry]), depths, network.shape)
+        scales = [ISOMETRIC_SCALE] if args.scales is None else [float(v) for v in args.scales.split(",")]
+        mm = [kinect_score(isometric.fuse(network, dense, scale * min(rw, rh)), truth) for scale in scales]
         print(f"{setting:40s} points {tracked - start:5.1f} s, programs {solved - tracked:5.1f} s, stage {solved - start:5.1f} s "
-              f"({(solved - start) / rest:.2f}× the rest): {mm:.2f} mm", flush=True)
+              f"({(solved - start) / rest:.2f}× the rest): " + ", ".join(f"{m:.2f} mm at {scale:g}" for m, scale in zip(mm, scales)), flush=True)
     print(f"sgemm 2048²: {sgemm():.0f} GFLOP/s", flush=True)
 
 

@@ -20,7 +20,8 @@ of the region's shorter side (0: the isometric depth alone); ``--relief``
 its relief scale, ``--template`` :func:`nrdepth.isometric.mdh_depths`'s
 template distances, ``--far``/``--reach`` the far pairs of
 :func:`nrdepth.isometric.neighbour_pairs`, ``--window`` and ``--forward``
-:func:`nrdepth.isometric.track_grid`'s flow, ``--drop`` the shares of its points
+:func:`nrdepth.isometric.track_grid`'s flow, ``--hold`` its points held to
+the first frame, ``--drop`` the shares of its points
 left out where the flow both ways disagrees most, each read in turn. ``--grid``
 reads the paper again at each number of points and neighbours given, and
 with a focal length off by each factor given (no network): how much the
@@ -69,7 +70,7 @@ def phisft_crop() -> tuple:
     return data["gray"][:, top:bottom, left:right], data["depth"][:, top:bottom, left:right]
 
 
-def phisft_isometric(shape: tuple, points: int, neighbours: int, far: int, reach: int, window: int, backward: bool, template: str, drop: float) -> np.ndarray:
+def phisft_isometric(shape: tuple, points: int, neighbours: int, far: int, reach: int, window: int, backward: bool, template: str, drop: float, hold: bool = False) -> np.ndarray:
     """The cloth's isometric depth on the binned crop, of ``shape`` (T, H, W)."""
     from scipy.ndimage import binary_erosion
 
@@ -80,7 +81,7 @@ def phisft_isometric(shape: tuple, points: int, neighbours: int, far: int, reach
     cloth = binary_erosion(full[0] > 10, iterations=8)
     inside = np.zeros_like(cloth)
     inside[4 * top : 4 * bottom, 4 * left : 4 * right] = True
-    xy = isometric.track_grid(full, cloth & inside, points, window, backward, drop)
+    xy = isometric.track_grid(full, cloth & inside, points, window, backward, drop, hold=hold)
     depths = isometric.mdh_depths(xy, FOCAL, CENTRE, neighbours=neighbours, far=far, reach=reach, template=template)
     binned = (xy + 0.5) / 4 - 0.5 - np.array([left, top])  # full-frame pixels to the binned crop's
     return densify(binned, depths, shape)
@@ -109,10 +110,11 @@ def read_all(args) -> list:
             start = time.perf_counter()
             paper = isometric.isometric_depth(frames, focal, centre, mask=print_area, points=args.points[0], neighbours=args.neighbours[0],
                                               far=args.far, reach=args.reach, window=args.window,
-                                              backward=not args.forward, template=args.template, drop=drop)
+                                              backward=not args.forward, template=args.template, drop=drop, hold=args.hold)
             print(f"kinect_paper: isometric depth in {time.perf_counter() - start:.0f} s")
             start = time.perf_counter()
-            cloth = phisft_isometric(video.shape, args.points[0], args.neighbours[0], args.far, args.reach, args.window, not args.forward, args.template, drop)
+            cloth = phisft_isometric(video.shape, args.points[0], args.neighbours[0], args.far, args.reach, args.window, not args.forward, args.template, drop,
+                                     hold=args.hold)
             print(f"phisft_R1: isometric depth in {time.perf_counter() - start:.0f} s")
         reading = "network" if scale is None else ("isometric" if scale == 0 else f"fused at {scale:g}") + (f", drop {drop:g}" if len(args.drop) > 1 else "")
         row = {"reading": reading, "drop": "" if drop is None else drop, "scale": "" if scale is None else scale}
@@ -144,7 +146,7 @@ def grid(args) -> None:
     from nrdepth.baselines.tracks import densify
 
     for points in args.points:
-        xy = isometric.track_grid(frames, print_area, points, args.window, not args.forward, args.drop[0])
+        xy = isometric.track_grid(frames, print_area, points, args.window, not args.forward, args.drop[0], hold=args.hold)
         for neighbours in args.neighbours:
             for factor in args.focal_factors:
                 start = time.perf_counter()
@@ -190,6 +192,7 @@ def main() -> None:
     parser.add_argument("--relief", default="frame", choices=("frame", "video"), help="fuse's relief scale: each frame's own, or one for the video")
     parser.add_argument("--window", type=int, default=21, help="the flow's window in pixels (isometric.track_grid)")
     parser.add_argument("--forward", action="store_true", help="the forward flow alone, not both ways (isometric.track_grid)")
+    parser.add_argument("--hold", action="store_true", help="each point found again by its look in the first frame (isometric.track_grid's hold)")
     parser.add_argument("--template", default="joint", choices=isometric.TEMPLATES,
                         help="mdh_depths's template distances: over keyframes, refined by least squares, or the first frame as a flat sheet facing the camera")
     parser.add_argument("--drop", type=numbers(float), default=[0.0],

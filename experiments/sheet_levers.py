@@ -34,6 +34,7 @@ import numpy as np
 import nrdepth
 from nrdepth import GeneratorConfig, generate_clips, isometric
 from nrdepth.baselines.tracks import densify
+from nrdepth.isometric.hold import held_share
 from nrdepth.isometric.mdh import _between
 from nrdepth.reconstruct.options import ISOMETRIC_SCALE
 from nrdepth.scores.generated import SHEET_FAMILIES
@@ -59,7 +60,8 @@ def main() -> None:
     parser.add_argument("--scales", default=str(ISOMETRIC_SCALE), help="comma-separated fusion scales (fractions of the frame's side): each "
                         "setting fused at each; the first is the setting's own name")
     parser.add_argument("--min-held", type=float, default=0.0, help="a setting's points held (hold=1) in fewer than this share of the "
-                        "point-frames, or too few in a frame for the programs: the stage steps aside, the sheet reads as the network")
+                        "point-frames in view (isometric.hold.held_share), or too few in a frame for the programs: the stage steps aside, "
+                        "the sheet reads as the network")
     parser.add_argument("--lights", default="below,above", help="the sheets lit from below, above, or both (each its own --videos)")
     parser.add_argument("--csv", type=Path, default=None, help="each video's row, written as it is read; a CSV already there is resumed "
                         "(its rows kept, its videos not read again)")
@@ -106,7 +108,7 @@ def main() -> None:
                                                        hold=bool(lever["hold"]), backward=bool(lever["backward"]))
                 xy = tracks[key]
                 tracked = time.perf_counter()
-                held = float(np.isfinite(xy[1:]).all(axis=2).mean())
+                held = held_share(xy, video.shape[1:]) if lever["hold"] else 1.0
                 row[f"{name} held"] = held
                 try:
                     if held < args.min_held:

@@ -239,6 +239,19 @@ def test_a_held_point_hidden_is_lost_not_dragged_and_found_again():
     assert np.isfinite(chained[3:6]).all() and np.abs(chained[6:] - truth[6:]).max() > 1.0  # the flow alone drags them
 
 
+def test_the_held_share_counts_points_gone_from_view_apart_from_points_lost():
+    from nrdepth.isometric.hold import held_share
+
+    video = shifted_texture(frames=9)  # the content moves +2 x, +1 y a frame: points near the right edge leave
+    mask = np.zeros(video.shape[1:], bool)
+    mask[30:60, 70:96] = True
+    xy = isometric.track_grid(video, mask, points=16, hold=True)
+    assert np.isnan(xy[-1]).any()  # gone past the edge
+    assert held_share(xy, video.shape[1:]) == 1.0  # but every point in view was held
+    noise = np.random.default_rng(0).integers(0, 256, (6, 64, 64), dtype=np.uint8)  # nothing stays from frame to frame
+    assert held_share(isometric.track_grid(noise, points=16, hold=True), noise.shape[1:]) < 0.2
+
+
 def test_a_stream_of_frames_is_followed_as_the_array_is():
     video = shifted_texture(frames=6)
     mask = np.zeros(video.shape[1:], bool)

@@ -2,7 +2,7 @@
 alike streamed from a file or held in memory, says what it did (a log
 line, ``depth.npz``'s ``sheet``), and leaves the network's depth alone,
 with its reason, where the video gives the shape nothing to read: too few
-frames, no texture, no motion."""
+frames, no texture, no motion, nothing its points can be held to."""
 
 import json
 import warnings
@@ -66,12 +66,14 @@ def test_a_bending_sheet_streamed_from_a_file_reads_as_in_memory_and_says_so(tmp
         assert f"sheet: {says}" in out and "SheetFallback" not in err  # one line, not a warning as well
 
 
-@pytest.mark.parametrize("case", ["short", "grey", "still"])
+@pytest.mark.parametrize("case", ["short", "grey", "still", "noise"])
 def test_a_video_with_nothing_to_read_falls_back_to_the_network_and_says_why(case, model, bending):
     video, says = {
         "short": (bending[: MIN_FRAMES - 1], f"fewer than the {MIN_FRAMES}"),
         "grey": (np.full((24, 48, 56), 128, np.uint8), "no texture"),
         "still": (np.repeat(bending[:1], 24, axis=0), "does not move"),
+        # steps of texture, motion from the flow, but nothing that stays: no point is found again
+        "noise": (np.random.default_rng(0).integers(0, 256, (24, 48, 56), dtype=np.uint8), "found again in only"),
     }[case]
     with pytest.warns(SheetFallback, match=f"sheet: the network's depth alone \\(.*{says}"):
         depth = nrdepth.reconstruct(video, model, device="cpu", **OPTIONS)

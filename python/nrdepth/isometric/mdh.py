@@ -20,6 +20,10 @@ from .points import DROP, check_video, track_grid
 
 __all__ = ["neighbour_pairs", "mdh_depths", "isometric_depth", "TEMPLATES"]
 
+class TooFewPoints(ValueError):
+    """:func:`mdh_depths`' tracks leave a frame fewer than 3 points in view and tied to a pair."""
+
+
 def neighbour_pairs(xy: np.ndarray, neighbours: int = 20, far: int = 0, reach: int = 0) -> np.ndarray:
     """The pairs (E, 2), i < j, sorted, of each point (n, 2) with its
     ``neighbours`` nearest, and with ``far`` more spread evenly in rank over
@@ -228,7 +232,7 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
     rays[~seen] = 0.0
     few = np.flatnonzero(_active(seen, pairs)[1].sum(axis=1) < 3)
     if len(few):
-        raise ValueError(f"xy: expected at least 3 points in view and tied to a pair in every frame, got fewer in frames {few[:5].tolist()}")
+        raise TooFewPoints(f"xy: expected at least 3 points in view and tied to a pair in every frame, got fewer in frames {few[:5].tolist()}")
     T = len(xy)
     depths = np.empty(xy.shape[:2])
     if not isinstance(template, str):
@@ -283,13 +287,13 @@ def _between(depths: np.ndarray, anchors: np.ndarray, seen: np.ndarray) -> None:
 
 def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.ndarray] = None, points: int = 400,
                     neighbours: int = 20, keyframes: int = 24, far: int = 0, reach: int = 0, window: int = 21,
-                    backward: bool = True, template: str = "joint", drop: float = DROP) -> np.ndarray:
+                    backward: bool = True, template: str = "joint", drop: float = DROP, hold: bool = False) -> np.ndarray:
     """Dense depth (T, H, W) float64 of an inextensible sheet filmed by
     ``video`` (T, H, W) uint8 through a perspective camera of focal length
     ``focal`` pixels (one number or (f_x, f_y)) and principal point
     ``centre`` (default: the frame's centre): :func:`track_grid` over
     ``mask`` (the sheet in the first frame; default: the whole frame;
-    ``points``, ``window``, ``backward``, ``drop``: :data:`DROP`), :func:`mdh_depths` (``neighbours``,
+    ``points``, ``window``, ``backward``, ``drop``: :data:`DROP`, ``hold``), :func:`mdh_depths` (``neighbours``,
     ``keyframes``, ``far``, ``reach``, ``template``), then linear over the points' Delaunay triangles,
     nearest outside their hull. Units: the mean distance between
     neighbouring points is about 1."""
@@ -298,6 +302,6 @@ def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.nda
     if not isinstance(template, str):  # given distances need the pairs, which are drawn after tracking
         raise ValueError(f"template: expected one of {TEMPLATES} (given distances go to mdh_depths with their pairs), got {type(template).__name__}")
     _check_template(template)
-    xy = track_grid(video, mask, points, window, backward, drop)
+    xy = track_grid(video, mask, points, window, backward, drop, hold=hold)
     depths = mdh_depths(xy, camera, neighbours=neighbours, keyframes=keyframes, far=far, reach=reach, template=template)
     return densify(xy, depths, video.shape)

@@ -21,11 +21,12 @@ import numpy as np
 from ..baselines.tracks import densify
 from ..camera import Camera
 from ..checks import option_error
-from ..isometric import fuse, mdh_depths, require_isometric, start_grid, track_grid
+from ..isometric import TooFewPoints, fuse, mdh_depths, require_isometric, start_grid, track_grid
+from ..isometric.hold import held_share
 from .frames import CHUNK, as_uint8
 from .options import ReconstructOptions
 
-__all__ = ["sheet_region", "sheet_depth", "SheetDecision", "FLOW_MARGIN", "KEYFRAMES", "EVERY", "MIN_FRAMES", "MIN_TEXTURE", "MIN_MOTION"]
+__all__ = ["sheet_region", "sheet_depth", "SheetDecision", "FLOW_MARGIN", "KEYFRAMES", "EVERY", "MIN_FRAMES", "MIN_TEXTURE", "MIN_MOTION", "MIN_HELD"]
 
 FLOW_MARGIN = 48
 """The sheet's points are followed by the flow over their box and this
@@ -60,13 +61,23 @@ leaves the network's depth alone; half the flow's own median error on
 the paper's true points (docs/findings.md)."""
 
 
+MIN_HELD = 0.8
+"""With held points (``isometric_hold``): fewer of the point-frames in
+view found again than this share (:func:`~nrdepth.isometric.hold.held_share`),
+and the stage leaves the network's depth alone:
+the video's texture is too faint for its points to be followed (as on
+most generated sheets: docs/campaign.md, "Tracks held to the first
+frame"). As many lost as the drop leaves out."""
+
+
 @dataclass(frozen=True)
 class SheetDecision:
     """What the sheet stage did: ``used`` its shape, or left the network's
     depth alone for ``reason``; the camera's ``focal`` and ``centre``
     (pixels), the ``frames`` read, the ``points`` followed (after the drop),
-    the ``texture`` (gray levels, :data:`MIN_TEXTURE`) and ``motion``
-    (pixels, :data:`MIN_MOTION`) its checks measured (None where not reached). :meth:`line` is the job's log
+    the ``texture`` (gray levels, :data:`MIN_TEXTURE`), ``motion``
+    (pixels, :data:`MIN_MOTION`) and the share of point-frames ``held``
+    (:data:`MIN_HELD`) its checks measured (None where not reached). :meth:`line` is the job's log
     line; ``depth.npz`` keeps :meth:`as_dict` as JSON under ``sheet``."""
 
     used: bool
@@ -77,13 +88,15 @@ class SheetDecision:
     points: int = 0
     texture: Optional[float] = None
     motion: Optional[float] = None
+    held: Optional[float] = None
 
     def as_dict(self) -> dict:
         return asdict(self)
 
     def line(self) -> str:
         what = "the sheet's shape from inextensibility" if self.used else "the network's depth alone"
-        measured = "".join(f", {name} {value:.2f}" for name, value in (("texture", self.texture), ("motion px", self.motion)) if value is not None)
+        measured = "".join(f", {name} {value:.2f}" for name, value in (("texture", self.texture), ("motion px", self.motion), ("held", self.held))
+                           if value is not None)
         return f"sheet: {what} ({self.reason}; focal {self.focal[0]:g},{self.focal[1]:g} px, {self.frames} frames, {self.points} points{measured})"
 
 
@@ -126,7 +139,9 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
     spread over the region's working frame. Unless the video gives the
     shape nothing to read (fewer than :data:`MIN_FRAMES` frames, a region
     with less texture than :data:`MIN_TEXTURE`, points that move less than
-    :data:`MIN_MOTION`): then ``raw`` is left alone. Returns what it did."""
+    :data:`MIN_MOTION`, held points found again in fewer point-frames than
+    :data:`MIN_HELD`, or a frame with too few of them for its program):
+    then ``raw`` is left alone. Returns what it did."""
     camera = camera.at(region.shape)
     T = len(raw)
     record = dict(focal=tuple(map(float, camera.focal)), centre=tuple(map(float, camera.centre)), frames=T)
@@ -138,13 +153,19 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
     if texture < MIN_TEXTURE:
         return SheetDecision(False, f"the sheet's region has no texture for the flow to follow ({texture:.2f} < {MIN_TEXTURE:g})", texture=texture, **record)
     xy = track_grid((as_uint8(frame) for frame in itertools.chain([first], frames)), region, points=int(options.isometric_points),
-                    drop=float(options.isometric_drop), margin=FLOW_MARGIN)
+                    drop=float(options.isometric_drop), margin=FLOW_MARGIN, hold=bool(options.isometric_hold))
     motion = float(np.median(np.nanmax(np.linalg.norm(xy - xy[:1], axis=2), axis=0)))
-    record.update(points=xy.shape[1], texture=texture, motion=motion)
+    held = held_share(xy, first.shape) if options.isometric_hold else None
+    record.update(points=xy.shape[1], texture=texture, motion=motion, held=held)
+    if held is not None and held < MIN_HELD:  # first: the motion is measured on the points held
+        return SheetDecision(False, f"the points are found again in only {held:.0%} of the frames (< {MIN_HELD:.0%}): too faint a texture", **record)
     if not motion >= MIN_MOTION:
         return SheetDecision(False, f"the video does not move (the points {motion:.2f} px at most from where they start, < {MIN_MOTION:g})", **record)
     cheaper = {"keyframes": KEYFRAMES, "every": EVERY} if options.isometric_template == "joint" else {}  # what the rule read
-    depths = mdh_depths(xy, camera, template=options.isometric_template, **cheaper)
+    try:
+        depths = mdh_depths(xy, camera, template=options.isometric_template, **cheaper)
+    except TooFewPoints as error:
+        return SheetDecision(False, f"too few points held in a frame ({error.args[0].split('got ')[-1]})", **record)
     x, y, w_region, h_region = options.roi or (0, 0, region.shape[1], region.shape[0])
     h, w = work
     # Into the region's working frame: area-averaged resizes keep pixel centres' relative places.
