@@ -29,9 +29,9 @@ FLAGS = [
     (["--window", "triangle"], {"window": "triangle"}),
     (["--temporal-align"], {"temporal": True}),
     (["--focal", "500,510", "--centre", "10,20", "--sheet", "0,0,8,8", "--isometric-scale", "0.1", "--isometric-template", "refined",
-      "--isometric-drop", "0.3", "--isometric-points", "900", "--no-isometric-hold"],
+      "--isometric-drop", "0.3", "--isometric-points", "900", "--isometric-hold"],
      {"focal": (500.0, 510.0), "centre": (10.0, 20.0), "sheet": (0, 0, 8, 8), "isometric_scale": 0.1, "isometric_template": "refined",
-      "isometric_drop": 0.3, "isometric_points": 900, "isometric_hold": False}),
+      "isometric_drop": 0.3, "isometric_points": 900, "isometric_hold": True}),
     (["--flip", "--png16", "--ply", "--ply-relief", "0.1", "--no-viewer", "--overwrite"],
      {"flip": True, "png16": True, "ply": True, "ply_relief": 0.1, "viewer": False, "overwrite": True}),
 ]

@@ -90,14 +90,15 @@ def _correlation(a: np.ndarray, at_a: np.ndarray, b: np.ndarray, at_b: np.ndarra
     from scipy.ndimage import map_coordinates
 
     offsets = np.arange(HOLD_WINDOW) - (HOLD_WINDOW - 1) / 2
-    def windows(image, at):
-        rows = at[:, 1, None, None] + offsets[None, :, None]
-        cols = at[:, 0, None, None] + offsets[None, None, :]
-        w = map_coordinates(image.astype(np.float32), [np.broadcast_to(rows, cols.shape[:1] + (HOLD_WINDOW, HOLD_WINDOW)).ravel(),
-                                                        np.broadcast_to(cols, rows.shape[:1] + (HOLD_WINDOW, HOLD_WINDOW)).ravel()],
-                            order=1, mode="nearest").reshape(len(at), -1)
+    shape = (HOLD_WINDOW, HOLD_WINDOW)
+
+    def windows(image: np.ndarray, at: np.ndarray) -> np.ndarray:  # (n, window²), zero mean, unit norm
+        rows = np.broadcast_to(at[:, 1, None, None] + offsets[:, None], (len(at),) + shape)
+        cols = np.broadcast_to(at[:, 0, None, None] + offsets[None, :], (len(at),) + shape)
+        w = map_coordinates(image.astype(np.float32), [rows.ravel(), cols.ravel()], order=1, mode="nearest").reshape(len(at), -1)
         w -= w.mean(axis=1, keepdims=True)
         return w / (np.linalg.norm(w, axis=1, keepdims=True) + 1e-6)
+
     return (windows(a, at_a) * windows(b, at_b)).sum(axis=1)
 
 

@@ -46,12 +46,13 @@ ISOMETRIC_DROP = DROP
 """With a camera's focal length, the share of the tracked points left out
 (:data:`nrdepth.isometric.DROP`)."""
 
-ISOMETRIC_HOLD = True
-"""With a camera's focal length, the sheet's points are held to their look
-in the first frame (:func:`nrdepth.isometric.track_points`' ``hold``): on
-``kinect_paper``'s true points the tracks' 95th percentile falls from 1.86
-to 0.66 px, and 32 generated long sheets chose it by a rule fixed
-beforehand (docs/campaign.md, "Tracks held to the first frame")."""
+ISOMETRIC_HOLD = False
+"""With a camera's focal length, whether the sheet's points are held to
+their look in the first frame (:func:`nrdepth.isometric.track_points`'
+``hold``). Off: on 32 generated long sheets it read no better than the
+chained flow by the rule fixed beforehand (+0.0002 ± 0.0033 per frame),
+though on ``kinect_paper``'s true points the tracks' 95th percentile falls
+from 1.86 to 0.66 px (docs/campaign.md, "Tracks held to the first frame")."""
 
 
 def _option(default: Any, help: str, flag: Optional[str] = None, **argparse_kwargs: Any) -> Any:
@@ -168,8 +169,8 @@ class ReconstructOptions:
     isometric_drop: float = _option(ISOMETRIC_DROP, "with focal: the share of the points left out where the flow's two directions disagree most",
                                     type=float)
     isometric_hold: bool = _option(ISOMETRIC_HOLD, "with focal: each point found again after every step of the flow by its look in the "
-                                   "first frame, lost (not dragged) where it is not (nrdepth.isometric.track_points' hold)",
-                                   flag="--no-isometric-hold", action="store_false")
+                                   "first frame, lost (not dragged) where it is not (nrdepth.isometric.track_points' hold); the stage then "
+                                   "steps aside where too few are held", action="store_true")
     isometric_points: int = _option(400, "with focal: about how many points are followed over the sheet (a square grid)", type=int)
     # The outputs.
     flip: bool = _option(False, "negate the depth: the other convex/concave reading (the model assumes light from above; use it for a video "
