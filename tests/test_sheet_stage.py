@@ -78,3 +78,15 @@ def test_a_video_with_nothing_to_read_falls_back_to_the_network_and_says_why(cas
     with pytest.warns(SheetFallback, match=f"sheet: the network's depth alone \\(.*{says}"):
         depth = nrdepth.reconstruct(video, model, device="cpu", **OPTIONS, isometric_hold=case == "noise")  # held points see it
     np.testing.assert_array_equal(depth, network_alone(video, model))
+
+
+def test_held_points_read_the_sheet_and_a_frame_without_them_sends_the_stage_aside(model, bending):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SheetFallback)  # held, the bending sheet is read
+        held = nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS, isometric_hold=True)
+    assert np.abs(held - network_alone(bending, model)).max() > 0.1
+    blank = bending.copy()
+    blank[20] = 128  # one grey frame: no point is found again there, too few for its program
+    with pytest.warns(SheetFallback, match=r"too few points held in frames \[20\]"):
+        depth = nrdepth.reconstruct(blank, model, device="cpu", **OPTIONS, isometric_hold=True)
+    np.testing.assert_array_equal(depth, network_alone(blank, model))

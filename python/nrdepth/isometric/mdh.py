@@ -18,10 +18,16 @@ from ..baselines.tracks import densify
 from ..camera import Camera
 from .points import DROP, check_video, track_grid
 
-__all__ = ["neighbour_pairs", "mdh_depths", "isometric_depth", "TEMPLATES"]
+__all__ = ["neighbour_pairs", "mdh_depths", "isometric_depth", "TooFewPoints", "TEMPLATES"]
+
 
 class TooFewPoints(ValueError):
-    """:func:`mdh_depths`' tracks leave a frame fewer than 3 points in view and tied to a pair."""
+    """:func:`mdh_depths`' tracks leave ``frames`` (their indices) with fewer
+    than 3 points in view and tied to a pair."""
+
+    def __init__(self, frames: list):
+        self.frames = frames
+        super().__init__(f"xy: expected at least 3 points in view and tied to a pair in every frame, got fewer in frames {frames[:5]}")
 
 
 def neighbour_pairs(xy: np.ndarray, neighbours: int = 20, far: int = 0, reach: int = 0) -> np.ndarray:
@@ -232,7 +238,7 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
     rays[~seen] = 0.0
     few = np.flatnonzero(_active(seen, pairs)[1].sum(axis=1) < 3)
     if len(few):
-        raise TooFewPoints(f"xy: expected at least 3 points in view and tied to a pair in every frame, got fewer in frames {few[:5].tolist()}")
+        raise TooFewPoints(few.tolist())
     T = len(xy)
     depths = np.empty(xy.shape[:2])
     if not isinstance(template, str):

@@ -165,7 +165,7 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
     try:
         depths = mdh_depths(xy, camera, template=options.isometric_template, **cheaper)
     except TooFewPoints as error:
-        return SheetDecision(False, f"too few points held in a frame ({error.args[0].split('got ')[-1]})", **record)
+        return SheetDecision(False, f"too few points held in frames {error.frames[:5]}", **record)
     x, y, w_region, h_region = options.roi or (0, 0, region.shape[1], region.shape[0])
     h, w = work
     # Into the region's working frame: area-averaged resizes keep pixel centres' relative places.
