@@ -463,6 +463,8 @@ def test_bad_input_names_the_argument():
         isometric.track_grid(video, window=1)
     with pytest.raises(ValueError, match="start"):
         isometric.track_points(video, np.zeros((4, 3)))
+    with pytest.raises(ValueError, match="hold: expected a bool"):
+        isometric.track_grid(video, hold="yes")
     with pytest.raises(ValueError, match="far"):
         isometric.neighbour_pairs(xy[0], 4, far=-1)
     with pytest.raises(ValueError, match="reach"):

@@ -73,12 +73,14 @@ def held_share(xy: np.ndarray, shape: Tuple[int, int]) -> float:
     that are held, of those still in a frame of ``shape`` (H, W): a point
     that is NaN within :data:`HOLD_WINDOW` px of the frame's edge, where
     it was last held, counts as gone from view, not as lost."""
+    from .points import inside  # points imports this module
+
     last = xy[0].copy()
     held = lost = 0
     for frame in xy[1:]:
         found = np.isfinite(frame).all(axis=1)
         last[found] = frame[found]
-        gone = (last.min(axis=1) < HOLD_WINDOW) | (last[:, 0] > shape[1] - 1 - HOLD_WINDOW) | (last[:, 1] > shape[0] - 1 - HOLD_WINDOW)
+        gone = ~inside(last, shape, HOLD_WINDOW)
         held += int(found.sum())
         lost += int((~found & ~gone).sum())
     return held / max(held + lost, 1)
@@ -157,7 +159,17 @@ class Anchor:
         smooth = self.to_points @ predicted
         predicted = np.where((np.linalg.norm(smooth - predicted, axis=1) > OUTLIER)[:, None], smooth, predicted)
         map_x, map_y = self._warp(predicted)
-        pulled = cv2.remap(_normalised(cv2, frame), map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=128)
+        # Only the part of the frame the warp reads is normalised: its box grown by the two blurs' reach (OpenCV's
+        # kernel spans 4σ a side) and bilinear's pixel, so every pixel read is as the whole frame's normalisation gives it.
+        reach = int(8 * CONTRAST) + 2
+        H, W = frame.shape
+        x0, y0 = max(0, int(np.floor(map_x.min())) - reach), max(0, int(np.floor(map_y.min())) - reach)
+        x1, y1 = min(W, int(np.ceil(map_x.max())) + reach + 1), min(H, int(np.ceil(map_y.max())) + reach + 1)
+        if x1 > x0 and y1 > y0:
+            pulled = cv2.remap(_normalised(cv2, frame[y0:y1, x0:x1]), map_x - np.float32(x0), map_y - np.float32(y0), cv2.INTER_LINEAR,
+                               borderMode=cv2.BORDER_CONSTANT, borderValue=128)
+        else:  # the warp has left the frame: nothing to find
+            pulled = np.full(map_x.shape, 128, np.uint8)
         origin = (self.start - self.corner).astype(np.float32).reshape(-1, 1, 2)
         found, ok, _ = cv2.calcOpticalFlowPyrLK(self.look, pulled, origin, origin.copy(), **self.lk)
         back, ok_back, _ = cv2.calcOpticalFlowPyrLK(pulled, self.look, found, origin.copy(), **self.lk)

@@ -186,6 +186,8 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
         raise ValueError(f"flow: expected one of {FLOWS}, got {flow!r}")
     if margin is not None and not (isinstance(margin, (int, np.integer)) and margin >= 0):
         raise ValueError(f"margin: expected pixels >= 0 or None (the whole frame), got {margin!r}")
+    if not isinstance(hold, (bool, np.bool_)):
+        raise ValueError(f"hold: expected a bool, got {hold!r}")
     dense = _flow(cv2, flow, window)
     H, W = first.shape
     anchor = Anchor(cv2, first, start, max(H, W) if margin is None else margin) if hold else None
