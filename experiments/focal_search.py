@@ -35,7 +35,7 @@ import numpy as np
 
 from nrdepth import Camera, GeneratorConfig, generate_clips, isometric
 from nrdepth.scores.generated import SHEET_FAMILIES
-from nrdepth.isometric.hold import held_share
+from nrdepth.isometric import held_share
 from nrdepth.reconstruct.sheet import FLOW_MARGIN, MIN_HELD
 from nrdepth.scores.real import DATA, FOCAL, KINECT_INNER, KINECT_ROI
 

@@ -34,7 +34,7 @@ import numpy as np
 import nrdepth
 from nrdepth import GeneratorConfig, generate_clips, isometric
 from nrdepth.baselines.tracks import densify
-from nrdepth.isometric.hold import held_share
+from nrdepth.isometric import held_share
 from nrdepth.isometric.mdh import _between
 from nrdepth.reconstruct.options import ISOMETRIC_SCALE
 from nrdepth.scores.generated import SHEET_FAMILIES
@@ -60,7 +60,7 @@ def main() -> None:
     parser.add_argument("--scales", default=str(ISOMETRIC_SCALE), help="comma-separated fusion scales (fractions of the frame's side): each "
                         "setting fused at each; the first is the setting's own name")
     parser.add_argument("--min-held", type=float, default=0.0, help="a setting's points held (hold=1) in fewer than this share of the "
-                        "point-frames in view (isometric.hold.held_share), or too few in a frame for the programs: the stage steps aside, "
+                        "point-frames in view (isometric.held_share), or too few in a frame for the programs: the stage steps aside, "
                         "the sheet reads as the network")
     parser.add_argument("--lights", default="below,above", help="the sheets lit from below, above, or both (each its own --videos)")
     parser.add_argument("--csv", type=Path, default=None, help="each video's row, written as it is read; a CSV already there is resumed "

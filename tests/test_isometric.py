@@ -240,7 +240,7 @@ def test_a_held_point_hidden_is_lost_not_dragged_and_found_again():
 
 
 def test_the_held_share_counts_points_gone_from_view_apart_from_points_lost():
-    from nrdepth.isometric.hold import held_share
+    from nrdepth.isometric import held_share
 
     video = shifted_texture(frames=9)  # the content moves +2 x, +1 y a frame: points near the right edge leave
     mask = np.zeros(video.shape[1:], bool)

@@ -27,7 +27,7 @@ from typing import Tuple
 
 import numpy as np
 
-__all__ = ["Anchor", "held_share", "SPREAD", "STEP", "HOLD_FB", "HOLD_NCC", "HOLD_WINDOW", "HOLD_LEVELS", "OUTLIER", "CONTRAST"]
+__all__ = ["Anchor", "SPREAD", "STEP", "HOLD_FB", "HOLD_NCC", "HOLD_WINDOW", "HOLD_LEVELS", "OUTLIER", "CONTRAST"]
 
 SPREAD = 1.5
 """The warp's Gaussian weights' width in the points' spacings: wide enough
@@ -66,24 +66,6 @@ def _normalised(cv2, frame: np.ndarray) -> np.ndarray:
     mean = cv2.GaussianBlur(f, (0, 0), CONTRAST)
     spread = np.sqrt(cv2.GaussianBlur((f - mean) ** 2, (0, 0), CONTRAST)) + 4.0  # + 4: flat paper's noise stays noise
     return np.clip(128 + 40 * (f - mean) / spread, 0, 255).astype(np.uint8)
-
-
-def held_share(xy: np.ndarray, shape: Tuple[int, int]) -> float:
-    """The share of held tracks' (T, n, 2) point-frames after the first
-    that are held, of those still in a frame of ``shape`` (H, W): a point
-    that is NaN within :data:`HOLD_WINDOW` px of the frame's edge, where
-    it was last held, counts as gone from view, not as lost."""
-    from .points import inside  # points imports this module
-
-    last = xy[0].copy()
-    held = lost = 0
-    for frame in xy[1:]:
-        found = np.isfinite(frame).all(axis=1)
-        last[found] = frame[found]
-        gone = ~inside(last, shape, HOLD_WINDOW)
-        held += int(found.sum())
-        lost += int((~found & ~gone).sum())
-    return held / max(held + lost, 1)
 
 
 def _correlation(a: np.ndarray, at_a: np.ndarray, b: np.ndarray, at_b: np.ndarray) -> np.ndarray:

@@ -18,7 +18,7 @@ from typing import Iterable, Iterator, Optional, Tuple, Union
 import numpy as np
 
 from ..checks import option_error
-from .hold import Anchor
+from .hold import HOLD_WINDOW, Anchor
 
 __all__ = ["track_grid", "start_grid", "track_points", "least_disagreeing", "inside", "require_isometric", "check_video", "frames_of", "DROP", "BORDER", "FLOWS"]
 
@@ -251,3 +251,19 @@ def _flow(cv2, name: str, window: int):
 def inside(xy: np.ndarray, shape: Tuple[int, int], border: float) -> np.ndarray:
     """Which points (n, 2) lie at least ``border`` pixels inside a frame of ``shape`` (H, W)."""
     return (xy[:, 0] >= border) & (xy[:, 0] <= shape[1] - 1 - border) & (xy[:, 1] >= border) & (xy[:, 1] <= shape[0] - 1 - border)
+
+
+def held_share(xy: np.ndarray, shape: Tuple[int, int]) -> float:
+    """The share of held tracks' (T, n, 2) point-frames after the first
+    that are held, of those still in a frame of ``shape`` (H, W): a point
+    that is NaN within :data:`~nrdepth.isometric.hold.HOLD_WINDOW` px of the frame's edge, where
+    it was last held, counts as gone from view, not as lost."""
+    last = xy[0].copy()
+    held = lost = 0
+    for frame in xy[1:]:
+        found = np.isfinite(frame).all(axis=1)
+        last[found] = frame[found]
+        gone = ~inside(last, shape, HOLD_WINDOW)
+        held += int(found.sum())
+        lost += int((~found & ~gone).sum())
+    return held / max(held + lost, 1)

@@ -21,8 +21,7 @@ import numpy as np
 from ..baselines.tracks import densify
 from ..camera import Camera
 from ..checks import option_error
-from ..isometric import TooFewPoints, fuse, mdh_depths, require_isometric, start_grid, track_grid
-from ..isometric.hold import held_share
+from ..isometric import TooFewPoints, fuse, held_share, mdh_depths, require_isometric, start_grid, track_grid
 from .frames import CHUNK, as_uint8
 from .options import ReconstructOptions
 
@@ -63,7 +62,7 @@ the paper's true points (docs/findings.md)."""
 
 MIN_HELD = 0.8
 """With held points (``isometric_hold``): fewer of the point-frames in
-view found again than this share (:func:`~nrdepth.isometric.hold.held_share`),
+view found again than this share (:func:`~nrdepth.isometric.held_share`),
 and the stage leaves the network's depth alone:
 the video's texture is too faint for its points to be followed (as on
 most generated sheets: docs/campaign.md, "Tracks held to the first
