@@ -10,7 +10,8 @@ tracker, on three kinds of truth:
   pairs than the way there: the flow both ways would retrace its own
   steps exactly): the closed loop's distance (px) from where each began;
 - generated long sheets (256² × ``--frames``, ``--phases`` bends, through
-  pinholes of 40–80°, lit from below and from above, seed
+  pinholes of 40–80°, lit from below and from above, textured by
+  ``--families``, seed
   ``isometric_generated.SEED`` from ``--start``): the mesh vertices nearest a
   400-point grid followed from their true positions in the first frame,
   their distance (px) from the true ones (``nrdepth.image_points``) in every
@@ -95,12 +96,11 @@ def phisft(trackers: list) -> None:
         print(f"phisft_R1 closed loop {name or 'default':26s} {summary(np.linalg.norm(back - grid, axis=1))}; {seconds:.1f} s", flush=True)
 
 
-def generated(trackers: list, videos: int, start: int, frames: int, phases: int) -> None:
+def generated(trackers: list, videos: int, start: int, frames: int, phases: int, families: tuple) -> None:
     from isometric_generated import SEED, in_view, true_tracks
 
     from nrdepth import GeneratorConfig, generate_clips
     from nrdepth.isometric import track_points
-    from nrdepth.scores.generated import SHEET_FAMILIES
 
     per_video = {name: [] for name in trackers}
     pooled = {name: [] for name in trackers}
@@ -108,7 +108,7 @@ def generated(trackers: list, videos: int, start: int, frames: int, phases: int)
     for light, azimuth in (("below", (math.pi - 1.22, math.pi + 1.22)), ("above", None)):
         extra = {} if azimuth is None else {"light_azimuth": azimuth}
         config = GeneratorConfig(frames=frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=phases,
-                                 texture_families=SHEET_FAMILIES, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
+                                 texture_families=families, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
         clips = generate_clips(videos, seed=SEED, config=config, start=start, vertices=True)
         for k, (video, params) in enumerate(zip(clips.video, clips.params)):
             truth, _ = true_tracks(clips.vertices[k], params, config.size)
@@ -128,6 +128,8 @@ def generated(trackers: list, videos: int, start: int, frames: int, phases: int)
 
 
 def main() -> None:
+    from nrdepth.scores.generated import SHEET_FAMILIES
+
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--trackers", default=",margin=48:hold=1", help="comma-separated trackers (module docstring)")
     parser.add_argument("--videos", type=int, default=16, help="generated sheets per light")
@@ -135,6 +137,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=64)
     parser.add_argument("--phases", type=int, default=4)
     parser.add_argument("--threads", type=int, default=1, help="OpenCV's threads")
+    parser.add_argument("--families", default=",".join(SHEET_FAMILIES), help="the generated sheets' texture families (comma-separated)")
     parser.add_argument("--skip", default="", help="comma-separated: kinect, phisft, generated")
     args = parser.parse_args()
     import cv2
@@ -147,7 +150,7 @@ def main() -> None:
     if "phisft" not in skip:
         phisft(trackers)
     if "generated" not in skip:
-        generated(trackers, args.videos, args.start, args.frames, args.phases)
+        generated(trackers, args.videos, args.start, args.frames, args.phases, tuple(args.families.split(",")))
 
 
 if __name__ == "__main__":

@@ -10,13 +10,17 @@ and scale): per-frame MAE-SN of each, and its seconds for the points and
 the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 ``benchmarks/bench_sheet_stage.py`` (``margin``, ``flow``, ``keyframes``,
 ``neighbours``, ``points``, ``hold``, ``backward``, ``drop``); the first is the reference, each
-other is paired against it. ``--scales``: each also fused at each scale. ``--every``: each setting also with only every
+other is paired against it. ``--scales``: each also fused at each scale. ``--truth``: the first setting's programs also read the sheet's true
+tracks (the mesh's vertices nearest the points' grid, where a tracker
+could still hold them: ``isometric_generated.true_tracks``), named
+``truth``: what the tracker costs. ``--families``: the sheets' texture
+families. ``--every``: each setting also with only every
 n-th frame's program solved, the rest linear in time (``mdh_depths``'s
 ``every``; read off the setting's own every-frame depths, which it
 solves alike in those frames, so it costs nothing more here). The rule that reads this is in
 docs/campaign.md ("The sheet stage's cost").
 
-    python experiments/sheet_levers.py [--videos 16] [--start 64] [--settings ",keyframes=12"] [--every 1,2,3,4] [--lights below,above] [--csv out.csv]
+    python experiments/sheet_levers.py [--videos 16] [--start 64] [--settings ",keyframes=12"] [--every 1,2,3,4] [--lights below,above] [--families print] [--truth] [--csv out.csv]
     python experiments/paired.py A.csv "keyframes=12 per frame" A.csv "default per frame"   # two runs' CSVs: concatenate them first
 """
 
@@ -43,7 +47,7 @@ from nrdepth.scores.metrics import dense_baselines, mae_sn
 sys.path.insert(0, str(Path(__file__).parent))
 sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
 from bench_sheet_stage import parse  # noqa: E402
-from isometric_generated import SEED, camera  # noqa: E402
+from isometric_generated import SEED, camera, in_view, true_tracks  # noqa: E402
 
 
 def main() -> None:
@@ -62,6 +66,8 @@ def main() -> None:
     parser.add_argument("--min-held", type=float, default=0.0, help="a setting's points held (hold=1) in fewer than this share of the "
                         "point-frames in view (isometric.held_share), or too few in a frame for the programs: the stage steps aside, "
                         "the sheet reads as the network")
+    parser.add_argument("--families", default=",".join(SHEET_FAMILIES), help="the sheets' texture families (comma-separated)")
+    parser.add_argument("--truth", action="store_true", help="also the first setting's programs on the sheet's true tracks (named truth)")
     parser.add_argument("--lights", default="below,above", help="the sheets lit from below, above, or both (each its own --videos)")
     parser.add_argument("--csv", type=Path, default=None, help="each video's row, written as it is read; a CSV already there is resumed "
                         "(its rows kept, its videos not read again)")
@@ -74,6 +80,8 @@ def main() -> None:
     scales = [float(v) for v in args.scales.split(",")]
     every_label = lambda name, n: name if n == 1 else (f"{name}:every={n}" if name != "default" else f"every={n}")  # noqa: E731
     label = lambda name, n, scale=scales[0]: every_label(name, n) + ("" if scale == scales[0] else f":scale={scale:g}")  # noqa: E731
+    if args.truth:  # the reference's programs on the true tracks
+        settings, levers = settings + ["truth"], levers + [dict(levers[0], truth=True, hold=0)]
     names = [label(s or "default", n, scale) for s in settings for n in everies for scale in scales]
     rows = []
     if args.csv is not None and args.csv.exists():  # a stopped run's rows: kept, their videos skipped
@@ -85,8 +93,8 @@ def main() -> None:
             continue
         extra = {} if azimuth is None else {"light_azimuth": azimuth}
         config = GeneratorConfig(frames=args.frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=args.phases,
-                                 texture_families=SHEET_FAMILIES, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
-        clips = generate_clips(args.videos, seed=SEED, config=config, start=args.start)
+                                 texture_families=tuple(args.families.split(",")), camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
+        clips = generate_clips(args.videos, seed=SEED, config=config, start=args.start, vertices=args.truth)
         for k, (video, truth, params) in enumerate(zip(clips.video, clips.depth, clips.params)):
             if (light, args.start + k) in done:
                 continue
@@ -103,7 +111,11 @@ def main() -> None:
             for name, lever in zip([s or "default" for s in settings], levers):
                 start = time.perf_counter()
                 key = (lever["flow"], lever["margin"], lever["points"], lever["hold"], lever["backward"], lever["drop"])
-                if key not in tracks:
+                if lever.get("truth"):
+                    truth_xy, _ = true_tracks(clips.vertices[k], params, config.size, points=lever["points"])
+                    tracks[key + ("truth",)] = np.where(in_view(truth_xy, config.size)[..., None], truth_xy, np.nan)
+                    key += ("truth",)
+                elif key not in tracks:
                     tracks[key] = isometric.track_grid(video, points=lever["points"], drop=lever["drop"], flow=lever["flow"], margin=lever["margin"],
                                                        hold=bool(lever["hold"]), backward=bool(lever["backward"]))
                 xy = tracks[key]
