@@ -13,7 +13,8 @@ the points' box and this many pixels, or ``none``: the whole frame),
 n-th frame's program solved, the rest linear in time), ``points``, ``hold``
 (1: each point found again by its look in the first frame), ``backward``
 (0: the forward flow alone), ``drop`` (the share of points left out; 0 with
-``backward=0``).
+``backward=0``), ``keep`` (with ``hold``: only the points held in at least
+this share of their frames in view, ``isometric.held_share(per_point=True)``).
 
     python benchmarks/bench_sheet_stage.py [--threads 2] [--settings margin=none,margin=48,margin=48:keyframes=12:every=3]
 """
@@ -41,15 +42,24 @@ def sgemm() -> float:
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
             raise SystemExit(f"--settings: unknown lever {key!r} (known: {', '.join(out)})")
-        out[key] = value if key == "flow" else float(value) if key == "drop" else (None if value == "none" else int(value))
+        out[key] = value if key == "flow" else float(value) if key in ("drop", "keep") else (None if value == "none" else int(value))
+    if out["keep"] and not out["hold"]:
+        raise SystemExit(f"--settings {setting!r}: keep needs hold=1")
     if not out["backward"] and out["drop"]:
         raise SystemExit(f"--settings {setting!r}: drop needs the flow both ways: give drop=0 with backward=0")
     return out
+
+
+def keep_held(xy: np.ndarray, shape: tuple, lever: dict) -> np.ndarray:
+    """The tracks of the points held in at least ``lever["keep"]`` of their frames in view."""
+    from nrdepth import isometric
+
+    return xy[:, isometric.held_share(xy, shape, per_point=True) >= lever["keep"]] if lever["keep"] else xy
 
 
 def box_check(frames: np.ndarray, box: np.ndarray) -> None:
@@ -107,6 +117,7 @@ def main() -> None:
         start = time.perf_counter()
         xy = isometric.track_grid(frames, box, points=lever["points"], drop=lever["drop"], flow=lever["flow"], margin=lever["margin"],
                                   hold=bool(lever["hold"]), backward=bool(lever["backward"]))
+        xy = keep_held(xy, frames.shape[1:], lever)
         tracked = time.perf_counter()
         depths = isometric.mdh_depths(xy, camera, keyframes=lever["keyframes"], neighbours=lever["neighbours"], every=lever["every"])
         solved = time.perf_counter()

@@ -9,7 +9,7 @@ the stage's defaults otherwise (``reconstruct(focal=...)``'s points, drop
 and scale): per-frame MAE-SN of each, and its seconds for the points and
 the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 ``benchmarks/bench_sheet_stage.py`` (``margin``, ``flow``, ``keyframes``,
-``neighbours``, ``points``, ``hold``, ``backward``, ``drop``); the first is the reference, each
+``neighbours``, ``points``, ``hold``, ``backward``, ``drop``, ``keep``); the first is the reference, each
 other is paired against it. ``--scales``: each also fused at each scale. ``--truth``: the first setting's programs also read the sheet's true
 tracks (the mesh's vertices nearest the points' grid, where a tracker
 could still hold them: ``isometric_generated.true_tracks``), named
@@ -46,7 +46,7 @@ from nrdepth.scores.metrics import dense_baselines, mae_sn
 
 sys.path.insert(0, str(Path(__file__).parent))
 sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
-from bench_sheet_stage import parse  # noqa: E402
+from bench_sheet_stage import keep_held, parse  # noqa: E402
 from isometric_generated import SEED, camera, in_view, true_tracks  # noqa: E402
 
 
@@ -110,7 +110,7 @@ def main() -> None:
             tracks = {}
             for name, lever in zip([s or "default" for s in settings], levers):
                 start = time.perf_counter()
-                key = (lever["flow"], lever["margin"], lever["points"], lever["hold"], lever["backward"], lever["drop"])
+                key = (lever["flow"], lever["margin"], lever["points"], lever["hold"], lever["backward"], lever["drop"])  # keep: a filter of the held tracks
                 if lever.get("truth"):
                     truth_xy, _ = true_tracks(clips.vertices[k], params, config.size, points=lever["points"])
                     tracks[key + ("truth",)] = np.where(in_view(truth_xy, config.size)[..., None], truth_xy, np.nan)
@@ -118,7 +118,7 @@ def main() -> None:
                 elif key not in tracks:
                     tracks[key] = isometric.track_grid(video, points=lever["points"], drop=lever["drop"], flow=lever["flow"], margin=lever["margin"],
                                                        hold=bool(lever["hold"]), backward=bool(lever["backward"]))
-                xy = tracks[key]
+                xy = keep_held(tracks[key], video.shape[1:], lever)
                 tracked = time.perf_counter()
                 held = held_share(xy, video.shape[1:]) if lever["hold"] else 1.0
                 row[f"{name} held"] = held

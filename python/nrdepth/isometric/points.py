@@ -253,17 +253,22 @@ def inside(xy: np.ndarray, shape: Tuple[int, int], border: float) -> np.ndarray:
     return (xy[:, 0] >= border) & (xy[:, 0] <= shape[1] - 1 - border) & (xy[:, 1] >= border) & (xy[:, 1] <= shape[0] - 1 - border)
 
 
-def held_share(xy: np.ndarray, shape: Tuple[int, int]) -> float:
+def held_share(xy: np.ndarray, shape: Tuple[int, int], per_point: bool = False):
     """The share of held tracks' (T, n, 2) point-frames after the first
     that are held, of those still in a frame of ``shape`` (H, W): a point
     that is NaN within :data:`~nrdepth.isometric.hold.HOLD_WINDOW` px of the frame's edge, where
-    it was last held, counts as gone from view, not as lost."""
+    it was last held, counts as gone from view, not as lost. With
+    ``per_point``, each point's share (n,): a point on blank paper or off
+    the sheet is rarely held (1 where never in view after the first frame)."""
     last = xy[0].copy()
-    held = lost = 0
+    held = np.zeros(xy.shape[1], int)
+    lost = np.zeros(xy.shape[1], int)
     for frame in xy[1:]:
         found = np.isfinite(frame).all(axis=1)
         last[found] = frame[found]
         gone = ~inside(last, shape, HOLD_WINDOW)
-        held += int(found.sum())
-        lost += int((~found & ~gone).sum())
-    return held / max(held + lost, 1)
+        held += found
+        lost += ~found & ~gone
+    if per_point:
+        return np.where(held + lost > 0, held / np.maximum(held + lost, 1), 1.0)
+    return float(held.sum() / max(held.sum() + lost.sum(), 1))
