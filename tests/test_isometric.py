@@ -157,12 +157,14 @@ def test_track_grid_follows_a_shift():
     np.testing.assert_allclose(isometric.track_points(video, anywhere)[-1] - anywhere, [[8.0, 4.0]] * 2, atol=0.15)
 
 
-def shifted_texture(frames: int = 5, size: int = 160, window: int = 100) -> np.ndarray:
-    """A smooth random texture whose content moves +2 x, +1 y a frame, (T, window, window) uint8."""
+def shifted_texture(frames: int = 5, size: int = 160, window: int = 100, blank: int = 0) -> np.ndarray:
+    """A smooth random texture whose content moves +2 x, +1 y a frame, (T, window, window) uint8;
+    its first ``blank`` columns (of the first frame) a flat gray, as blank paper."""
     from scipy.ndimage import gaussian_filter
 
     texture = gaussian_filter(np.random.default_rng(3).random((size, size)), 2.0)
     texture = np.rint(255 * (texture - texture.min()) / np.ptp(texture)).astype(np.uint8)
+    texture[:, : 20 + blank] = 200
     return np.stack([texture[20 - t : 20 + window - t, 20 - 2 * t : 20 + window - 2 * t] for t in range(frames)])
 
 
@@ -250,6 +252,20 @@ def test_the_held_share_counts_points_gone_from_view_apart_from_points_lost():
     assert held_share(xy, video.shape[1:]) == 1.0  # but every point in view was held
     noise = np.random.default_rng(0).integers(0, 256, (6, 64, 64), dtype=np.uint8)  # nothing stays from frame to frame
     assert held_share(isometric.track_grid(noise, points=16, hold=True), noise.shape[1:]) < 0.2
+
+
+def test_points_on_blank_paper_are_rarely_held_and_points_on_print_always():
+    from nrdepth.isometric import held_share
+    from nrdepth.isometric.hold import HOLD_WINDOW
+
+    video = shifted_texture(frames=9, window=140, blank=60)  # the sheet's left 60 columns blank, the rest textured, moving together
+    xy = isometric.track_grid(video, points=49, hold=True)
+    share = held_share(xy, video.shape[1:], per_point=True)
+    counted = isometric.inside(xy[0], video.shape[1:], HOLD_WINDOW)  # the others, if never held, count as gone from view
+    blank, printed = counted & (xy[0, :, 0] < 60 - 12), counted & (xy[0, :, 0] > 60 + 12)  # windows clear of the boundary
+    assert blank.sum() >= 4 and printed.sum() >= 4
+    assert (share[blank] <= 0.2).all() and (share[printed] == 1.0).all()
+    assert held_share(xy, video.shape[1:]) < share[printed].mean()  # the whole video's share counts the blank points too
 
 
 def test_a_stream_of_frames_is_followed_as_the_array_is():

@@ -259,7 +259,7 @@ def held_share(xy: np.ndarray, shape: Tuple[int, int], per_point: bool = False):
     that is NaN within :data:`~nrdepth.isometric.hold.HOLD_WINDOW` px of the frame's edge, where
     it was last held, counts as gone from view, not as lost. With
     ``per_point``, each point's share (n,): a point on blank paper or off
-    the sheet is rarely held (1 where never in view after the first frame)."""
+    the sheet is rarely held (NaN where never in view after the first frame)."""
     last = xy[0].copy()
     held = np.zeros(xy.shape[1], int)
     lost = np.zeros(xy.shape[1], int)
@@ -270,5 +270,5 @@ def held_share(xy: np.ndarray, shape: Tuple[int, int], per_point: bool = False):
         held += found
         lost += ~found & ~gone
     if per_point:
-        return np.where(held + lost > 0, held / np.maximum(held + lost, 1), 1.0)
+        return np.where(held + lost > 0, held / np.maximum(held + lost, 1), np.nan)
     return float(held.sum() / max(held.sum() + lost.sum(), 1))
