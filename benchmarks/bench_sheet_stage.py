@@ -3,7 +3,8 @@ lever, with what each costs in accuracy: the stage's parts (the points
 followed, the cone programs) timed for each setting given, the whole
 sheet's error (mm, per-frame GBR) of the network's depth fused with each
 setting's isometric depth (the Kinect's focal length, points over the
-print, as ``reconstruct(focal=..., sheet=...)`` runs it), and the rest of
+print, or with ``--box sheet`` over the whole sheet's box, half of it
+background, as ``reconstruct(focal=..., sheet=...)`` runs it), and the rest of
 the job (``reconstruct`` without ``focal``) timed in the same run, beside a
 2048² sgemm measured before and after (machines here differ by 1.5×).
 
@@ -14,7 +15,7 @@ n-th frame's program solved, the rest linear in time), ``points``, ``hold``
 (1: each point found again by its look in the first frame), ``backward``
 (0: the forward flow alone), ``drop`` (the share of points left out; 0 with
 ``backward=0``), ``keep`` (with ``hold``: only the points held in at least
-this share of their frames in view, ``isometric.held_share(per_point=True)``).
+this share of their frames in view, ``isometric.point_held_shares``).
 
     python benchmarks/bench_sheet_stage.py [--threads 2] [--settings margin=none,margin=48,margin=48:keyframes=12:every=3]
 """
@@ -59,7 +60,7 @@ def keep_held(xy: np.ndarray, shape: tuple, lever: dict) -> np.ndarray:
     """The tracks of the points held in at least ``lever["keep"]`` of their frames in view."""
     from nrdepth import isometric
 
-    return xy[:, isometric.held_share(xy, shape, per_point=True) >= lever["keep"]] if lever["keep"] else xy
+    return xy[:, isometric.point_held_shares(xy, shape) >= lever["keep"]] if lever["keep"] else xy
 
 
 def box_check(frames: np.ndarray, box: np.ndarray) -> None:
@@ -82,6 +83,8 @@ def main() -> None:
     parser.add_argument("--settings", default="margin=none,margin=48", help="comma-separated settings (module docstring)")
     parser.add_argument("--scales", default=None, help="comma-separated fusion scales (fractions of the roi's shorter side) each "
                         "setting's whole sheet is read at (default: the stage's)")
+    parser.add_argument("--box", choices=("print", "sheet"), default="print",
+                        help="the points over the print (KINECT_INNER) or the whole sheet's box (KINECT_ROI)")
     parser.add_argument("--no-box-check", action="store_true", help="skip following every point with and without the box first")
     args = parser.parse_args()
 
@@ -101,7 +104,7 @@ def main() -> None:
     K = np.load(data_folder("kinect_paper") / "gt_mdh.npz")["K"].astype(np.float64)
     camera = nrdepth.Camera.from_matrix(K)
     truth = kinect_truth()
-    x, y, w, h = KINECT_INNER
+    x, y, w, h = KINECT_INNER if args.box == "print" else KINECT_ROI
     box = np.zeros(frames.shape[1:], bool)
     box[y : y + h, x : x + w] = True
     rx, ry, rw, rh = KINECT_ROI

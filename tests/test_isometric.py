@@ -242,7 +242,7 @@ def test_a_held_point_hidden_is_lost_not_dragged_and_found_again():
 
 
 def test_the_held_share_counts_points_gone_from_view_apart_from_points_lost():
-    from nrdepth.isometric import held_share
+    from nrdepth.isometric import held_share, point_held_shares
 
     video = shifted_texture(frames=9)  # the content moves +2 x, +1 y a frame: points near the right edge leave
     mask = np.zeros(video.shape[1:], bool)
@@ -255,12 +255,12 @@ def test_the_held_share_counts_points_gone_from_view_apart_from_points_lost():
 
 
 def test_points_on_blank_paper_are_rarely_held_and_points_on_print_always():
-    from nrdepth.isometric import held_share
+    from nrdepth.isometric import held_share, point_held_shares
     from nrdepth.isometric.hold import HOLD_WINDOW
 
     video = shifted_texture(frames=9, window=140, blank=60)  # the sheet's left 60 columns blank, the rest textured, moving together
     xy = isometric.track_grid(video, points=49, hold=True)
-    share = held_share(xy, video.shape[1:], per_point=True)
+    share = point_held_shares(xy, video.shape[1:])
     counted = isometric.inside(xy[0], video.shape[1:], HOLD_WINDOW)  # the others, if never held, count as gone from view
     blank, printed = counted & (xy[0, :, 0] < 60 - 12), counted & (xy[0, :, 0] > 60 + 12)  # windows clear of the boundary
     assert blank.sum() >= 4 and printed.sum() >= 4

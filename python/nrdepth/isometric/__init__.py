@@ -50,7 +50,7 @@ intrinsics, and the optional dependencies: ``pip install 'nrdepth[isometric]'``.
 
 from .fuse import fuse
 from .mdh import TEMPLATES, TooFewPoints, isometric_depth, mdh_depths, neighbour_pairs
-from .points import BORDER, DROP, FLOWS, frames_of, held_share, inside, least_disagreeing, require_isometric, start_grid, track_grid, track_points
+from .points import BORDER, DROP, FLOWS, frames_of, held_share, inside, least_disagreeing, point_held_shares, require_isometric, start_grid, track_grid, track_points
 
-__all__ = ["track_grid", "start_grid", "track_points", "least_disagreeing", "inside", "held_share", "neighbour_pairs", "mdh_depths", "isometric_depth", "fuse",
+__all__ = ["track_grid", "start_grid", "track_points", "least_disagreeing", "inside", "held_share", "point_held_shares", "neighbour_pairs", "mdh_depths", "isometric_depth", "fuse",
            "require_isometric", "frames_of", "TooFewPoints", "TEMPLATES", "DROP", "BORDER", "FLOWS"]

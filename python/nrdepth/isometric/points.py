@@ -253,13 +253,24 @@ def inside(xy: np.ndarray, shape: Tuple[int, int], border: float) -> np.ndarray:
     return (xy[:, 0] >= border) & (xy[:, 0] <= shape[1] - 1 - border) & (xy[:, 1] >= border) & (xy[:, 1] <= shape[0] - 1 - border)
 
 
-def held_share(xy: np.ndarray, shape: Tuple[int, int], per_point: bool = False):
+def held_share(xy: np.ndarray, shape: Tuple[int, int]) -> float:
     """The share of held tracks' (T, n, 2) point-frames after the first
     that are held, of those still in a frame of ``shape`` (H, W): a point
     that is NaN within :data:`~nrdepth.isometric.hold.HOLD_WINDOW` px of the frame's edge, where
-    it was last held, counts as gone from view, not as lost. With
-    ``per_point``, each point's share (n,): a point on blank paper or off
-    the sheet is rarely held (NaN where never in view after the first frame)."""
+    it was last held, counts as gone from view, not as lost."""
+    held, lost = _held_counts(xy, shape)
+    return float(held.sum() / max(held.sum() + lost.sum(), 1))
+
+
+def point_held_shares(xy: np.ndarray, shape: Tuple[int, int]) -> np.ndarray:
+    """Each point's :func:`held_share` (n,): a point on blank paper or off
+    the sheet is rarely held; NaN where never in view after the first frame."""
+    held, lost = _held_counts(xy, shape)
+    return np.where(held + lost > 0, held / np.maximum(held + lost, 1), np.nan)
+
+
+def _held_counts(xy: np.ndarray, shape: Tuple[int, int]) -> Tuple[np.ndarray, np.ndarray]:
+    """Each point's frames after the first held, and lost while in view (n,), (n,)."""
     last = xy[0].copy()
     held = np.zeros(xy.shape[1], int)
     lost = np.zeros(xy.shape[1], int)
@@ -269,6 +280,4 @@ def held_share(xy: np.ndarray, shape: Tuple[int, int], per_point: bool = False):
         gone = ~inside(last, shape, HOLD_WINDOW)
         held += found
         lost += ~found & ~gone
-    if per_point:
-        return np.where(held + lost > 0, held / np.maximum(held + lost, 1), np.nan)
-    return float(held.sum() / max(held.sum() + lost.sum(), 1))
+    return held, lost
