@@ -20,7 +20,7 @@ pinholes of 40–80°, lit from below and from above, a seed no other run
 draws) within 25 % of the truth, and the real videos (``kinect_paper``,
 its sheet's box; ``phisft_R1``, the cloth, full frames) are checks.
 
-    python experiments/focal_search.py [--videos 16] [--frames 64] [--phases 4] [--template joint] [--hold] [--start 0] [--real]
+    python experiments/focal_search.py [--videos 16] [--frames 64] [--phases 4] [--template joint] [--hold [--keep 0.8]] [--start 0] [--real [--kinect-box print]]
 """
 
 from __future__ import annotations
@@ -102,6 +102,8 @@ def phisft() -> tuple:
 def read(name: str, video: np.ndarray, mask, truth: float, args) -> float:
     start = time.perf_counter()
     xy = isometric.track_grid(video, mask, drop=isometric.DROP, hold=args.hold, margin=FLOW_MARGIN)
+    if args.keep:
+        xy = xy[:, isometric.point_held_shares(xy, video.shape[1:]) >= args.keep]
     tracked = time.perf_counter() - start
     if args.hold and held_share(xy, video.shape[1:]) < MIN_HELD:
         print(f"{name}: the stage steps aside ({held_share(xy, video.shape[1:]):.2f} of the point-frames held)", flush=True)
@@ -126,10 +128,14 @@ def main() -> None:
     parser.add_argument("--real", action="store_true", help="the real videos only")
     parser.add_argument("--hold", action="store_true", help="the points held to the first frame (track_grid's hold); a generated sheet "
                         "whose points are held in fewer point-frames than the sheet stage's MIN_HELD is left out, as the stage leaves it")
+    parser.add_argument("--keep", type=float, default=0.0, help="with --hold: only the points held in at least this share of their "
+                        "frames in view (isometric.point_held_shares), before the stage's gate")
     parser.add_argument("--start", type=int, default=0, help="the first sheet's index in the seed's draws")
     parser.add_argument("--kinect-box", choices=("sheet", "print"), default="sheet",
                         help="with --real: kinect_paper's points over the whole sheet's box (KINECT_ROI, with background) or the print's (KINECT_INNER)")
     args = parser.parse_args()
+    if args.keep and not args.hold:
+        parser.error("--keep: needs --hold")
     if args.real:
         boxes = {"sheet": KINECT_ROI, "print": KINECT_INNER}
         for name, (video, mask, truth) in ((f"kinect_paper ({args.kinect_box})", kinect(boxes[args.kinect_box])), ("phisft_R1", phisft())):
