@@ -90,3 +90,21 @@ def test_held_points_read_the_sheet_and_a_frame_without_them_sends_the_stage_asi
     with pytest.warns(SheetFallback, match=r"too few points held in frames \[20\]"):
         depth = nrdepth.reconstruct(blank, model, device="cpu", **OPTIONS, isometric_hold=True)
     np.testing.assert_array_equal(depth, network_alone(blank, model))
+
+
+def test_held_the_stage_reads_only_the_points_found_again_in_most_of_their_frames(tmp_path, model, bending):
+    from nrdepth.isometric import DROP, point_held_shares, track_grid
+    from nrdepth.reconstruct.frames import as_uint8
+    from nrdepth.reconstruct.sheet import FLOW_MARGIN, KEEP_HELD
+
+    banded = bending.copy()
+    banded[:, 14:41, 14:50] = 0.8  # a flat card still in front of the sheet: the points behind it are found in few of their frames
+    np.save(tmp_path / "banded.npy", banded)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SheetFallback)
+        reconstruct_file(tmp_path / "banded.npy", tmp_path / "out", model, device="cpu", **OPTIONS, isometric_hold=True)
+    with np.load(tmp_path / "out" / "depth.npz") as saved:
+        sheet = json.loads(str(saved["sheet"]))
+    xy = track_grid(as_uint8(banded), points=OPTIONS["isometric_points"], drop=DROP, margin=FLOW_MARGIN, hold=True)
+    kept = point_held_shares(xy, banded.shape[1:]) >= KEEP_HELD
+    assert sheet["used"] and 0 < kept.sum() < len(kept) and sheet["points"] == kept.sum()
