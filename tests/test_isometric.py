@@ -164,7 +164,8 @@ def shifted_texture(frames: int = 5, size: int = 160, window: int = 100, blank: 
 
     texture = gaussian_filter(np.random.default_rng(3).random((size, size)), 2.0)
     texture = np.rint(255 * (texture - texture.min()) / np.ptp(texture)).astype(np.uint8)
-    texture[:, : 20 + blank] = 200
+    if blank:
+        texture[:, : 20 + blank] = 200
     return np.stack([texture[20 - t : 20 + window - t, 20 - 2 * t : 20 + window - 2 * t] for t in range(frames)])
 
 
@@ -242,7 +243,7 @@ def test_a_held_point_hidden_is_lost_not_dragged_and_found_again():
 
 
 def test_the_held_share_counts_points_gone_from_view_apart_from_points_lost():
-    from nrdepth.isometric import held_share, point_held_shares
+    from nrdepth.isometric import held_share
 
     video = shifted_texture(frames=9)  # the content moves +2 x, +1 y a frame: points near the right edge leave
     mask = np.zeros(video.shape[1:], bool)

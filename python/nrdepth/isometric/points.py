@@ -20,7 +20,7 @@ import numpy as np
 from ..checks import option_error
 from .hold import HOLD_WINDOW, Anchor
 
-__all__ = ["track_grid", "start_grid", "track_points", "least_disagreeing", "inside", "require_isometric", "check_video", "frames_of", "DROP", "BORDER", "FLOWS"]
+__all__ = ["track_grid", "start_grid", "track_points", "least_disagreeing", "inside", "held_share", "point_held_shares", "require_isometric", "check_video", "frames_of", "DROP", "BORDER", "FLOWS"]
 
 DROP = 0.2
 """:func:`isometric_depth`'s and ``reconstruct(focal=...)``'s share of the
