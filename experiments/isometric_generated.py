@@ -22,8 +22,8 @@ their true positions in the last frame, over the points still in view;
 leaves the view, as ``track_points`` loses it: what a tracker could
 hold at best), ``--drop`` (with the flow both ways: the shares of points
 whose flows disagree most, left out, ``track_grid``'s ``drop``, each read as a tracker), ``--flat-start`` (every sheet starts unbent,
-``GeneratorConfig.sheet_flat_start``), ``--sheet-relief`` (the sheets'
-relief along the normal, which stretches them, ``GeneratorConfig.sheet_relief``), ``--template`` (``mdh_depths``'s
+``GeneratorConfig.sheet_flat_start``), ``--set`` (any other ``GeneratorConfig`` field of the sheets, e.g.
+``sheet_relief=0,0``: no relief along the normal, which stretches them), ``--template`` (``mdh_depths``'s
 template distances: ``joint`` over keyframes, ``refined``, those
 refined so that each pair keeps its distance in every keyframe, ``first``, the first
 frame as a flat sheet facing the camera, or with ``--trackers truth``,
@@ -88,6 +88,13 @@ def in_view(xy: np.ndarray, size: int) -> np.ndarray:
     return np.logical_and.accumulate(inside, axis=0)
 
 
+def setting(item: str) -> tuple:
+    """``--set``'s ``field=v`` or ``field=lo,hi`` as (field, float or (lo, hi))."""
+    field, _, value = item.partition("=")
+    values = tuple(float(v) for v in value.split(","))
+    return field, values[0] if len(values) == 1 else values
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--videos", type=int, default=32)
@@ -102,8 +109,8 @@ def main() -> None:
                         help="isometric.track_grid's flow: forward, both (forward and backward), truth (the mesh's true positions), 'in view' (those a tracker could hold), or a list")
     parser.add_argument("--drop", type=lambda text: [float(v) for v in text.split(",")], default=[0.0],
                         help="with --trackers both: the shares of points whose flows disagree most, left out (isometric.track_grid), each a tracker")
-    parser.add_argument("--sheet-relief", type=lambda text: tuple(float(v) for v in text.split(",")), default=None,
-                        help="lo,hi: the sheets' relief along the normal (GeneratorConfig.sheet_relief; it stretches the sheet), default the generator's")
+    parser.add_argument("--set", action="append", default=[], metavar="FIELD=V[,V]",
+                        help="a GeneratorConfig field of the sheets, one value or lo,hi (e.g. sheet_relief=0,0), repeatable")
     parser.add_argument("--flat-start", action="store_true", help="every sheet starts unbent (GeneratorConfig.sheet_flat_start)")
     parser.add_argument("--relief", type=lambda text: text.split(","), default=["frame"], help="fuse's relief: frame, video or both")
     parser.add_argument("--template", type=lambda text: text.split(","), default=["joint"],
@@ -130,8 +137,9 @@ def main() -> None:
         if light not in args.lights:
             continue
         extra = {} if azimuth is None else {"light_azimuth": azimuth}
-        config = GeneratorConfig(frames=args.frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=args.phases, sheet_flat_start=args.flat_start, texture_families=args.textures, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0),
-                                 **({} if args.sheet_relief is None else {"sheet_relief": args.sheet_relief}), **extra)
+        fields = dict(frames=args.frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=args.phases, sheet_flat_start=args.flat_start,
+                      texture_families=args.textures, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
+        config = GeneratorConfig(**{**fields, **dict(setting(item) for item in args.set)})
         clips = generate_clips(args.videos, seed=SEED, config=config, start=args.start, vertices=bool({"truth", "in view"} & set(args.trackers)))
         rows, start = [], time.perf_counter()
         for k, (video, truth, params) in enumerate(zip(clips.video, clips.depth, clips.params)):

@@ -170,7 +170,7 @@ class ReconstructOptions:
                                     type=float)
     isometric_hold: bool = _option(ISOMETRIC_HOLD, "with focal: each point found again after every step of the flow by its look in the "
                                    "first frame, lost (not dragged) where it is not (nrdepth.isometric.track_points' hold); the stage then "
-                                   "reads only the points held in 80 % of their frames, and steps aside where too few are held",
+                                   "reads only the points held in at least 0.8 of their frames, and steps aside where too few are held",
                                    action="store_true")
     isometric_points: int = _option(400, "with focal: about how many points are followed over the sheet (a square grid)", type=int)
     # The outputs.
