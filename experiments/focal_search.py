@@ -102,12 +102,12 @@ def phisft() -> tuple:
 def read(name: str, video: np.ndarray, mask, truth: float, args) -> float:
     start = time.perf_counter()
     xy = isometric.track_grid(video, mask, drop=isometric.DROP, hold=args.hold, margin=FLOW_MARGIN)
-    if args.keep:
-        xy = xy[:, isometric.point_held_shares(xy, video.shape[1:]) >= args.keep]
     tracked = time.perf_counter() - start
     if args.hold and held_share(xy, video.shape[1:]) < MIN_HELD:
         print(f"{name}: the stage steps aside ({held_share(xy, video.shape[1:]):.2f} of the point-frames held)", flush=True)
         return math.nan
+    if args.keep:  # after the gate, as the stage keeps them
+        xy = xy[:, isometric.point_held_shares(xy, video.shape[1:]) >= args.keep]
     focals = candidates(video.shape[2], args.candidates)
     criterion = length_variation(xy, video.shape[1:], focals, args.keyframes, args.template)
     guess = estimate(focals, criterion)
@@ -129,7 +129,7 @@ def main() -> None:
     parser.add_argument("--hold", action="store_true", help="the points held to the first frame (track_grid's hold); a generated sheet "
                         "whose points are held in fewer point-frames than the sheet stage's MIN_HELD is left out, as the stage leaves it")
     parser.add_argument("--keep", type=float, default=0.0, help="with --hold: only the points held in at least this share of their "
-                        "frames in view (isometric.point_held_shares), before the stage's gate")
+                        "frames in view (isometric.point_held_shares), after the stage's gate, as the stage keeps them")
     parser.add_argument("--start", type=int, default=0, help="the first sheet's index in the seed's draws")
     parser.add_argument("--kinect-box", choices=("sheet", "print"), default="sheet",
                         help="with --real: kinect_paper's points over the whole sheet's box (KINECT_ROI, with background) or the print's (KINECT_INNER)")

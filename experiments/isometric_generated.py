@@ -89,8 +89,12 @@ def in_view(xy: np.ndarray, size: int) -> np.ndarray:
 
 
 def setting(item: str) -> tuple:
-    """``--set``'s ``field=v`` or ``field=lo,hi`` as (field, float or (lo, hi))."""
+    """``--set``'s ``field=v`` or ``field=lo,hi`` as (field, float or (lo, hi)), the field one of ``GeneratorConfig``'s."""
+    from dataclasses import fields
+
     field, _, value = item.partition("=")
+    if field not in {f.name for f in fields(GeneratorConfig)} or not value:
+        raise ValueError(f"expected FIELD=V or FIELD=LO,HI with a GeneratorConfig field, got {item!r}")
     values = tuple(float(v) for v in value.split(","))
     return field, values[0] if len(values) == 1 else values
 
@@ -109,7 +113,7 @@ def main() -> None:
                         help="isometric.track_grid's flow: forward, both (forward and backward), truth (the mesh's true positions), 'in view' (those a tracker could hold), or a list")
     parser.add_argument("--drop", type=lambda text: [float(v) for v in text.split(",")], default=[0.0],
                         help="with --trackers both: the shares of points whose flows disagree most, left out (isometric.track_grid), each a tracker")
-    parser.add_argument("--set", action="append", default=[], metavar="FIELD=V[,V]",
+    parser.add_argument("--set", action="append", default=[], metavar="FIELD=V[,V]", type=setting,
                         help="a GeneratorConfig field of the sheets, one value or lo,hi (e.g. sheet_relief=0,0), repeatable")
     parser.add_argument("--flat-start", action="store_true", help="every sheet starts unbent (GeneratorConfig.sheet_flat_start)")
     parser.add_argument("--relief", type=lambda text: text.split(","), default=["frame"], help="fuse's relief: frame, video or both")
@@ -139,7 +143,7 @@ def main() -> None:
         extra = {} if azimuth is None else {"light_azimuth": azimuth}
         fields = dict(frames=args.frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=args.phases, sheet_flat_start=args.flat_start,
                       texture_families=args.textures, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
-        config = GeneratorConfig(**{**fields, **dict(setting(item) for item in args.set)})
+        config = GeneratorConfig(**{**fields, **dict(args.set)})
         clips = generate_clips(args.videos, seed=SEED, config=config, start=args.start, vertices=bool({"truth", "in view"} & set(args.trackers)))
         rows, start = [], time.perf_counter()
         for k, (video, truth, params) in enumerate(zip(clips.video, clips.depth, clips.params)):

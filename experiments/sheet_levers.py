@@ -81,7 +81,7 @@ def main() -> None:
     every_label = lambda name, n: name if n == 1 else (f"{name}:every={n}" if name != "default" else f"every={n}")  # noqa: E731
     label = lambda name, n, scale=scales[0]: every_label(name, n) + ("" if scale == scales[0] else f":scale={scale:g}")  # noqa: E731
     if args.truth:  # the reference's programs on the true tracks
-        settings, levers = settings + ["truth"], levers + [dict(levers[0], truth=True, hold=0)]
+        settings, levers = settings + ["truth"], levers + [dict(levers[0], truth=True, hold=0, keep=0.0)]
     names = [label(s or "default", n, scale) for s in settings for n in everies for scale in scales]
     rows = []
     if args.csv is not None and args.csv.exists():  # a stopped run's rows: kept, their videos skipped
