@@ -267,6 +267,9 @@ def test_points_on_blank_paper_are_rarely_held_and_points_on_print_always():
     assert blank.sum() >= 4 and printed.sum() >= 4
     assert (share[blank] <= 0.2).all() and (share[printed] == 1.0).all()
     assert held_share(xy, video.shape[1:]) < share[printed].mean()  # the whole video's share counts the blank points too
+    for bad in (xy[0], np.zeros((0, 4, 2)), xy[..., :1]):
+        with pytest.raises(ValueError, match="xy: expected tracks"):
+            point_held_shares(bad, video.shape[1:])
 
 
 def test_a_stream_of_frames_is_followed_as_the_array_is():

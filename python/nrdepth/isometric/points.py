@@ -271,6 +271,9 @@ def point_held_shares(xy: np.ndarray, shape: Tuple[int, int]) -> np.ndarray:
 
 def _held_counts(xy: np.ndarray, shape: Tuple[int, int]) -> Tuple[np.ndarray, np.ndarray]:
     """Each point's frames after the first held, and lost while in view (n,), (n,)."""
+    xy = np.asarray(xy)
+    if xy.ndim != 3 or xy.shape[2] != 2 or len(xy) == 0:
+        raise ValueError(f"xy: expected tracks (T, n, 2) with T >= 1, got shape {xy.shape}")
     last = xy[0].copy()
     held = np.zeros(xy.shape[1], int)
     lost = np.zeros(xy.shape[1], int)
