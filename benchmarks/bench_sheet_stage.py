@@ -15,7 +15,8 @@ n-th frame's program solved, the rest linear in time), ``points``, ``hold``
 (1: each point found again by its look in the first frame), ``backward``
 (0: the forward flow alone), ``drop`` (the share of points left out; 0 with
 ``backward=0``), ``keep`` (with ``hold``: only the points held in at least
-this share of their frames in view, ``isometric.point_held_shares``).
+this share of their frames in view, ``isometric.point_held_shares``),
+``each`` (``mdh_depths``' ``each_frame``: program, lengths, mirror).
 
     python benchmarks/bench_sheet_stage.py [--threads 2] [--settings margin=none,margin=48,margin=48:keyframes=12:every=3]
 """
@@ -43,12 +44,12 @@ def sgemm() -> float:
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program"}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
             raise SystemExit(f"--settings: unknown lever {key!r} (known: {', '.join(out)})")
-        out[key] = value if key == "flow" else float(value) if key in ("drop", "keep") else (None if value == "none" else int(value))
+        out[key] = value if key in ("flow", "each") else float(value) if key in ("drop", "keep") else (None if value == "none" else int(value))
     if out["keep"] and not out["hold"]:
         raise SystemExit(f"--settings {setting!r}: keep needs hold=1")
     if not out["backward"] and out["drop"]:
@@ -122,7 +123,8 @@ def main() -> None:
                                   hold=bool(lever["hold"]), backward=bool(lever["backward"]))
         xy = keep_held(xy, frames.shape[1:], lever)
         tracked = time.perf_counter()
-        depths = isometric.mdh_depths(xy, camera, keyframes=lever["keyframes"], neighbours=lever["neighbours"], every=lever["every"])
+        depths = isometric.mdh_depths(xy, camera, keyframes=lever["keyframes"], neighbours=lever["neighbours"], every=lever["every"],
+                                       each_frame=lever["each"])
         solved = time.perf_counter()
         dense = densify(xy - np.array([rx, ry]), depths, network.shape)
         scales = [ISOMETRIC_SCALE] if args.scales is None else [float(v) for v in args.scales.split(",")]

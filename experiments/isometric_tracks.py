@@ -18,11 +18,12 @@ frame's GBR) at the truth's points:
   points kept, beside the truth's positions of those points.
 
 ``--template``: ``mdh_depths``'s template distances, each read in turn
-(``joint``, ``refined``). ``--noise``: also at the truth's positions plus
+(``joint``, ``refined``), with each of ``--each-frame`` (``mdh_depths``'s
+``each_frame``: ``program``, ``lengths``, ``mirror``). ``--noise``: also at the truth's positions plus
 independent Gaussian noise of each standard deviation given (pixels, seed
 0): noise of no spatial pattern, beside a tracker's drift.
 
-    python experiments/isometric_tracks.py [--template joint,refined] [--noise 0.25,0.5,1] [--drop 0,0.1,0.2]
+    python experiments/isometric_tracks.py [--template joint,refined] [--each-frame program,lengths,mirror] [--noise 0.25,0.5,1] [--drop 0,0.1,0.2]
 """
 
 from __future__ import annotations
@@ -72,6 +73,8 @@ def main() -> None:
     parser.add_argument("--template", type=lambda text: text.split(","), default=["joint"], help="mdh_depths's template distances, each read in turn")
     parser.add_argument("--drop", type=lambda text: [float(v) for v in text.split(",")], default=[0.0],
                         help="shares of the points whose flows both ways disagree most, left out of the last reading (track_grid's drop)")
+    parser.add_argument("--each-frame", type=lambda text: text.split(","), default=["program"],
+                        help="mdh_depths's each_frame (program, lengths, mirror), each read in turn with each template")
     parser.add_argument("--noise", type=lambda text: [float(v) for v in text.split(",")], default=[], help="standard deviations in pixels")
     args = parser.parse_args()
     truth = kinect_truth()
@@ -79,12 +82,15 @@ def main() -> None:
     focal, centre = (K[0, 0], K[1, 1]), (K[0, 2], K[1, 2])
     uv = truth["uv"].transpose(0, 2, 1)  # (23, 301, 2)
     frames_with_truth = list(truth["frames"])
-    read = lambda xy, keyframes, template: mdh_depths(xy, focal, centre, neighbours=NEIGHBOURS, keyframes=keyframes, template=template)  # noqa: E731
-    for template in args.template:
-        print(f"{template}: the truth's image positions, {len(uv)} frames: {score(read(uv, len(uv), template), uv, truth['z']):.2f} mm")
+    readings = [(template, each) for template in args.template for each in args.each_frame]
+    names = {reading: reading[0] if args.each_frame == ["program"] else "{}, each frame {}".format(*reading) for reading in readings}
+    read = lambda xy, keyframes, reading: mdh_depths(xy, focal, centre, neighbours=NEIGHBOURS, keyframes=keyframes, template=reading[0],  # noqa: E731
+                                                     each_frame=reading[1])
+    for template in readings:
+        print(f"{names[template]}: the truth's image positions, {len(uv)} frames: {score(read(uv, len(uv), template), uv, truth['z']):.2f} mm")
     for sigma in args.noise:
         noisy = uv + np.random.default_rng(0).normal(0, sigma, uv.shape)
-        print(f"the truth's positions plus noise of {sigma:g} px: " + ", ".join(f"{template} {score(read(noisy, len(uv), template), uv, truth['z']):.2f} mm" for template in args.template))
+        print(f"the truth's positions plus noise of {sigma:g} px: " + ", ".join(f"{names[template]} {score(read(noisy, len(uv), template), uv, truth['z']):.2f} mm" for template in readings))
     video = read_video(DATA / "kinect_paper").frames
     span = [i for i, f in enumerate(frames_with_truth) if f <= 112]
     for tracker in ("Lucas–Kanade", "Farneback"):
@@ -93,8 +99,8 @@ def main() -> None:
         print(f"{tracker}: median distance from the truth's positions after frame 112: " + ", ".join(f"{f}: {d:.1f}" for f, d in later.items()) + " px")
         tracked = np.stack([positions[frames_with_truth[i]] for i in span])
         drift = np.median(np.linalg.norm(tracked - uv[span], axis=2), axis=1)
-        for template in args.template:
-            print(f"{template}, {tracker}, frames {frames_with_truth[span[0]]}–{frames_with_truth[span[-1]]} ({len(span)} with truth): "
+        for template in readings:
+            print(f"{names[template]}, {tracker}, frames {frames_with_truth[span[0]]}–{frames_with_truth[span[-1]]} ({len(span)} with truth): "
                   f"{score(read(tracked, len(span), template), uv[span], truth['z'][span]):.2f} mm (the truth's positions: "
                   f"{score(read(uv[span], len(span), template), uv[span], truth['z'][span]):.2f}); "
                   f"median drift from the truth's positions {drift.mean():.2f} px over the frames, {drift[-1]:.2f} at the last")
@@ -103,8 +109,8 @@ def main() -> None:
     for drop in args.drop:
         kept = least_disagreeing(disagreement, drop)  # track_grid's drop
         drift = np.median(np.linalg.norm(followed[seen][:, kept] - uv[:, kept], axis=2), axis=1)
-        for template in args.template:
-            print(f"{template}, the flow both ways, frames {frames_with_truth[0]}–{len(video) - 1}, 24 keyframes, {len(kept)} points (drop {drop:g}): "
+        for template in readings:
+            print(f"{names[template]}, the flow both ways, frames {frames_with_truth[0]}–{len(video) - 1}, 24 keyframes, {len(kept)} points (drop {drop:g}): "
                   f"{score(read(followed[:, kept], 24, template)[seen], uv[:, kept], truth['z'][:, kept]):.2f} mm "
                   f"(at the truth's positions: {score(read(uv[:, kept], len(uv), template), uv[:, kept], truth['z'][:, kept]):.2f}); "
                   f"median drift {drift.mean():.2f} px over the 23 frames, {drift[-1]:.2f} at the last", flush=True)

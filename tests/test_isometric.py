@@ -446,6 +446,46 @@ def test_neighbour_pairs_agree_with_brute_force():
         assert {tuple(p) for p in isometric.neighbour_pairs(xy, neighbours, far, reach)} == brute
 
 
+def test_the_mirror_turns_the_bend_over_on_the_same_rays_and_keeps_a_plane():
+    xy, truth = rolled_sheet()
+    rays = nrdepth.Camera(FOCAL, (0.0, 0.0)).rays(xy[-1])
+    points = rays * truth[-1, :, None]
+    plane = np.linalg.lstsq(np.column_stack([points[:, :2], np.ones(len(points))]), points[:, 2], rcond=None)[0]
+    height = lambda p: p[:, 2] - np.column_stack([p[:, :2], np.ones(len(p))]) @ plane  # noqa: E731
+    mirrored = rays * isometric.mirror_depths(rays, truth[-1])[:, None]
+    assert np.allclose(height(mirrored), -height(points), atol=1e-9)
+    assert np.allclose(mirrored[:, :2] / mirrored[:, 2:], points[:, :2] / points[:, 2:])  # the same image
+    flat = 4.0 / (1 - 0.3 * rays[:, 0] + 0.2 * rays[:, 1])  # the plane Z = 4 + 0.3 X − 0.2 Y along the rays
+    assert np.allclose(isometric.mirror_depths(rays, flat), flat)
+
+
+def test_the_frame_that_keeps_its_lengths_is_the_truth_not_its_mirror():
+    # Through a pinhole a bent sheet and its mirror differ: from either, keeping the pairs' lengths gives back the truth.
+    xy, truth = rolled_sheet()
+    rays = nrdepth.Camera(FOCAL, (0.0, 0.0)).rays(xy[-1])
+    pairs = isometric.neighbour_pairs(xy[-1], 8)
+    points = rays * truth[-1, :, None]
+    distances = np.linalg.norm(points[pairs[:, 0]] - points[pairs[:, 1]], axis=1)
+    kept, strain = isometric.keep_lengths(rays, pairs, truth[-1] * (1 + 0.02 * np.sin(np.arange(len(rays)))), distances)
+    assert strain < 1e-4 and np.allclose(kept, truth[-1], rtol=1e-3)
+    for start, mirrored in ((truth[-1], False), (isometric.mirror_depths(rays, truth[-1]), True)):
+        depths, was_mirror = isometric.mirror_or_not(rays, pairs, start, distances)
+        assert was_mirror is mirrored and np.allclose(depths, truth[-1], rtol=1e-3)
+    _, mirror_strain = isometric.keep_lengths(rays, pairs, isometric.mirror_depths(rays, truth[-1]), distances, evaluations=1)
+    assert mirror_strain > 10 * strain  # the mirror does not keep them
+
+
+def test_mdh_each_frame_keeps_the_lengths_the_program_only_bounds():
+    xy, truth = rolled_sheet()
+    program = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4)
+    kept = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, each_frame="lengths")
+    assert relief_error(kept, truth, xy)[2:].mean() < 0.7 * relief_error(program, truth, xy)[2:].mean()  # the bent frames
+    # The program bends this roll the right way: no frame is taken mirrored.
+    assert np.array_equal(isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, each_frame="mirror"), kept)
+    with pytest.raises(ValueError, match="each_frame"):
+        isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), each_frame="best")
+
+
 def test_bad_input_names_the_argument():
     xy, _ = rolled_sheet(frames=4, side=5)
     video = np.zeros((3, 32, 32), np.uint8)

@@ -16,9 +16,10 @@ import numpy as np
 
 from ..baselines.tracks import densify
 from ..camera import Camera
+from .mirror import keep_lengths, mirror_or_not
 from .points import DROP, check_video, track_grid
 
-__all__ = ["neighbour_pairs", "mdh_depths", "isometric_depth", "TooFewPoints", "TEMPLATES"]
+__all__ = ["neighbour_pairs", "mdh_depths", "isometric_depth", "TooFewPoints", "TEMPLATES", "EACH_FRAME"]
 
 
 class TooFewPoints(ValueError):
@@ -180,6 +181,9 @@ def _refine(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distances: 
 TEMPLATES = ("joint", "refined", "first")
 """Where :func:`mdh_depths` takes the template distances from, when it is not given them."""
 
+EACH_FRAME = ("program", "lengths", "mirror")
+"""What :func:`mdh_depths` makes of each solved frame's depths."""
+
 
 def _check_template(template: str) -> None:
     if template not in TEMPLATES:
@@ -187,7 +191,8 @@ def _check_template(template: str) -> None:
 
 
 def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]], centre: Optional[Tuple[float, float]] = None, pairs: Optional[np.ndarray] = None, neighbours: int = 20,
-               keyframes: int = 24, far: int = 0, reach: int = 0, template="joint", evaluations: int = 100, every: int = 1) -> np.ndarray:
+               keyframes: int = 24, far: int = 0, reach: int = 0, template="joint", evaluations: int = 100, every: int = 1,
+               each_frame: str = "program", with_distances: bool = False) -> Union[np.ndarray, Tuple[np.ndarray, np.ndarray]]:
     """Depths (T, n) of tracked points ``xy`` (T, n, 2) by the maximum-depth
     heuristic (module docstring); NaN where ``xy`` is NaN, a point out of
     view in that frame (:func:`track_points`), whose pairs bind nothing
@@ -213,7 +218,14 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
     their units. ``every``: only every ``every``-th frame (and the last) is
     solved; each point's depth in the frames between is linear in time
     between the two solved around it (a sheet's large-scale shape changes
-    little in a few frames)."""
+    little in a few frames). ``each_frame``: what each solved frame's
+    depths are: "program", the maximum-depth program's with the distances
+    fixed; "lengths", those refined so that each pair keeps its template
+    distance (:func:`~nrdepth.isometric.keep_lengths`); "mirror", the same
+    refined from the program's answer and from its mirror, whichever keeps
+    the lengths better (:func:`~nrdepth.isometric.mirror_or_not`: the
+    program bends every sheet away from the camera). ``with_distances``: also return the pairs'
+    template distances (E,) used, in the depths' units."""
     camera = camera if isinstance(camera, Camera) else Camera(camera, centre)
     if camera.centre is None:
         raise ValueError("centre: expected the principal point (c_x, c_y) in pixels, got None")
@@ -226,6 +238,8 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
         raise ValueError(f"every: expected an int >= 1 (1: every frame solved), got {every!r}")
     if not (isinstance(evaluations, (int, np.integer)) and evaluations >= 1):
         raise ValueError(f"evaluations: expected an int >= 1, got {evaluations!r}")
+    if each_frame not in EACH_FRAME:
+        raise ValueError(f"each_frame: expected one of {EACH_FRAME}, got {each_frame!r}")
     if isinstance(template, str):
         _check_template(template)
     elif pairs is None:
@@ -268,9 +282,19 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
             depths[t] = solved
     finally:
         pool.shutdown(cancel_futures=True)  # on Ctrl-C: the frames not yet started are dropped, not waited for
+    if each_frame != "program":
+        depths[~seen] = np.nan
+        fit = (lambda t: keep_lengths(rays[t], pairs, depths[t], distances)[0]) if each_frame == "lengths" else \
+            (lambda t: mirror_or_not(rays[t], pairs, depths[t], distances)[0])
+        pool = ThreadPoolExecutor(max_workers=max(1, min(len(anchors), os.cpu_count() or 1)))
+        try:
+            for t, fitted in zip(anchors, pool.map(fit, anchors)):
+                depths[t] = fitted
+        finally:
+            pool.shutdown(cancel_futures=True)
     if len(anchors) < T:
         _between(depths, anchors, seen)
-    return depths
+    return (depths, distances) if with_distances else depths
 
 
 def _between(depths: np.ndarray, anchors: np.ndarray, seen: np.ndarray) -> None:

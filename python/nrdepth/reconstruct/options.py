@@ -24,7 +24,7 @@ import numpy as np
 
 from ..camera import Camera
 from ..checks import is_number, option_error
-from ..isometric import DROP, TEMPLATES
+from ..isometric import DROP, EACH_FRAME, TEMPLATES
 from .fine import check_tile
 from .stitch import ALIGNMENTS, COARSE_WEIGHT, TEMPORAL_WEIGHT, WINDOWS, check_stitching
 
@@ -166,6 +166,10 @@ class ReconstructOptions:
                                       "(each pair held to its distance in every keyframe; for a long video of a sheet bent many ways, with "
                                       "isometric_drop 0.3 and isometric_scale 0.2), first (the first frame a flat sheet facing the camera)",
                                       choices=TEMPLATES)
+    isometric_each_frame: str = _option(EACH_FRAME[0], "with focal: each frame's depths (nrdepth.isometric.mdh_depths' each_frame): program "
+                                        "(the maximum-depth program's), lengths (refined so that each pair keeps its template distance), "
+                                        "mirror (the same, from the program's answer or its mirror, whichever keeps the lengths better)",
+                                        choices=EACH_FRAME)
     isometric_drop: float = _option(ISOMETRIC_DROP, "with focal: the share of the points left out where the flow's two directions disagree most",
                                     type=float)
     isometric_hold: bool = _option(ISOMETRIC_HOLD, "with focal: each point found again after every step of the flow by its look in the "
@@ -262,7 +266,7 @@ def _check(o: ReconstructOptions) -> None:
 
 def _check_sheet(o: ReconstructOptions) -> None:
     if o.focal is None:
-        given = [name for name in ("centre", "sheet", "isometric_template", "isometric_drop", "isometric_points", "isometric_hold")
+        given = [name for name in ("centre", "sheet", "isometric_template", "isometric_each_frame", "isometric_drop", "isometric_points", "isometric_hold")
                  if _differs(getattr(o, name), _DEFAULTS[name])]
         if given:
             raise option_error("focal", f"the isometric depth's options ({', '.join(given)}) need the camera's focal length")
@@ -278,6 +282,8 @@ def _check_sheet(o: ReconstructOptions) -> None:
         raise option_error("focal", "the isometric shape comes with units='standard' and temporal off only")
     if o.isometric_template not in TEMPLATES:
         raise option_error("isometric_template", f"expected one of {TEMPLATES}, got {o.isometric_template!r}")
+    if o.isometric_each_frame not in EACH_FRAME:
+        raise option_error("isometric_each_frame", f"expected one of {EACH_FRAME}, got {o.isometric_each_frame!r}")
     if not (is_number(o.isometric_drop) and 0 <= o.isometric_drop < 1):
         raise option_error("isometric_drop", f"expected a share of the points in [0, 1), got {o.isometric_drop!r}")
     if isinstance(o.isometric_points, bool) or not isinstance(o.isometric_points, (int, np.integer)) or o.isometric_points < 4:

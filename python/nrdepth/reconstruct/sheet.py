@@ -174,7 +174,7 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
         return SheetDecision(False, f"the video does not move (the points {motion:.2f} px at most from where they start, < {MIN_MOTION:g})", **record)
     cheaper = {"keyframes": KEYFRAMES, "every": EVERY} if options.isometric_template == "joint" else {}  # what the rule read
     try:
-        depths = mdh_depths(xy, camera, template=options.isometric_template, **cheaper)
+        depths = mdh_depths(xy, camera, template=options.isometric_template, each_frame=options.isometric_each_frame, **cheaper)
     except TooFewPoints as error:
         return SheetDecision(False, f"too few points held in frames {error.frames[:5]}", **record)
     x, y, w_region, h_region = options.roi or (0, 0, region.shape[1], region.shape[0])

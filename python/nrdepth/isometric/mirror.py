@@ -1,0 +1,92 @@
+"""Each frame's shape or its mirror. The maximum-depth program
+(:mod:`~nrdepth.isometric.mdh`) pulls a frame's sheet as far from the
+camera as its pairs allow, so a sheet bent towards the camera comes out
+bent away from it: its mirror, which an orthographic camera could not
+tell apart, but a pinhole can. Each frame's depths are refined so that
+every pair keeps its template distance, once from the program's answer
+and once from its mirror, and the start that keeps the lengths better is
+taken.
+
+Frames and units: rays scaled to z = 1 (:meth:`~nrdepth.Camera.rays`);
+depths along the optical axis in the template distances' units.
+"""
+
+from __future__ import annotations
+
+from typing import Tuple
+
+import numpy as np
+
+__all__ = ["mirror_depths", "keep_lengths", "mirror_or_not"]
+
+
+def mirror_depths(rays: np.ndarray, depths: np.ndarray) -> np.ndarray:
+    """The depths (n,) that put each point of one frame (``rays`` (n, 3),
+    ``depths`` (n,), NaN: out of view) as far on the other side of the
+    points' best plane ``Z = a X + b Y + c`` as it was on this one,
+    measured along the optical axis, on its own ray: the image stays, the
+    bend turns over. Depths kept positive."""
+    seen = np.isfinite(depths)
+    points = rays[seen] * depths[seen, None]
+    (a, b, c), *_ = np.linalg.lstsq(np.column_stack([points[:, 0], points[:, 1], np.ones(len(points))]), points[:, 2], rcond=None)
+    height = points[:, 2] - (a * points[:, 0] + b * points[:, 1] + c)
+    slant = 1.0 - a * rays[seen, 0] - b * rays[seen, 1]  # > 0 unless the plane holds the ray
+    out = np.full_like(depths, np.nan)
+    out[seen] = np.maximum((c - height) / np.maximum(slant, 1e-6), 1e-6 * abs(c))
+    return out
+
+
+def keep_lengths(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distances: np.ndarray,
+                 evaluations: int = 50) -> Tuple[np.ndarray, float]:
+    """One frame's depths (n,) refined from ``depths`` (NaN: out of view)
+    so that each pair (``pairs`` (E, 2)) in view keeps its template
+    distance (``distances`` (E,)): least squares of the strains
+    ``‖Z_i r_i − Z_j r_j‖ / D_ij − 1``, depths kept positive, at most
+    ``evaluations`` evaluations; and the strains' root mean square at the
+    end (how well the frame keeps its lengths)."""
+    from scipy import sparse
+    from scipy.optimize import least_squares
+    from threadpoolctl import threadpool_limits
+
+    seen = np.isfinite(depths)
+    active = seen[pairs[:, 0]] & seen[pairs[:, 1]]
+    i, j, distance = pairs[active, 0], pairs[active, 1], distances[active]
+    variable = np.full(len(depths), -1)
+    variable[seen] = np.arange(np.count_nonzero(seen))
+    vi, vj = variable[i], variable[j]
+    ray_i, ray_j = rays[i], rays[j]
+    K, N = len(i), int(np.count_nonzero(seen))
+    rows = np.concatenate([np.arange(K), np.arange(K)])
+    columns = np.concatenate([vi, vj])
+
+    def chords(z: np.ndarray) -> np.ndarray:
+        return z[vi, None] * ray_i - z[vj, None] * ray_j
+
+    def residuals(z: np.ndarray) -> np.ndarray:
+        return np.linalg.norm(chords(z), axis=1) / distance - 1
+
+    def jacobian(z: np.ndarray) -> sparse.csr_matrix:
+        chord = chords(z)
+        unit = chord / np.maximum(np.linalg.norm(chord, axis=1), 1e-12)[:, None]
+        values = np.concatenate([np.einsum("ka,ka->k", unit, ray_i) / distance, -np.einsum("ka,ka->k", unit, ray_j) / distance])
+        return sparse.csr_matrix((values, (rows, columns)), shape=(K, N))
+
+    out = np.full_like(depths, np.nan)
+    if K == 0:
+        return out, np.nan
+    # One BLAS thread: the answer's bytes do not depend on the thread count (as in mdh._refine).
+    with threadpool_limits(limits=1, user_api="blas"):
+        fit = least_squares(residuals, np.maximum(depths[seen], 1e-9), jac=jacobian, bounds=(0, np.inf), method="trf",
+                            tr_solver="lsmr", x_scale="jac", max_nfev=evaluations)
+    out[seen] = fit.x
+    return out, float(np.sqrt(np.mean(fit.fun**2)))
+
+
+def mirror_or_not(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distances: np.ndarray,
+                  evaluations: int = 50) -> Tuple[np.ndarray, bool]:
+    """One frame's depths (n,) refined by :func:`keep_lengths` from the
+    program's ``depths`` and from their mirror (:func:`mirror_depths`),
+    whichever keeps the lengths better, and whether it was the mirror."""
+    straight, strain = keep_lengths(rays, pairs, depths, distances, evaluations)
+    mirrored, mirrored_strain = keep_lengths(rays, pairs, mirror_depths(rays, depths), distances, evaluations)
+    return (mirrored, True) if mirrored_strain < strain else (straight, False)
