@@ -116,12 +116,14 @@ def test_mdh_fixed_distances_give_back_the_joint_solution():
         np.testing.assert_allclose(alone[0], joint[t], rtol=1e-4)
 
 
-def test_mdh_is_reproducible_at_any_thread_count(monkeypatch):
+@pytest.mark.parametrize("each_frame", ["program", "mirror"])
+def test_mdh_is_reproducible_at_any_thread_count(monkeypatch, each_frame):
     xy, _ = rolled_sheet(frames=6, side=7)
-    first = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=6, keyframes=3)
-    assert first.tobytes() == isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=6, keyframes=3).tobytes()
+    read = lambda: isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=6, keyframes=3, each_frame=each_frame)  # noqa: E731
+    first = read()
+    assert first.tobytes() == read().tobytes()
     monkeypatch.setattr(isometric.mdh.os, "cpu_count", lambda: 1)  # the frames outside the keyframes one after another
-    assert first.tobytes() == isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=6, keyframes=3).tobytes()
+    assert first.tobytes() == read().tobytes()
 
 
 def test_mdh_refined_is_the_same_at_one_and_two_blas_threads():

@@ -286,12 +286,16 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
         depths[~seen] = np.nan
         fit = (lambda t: keep_lengths(rays[t], pairs, depths[t], distances)[0]) if each_frame == "lengths" else \
             (lambda t: mirror_or_not(rays[t], pairs, depths[t], distances)[0])
-        pool = ThreadPoolExecutor(max_workers=max(1, min(len(anchors), os.cpu_count() or 1)))
-        try:
-            for t, fitted in zip(anchors, pool.map(fit, anchors)):
-                depths[t] = fitted
-        finally:
-            pool.shutdown(cancel_futures=True)
+        from threadpoolctl import threadpool_limits
+
+        # One BLAS thread around the whole pool: threadpoolctl's limits are the process's, not a thread's.
+        with threadpool_limits(limits=1, user_api="blas"):
+            pool = ThreadPoolExecutor(max_workers=max(1, min(len(anchors), os.cpu_count() or 1)))
+            try:
+                for t, fitted in zip(anchors, pool.map(fit, anchors)):
+                    depths[t] = fitted
+            finally:
+                pool.shutdown(cancel_futures=True)
     if len(anchors) < T:
         _between(depths, anchors, seen)
     return (depths, distances) if with_distances else depths

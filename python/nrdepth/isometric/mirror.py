@@ -1,11 +1,13 @@
-"""Each frame's shape or its mirror. The maximum-depth program
-(:mod:`~nrdepth.isometric.mdh`) pulls a frame's sheet as far from the
-camera as its pairs allow, so a sheet bent towards the camera comes out
-bent away from it: its mirror, which an orthographic camera could not
-tell apart, but a pinhole can. Each frame's depths are refined so that
-every pair keeps its template distance, once from the program's answer
-and once from its mirror, and the start that keeps the lengths better is
-taken.
+"""Each frame's lengths kept, and its shape or its mirror. The
+maximum-depth program (:mod:`~nrdepth.isometric.mdh`) only bounds each
+pair's distance, and pulls a frame's sheet as far from the camera as
+they allow: a taut dome, and a sheet bent towards the camera comes out
+bent away from it, its mirror. :func:`keep_lengths` refines a frame so
+that every pair keeps its template distance; :func:`mirror_or_not` does
+so from the program's answer and from its mirror and takes the start
+that keeps the lengths better. An orthographic camera cannot tell a
+shape from its mirror; a pinhole can where the sheet bends enough for
+its size (docs/campaign.md, "Sheets that bend as real sheets do").
 
 Frames and units: rays scaled to z = 1 (:meth:`~nrdepth.Camera.rays`);
 depths along the optical axis in the template distances' units.
