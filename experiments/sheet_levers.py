@@ -9,12 +9,16 @@ the stage's defaults otherwise (``reconstruct(focal=...)``'s points, drop
 and scale): per-frame MAE-SN of each, and its seconds for the points and
 the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 ``benchmarks/bench_sheet_stage.py`` (``margin``, ``flow``, ``keyframes``,
-``neighbours``, ``points``, ``hold``, ``backward``, ``drop``, ``keep``); the first is the reference, each
+``neighbours``, ``points``, ``hold``, ``backward``, ``drop``, ``keep``, ``each``); the first is the reference, each
 other is paired against it. ``--scales``: each also fused at each scale. ``--truth``: the first setting's programs also read the sheet's true
 tracks (the mesh's vertices nearest the points' grid, where a tracker
 could still hold them: ``isometric_generated.true_tracks``), named
 ``truth``: what the tracker costs. ``--families``: the sheets' texture
-families. ``--every``: each setting also with only every
+families. ``--set``: any other ``GeneratorConfig`` field of the sheets
+(e.g. the paper-like sheets' ``backdrop_probability=1``; over a backdrop
+the points go over the sheet in the first frame, where its truth is, as
+``reconstruct(sheet=mask)`` puts them, and every figure is over the
+sheet's pixels). ``--every``: each setting also with only every
 n-th frame's program solved, the rest linear in time (``mdh_depths``'s
 ``every``; read off the setting's own every-frame depths, which it
 solves alike in those frames, so it costs nothing more here). The rule that reads this is in
@@ -47,7 +51,7 @@ from nrdepth.scores.metrics import dense_baselines, mae_sn
 sys.path.insert(0, str(Path(__file__).parent))
 sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
 from bench_sheet_stage import keep_held, parse  # noqa: E402
-from isometric_generated import SEED, camera, in_view, true_tracks  # noqa: E402
+from isometric_generated import SEED, camera, in_view, setting, true_tracks  # noqa: E402
 
 
 def main() -> None:
@@ -68,6 +72,8 @@ def main() -> None:
                         "the sheet reads as the network")
     parser.add_argument("--families", default=",".join(SHEET_FAMILIES), help="the sheets' texture families (comma-separated)")
     parser.add_argument("--truth", action="store_true", help="also the first setting's programs on the sheet's true tracks (named truth)")
+    parser.add_argument("--set", action="append", default=[], metavar="FIELD=V[,V]", type=setting,
+                        help="a GeneratorConfig field of the sheets, one value or lo,hi (e.g. backdrop_probability=1), repeatable")
     parser.add_argument("--lights", default="below,above", help="the sheets lit from below, above, or both (each its own --videos)")
     parser.add_argument("--csv", type=Path, default=None, help="each video's row, written as it is read; a CSV already there is resumed "
                         "(its rows kept, its videos not read again)")
@@ -92,8 +98,9 @@ def main() -> None:
         if light not in args.lights.split(","):
             continue
         extra = {} if azimuth is None else {"light_azimuth": azimuth}
-        config = GeneratorConfig(frames=args.frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=args.phases,
-                                 texture_families=tuple(args.families.split(",")), camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
+        fields = dict(frames=args.frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=args.phases,
+                      texture_families=tuple(args.families.split(",")), camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
+        config = GeneratorConfig(**{**fields, **dict(args.set)})
         clips = generate_clips(args.videos, seed=SEED, config=config, start=args.start, vertices=args.truth)
         for k, (video, truth, params) in enumerate(zip(clips.video, clips.depth, clips.params)):
             if (light, args.start + k) in done:
@@ -104,19 +111,21 @@ def main() -> None:
                 continue
             focal, centre = camera(params, config.size)
             network = nrdepth.reconstruct(video).astype(np.float64)
-            row = {"light": light, "clip": args.start + k, "network per frame": mae_sn(network, truth)}
-            base = dense_baselines(truth)
+            on = np.isfinite(truth)  # NaN off the sheet over a backdrop
+            region = None if on.all() else on[0]
+            row = {"light": light, "clip": args.start + k, "network per frame": mae_sn(network, truth, mask=on)}
+            base = dense_baselines(truth, on)
             row["plane per frame"], row["bowl per frame"] = base["plane"], base["bowl"]
             tracks = {}
             for name, lever in zip([s or "default" for s in settings], levers):
                 start = time.perf_counter()
-                key = (lever["flow"], lever["margin"], lever["points"], lever["hold"], lever["backward"], lever["drop"])  # keep: a filter of the held tracks
+                key = (lever["flow"], lever["margin"], lever["points"], lever["hold"], lever["backward"], lever["drop"])  # keep, each: after the tracks
                 if lever.get("truth"):
                     truth_xy, _ = true_tracks(clips.vertices[k], params, config.size, points=lever["points"])
                     tracks[key + ("truth",)] = np.where(in_view(truth_xy, config.size)[..., None], truth_xy, np.nan)
                     key += ("truth",)
                 elif key not in tracks:
-                    tracks[key] = isometric.track_grid(video, points=lever["points"], drop=lever["drop"], flow=lever["flow"], margin=lever["margin"],
+                    tracks[key] = isometric.track_grid(video, region, points=lever["points"], drop=lever["drop"], flow=lever["flow"], margin=lever["margin"],
                                                        hold=bool(lever["hold"]), backward=bool(lever["backward"]))
                 xy = keep_held(tracks[key], video.shape[1:], lever)
                 tracked = time.perf_counter()
@@ -127,7 +136,7 @@ def main() -> None:
                         raise ValueError(f"{held:.2f} of the point-frames held")
                     # One every: solved as the stage solves it; several: read off the every-frame solution
                     depths = isometric.mdh_depths(xy, focal, centre, keyframes=lever["keyframes"], neighbours=lever["neighbours"],
-                                                  every=everies[0] if len(everies) == 1 else 1)
+                                                  every=everies[0] if len(everies) == 1 else 1, each_frame=lever["each"])
                 except ValueError as error:  # the stage steps aside: the network's depth
                     print(f"  {name}: steps aside ({error})", flush=True)
                     for n in everies:
@@ -144,7 +153,7 @@ def main() -> None:
                         _between(kept, anchors, np.isfinite(xy).all(axis=2))
                     dense = densify(xy, kept, video.shape)
                     for scale in scales:
-                        row[f"{label(name, n, scale)} per frame"] = mae_sn(isometric.fuse(network, dense, scale * config.size), truth)
+                        row[f"{label(name, n, scale)} per frame"] = mae_sn(isometric.fuse(network, dense, scale * config.size), truth, mask=on)
                 row[f"{name} points s"], row[f"{name} programs s"] = tracked - start, solved - tracked
             if args.margin_check is not None:
                 row.update(margin_shift(video, levers[0], args.margin_check))
