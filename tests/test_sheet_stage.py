@@ -108,3 +108,15 @@ def test_held_the_stage_reads_only_the_points_found_again_in_most_of_their_frame
     xy = track_grid(as_uint8(banded), points=OPTIONS["isometric_points"], drop=DROP, margin=FLOW_MARGIN, hold=True)
     kept = point_held_shares(xy, banded.shape[1:]) >= KEEP_HELD
     assert sheet["used"] and 0 < kept.sum() < len(kept) and sheet["points"] == kept.sum()
+
+
+def test_the_stage_solves_each_frame_as_asked(monkeypatch, model, bending):
+    import importlib
+
+    stage = importlib.import_module("nrdepth.reconstruct.sheet")  # nrdepth.reconstruct is also the function
+
+    asked, solve = [], stage.mdh_depths
+    monkeypatch.setattr(stage, "mdh_depths", lambda *args, **kwargs: asked.append(kwargs["each_frame"]) or solve(*args, **kwargs))
+    depths = {each: nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS, isometric_each_frame=each) for each in ("program", "lengths")}
+    assert asked == ["program", "lengths"]
+    assert np.abs(depths["lengths"] - depths["program"]).max() > 1e-3  # the frames' lengths kept change the shape
