@@ -18,7 +18,7 @@ shape-blind references.
 ``--scales``: :func:`nrdepth.isometric.fuse`'s length scale, as a fraction
 of the region's shorter side (0: the isometric depth alone); ``--relief``
 its relief scale, ``--template`` :func:`nrdepth.isometric.mdh_depths`'s
-template distances, ``--far``/``--reach`` the far pairs of
+template distances, ``--each-frame`` its ``each_frame``, ``--far``/``--reach`` the far pairs of
 :func:`nrdepth.isometric.neighbour_pairs`, ``--window`` and ``--forward``
 :func:`nrdepth.isometric.track_grid`'s flow, ``--hold`` its points held to
 the first frame, ``--drop`` the shares of its points
@@ -70,7 +70,8 @@ def phisft_crop() -> tuple:
     return data["gray"][:, top:bottom, left:right], data["depth"][:, top:bottom, left:right]
 
 
-def phisft_isometric(shape: tuple, points: int, neighbours: int, far: int, reach: int, window: int, backward: bool, template: str, drop: float, hold: bool = False) -> np.ndarray:
+def phisft_isometric(shape: tuple, points: int, neighbours: int, far: int, reach: int, window: int, backward: bool, template: str, drop: float, hold: bool = False,
+                     each_frame: str = "program") -> np.ndarray:
     """The cloth's isometric depth on the binned crop, of ``shape`` (T, H, W)."""
     from scipy.ndimage import binary_erosion
 
@@ -82,7 +83,7 @@ def phisft_isometric(shape: tuple, points: int, neighbours: int, far: int, reach
     inside = np.zeros_like(cloth)
     inside[4 * top : 4 * bottom, 4 * left : 4 * right] = True
     xy = isometric.track_grid(full, cloth & inside, points, window, backward, drop, hold=hold)
-    depths = isometric.mdh_depths(xy, FOCAL, CENTRE, neighbours=neighbours, far=far, reach=reach, template=template)
+    depths = isometric.mdh_depths(xy, FOCAL, CENTRE, neighbours=neighbours, far=far, reach=reach, template=template, each_frame=each_frame)
     binned = (xy + 0.5) / 4 - 0.5 - np.array([left, top])  # full-frame pixels to the binned crop's
     return densify(binned, depths, shape)
 
@@ -110,11 +111,12 @@ def read_all(args) -> list:
             start = time.perf_counter()
             paper = isometric.isometric_depth(frames, focal, centre, mask=print_area, points=args.points[0], neighbours=args.neighbours[0],
                                               far=args.far, reach=args.reach, window=args.window,
-                                              backward=not args.forward, template=args.template, drop=drop, hold=args.hold)
+                                              backward=not args.forward, template=args.template, drop=drop, hold=args.hold,
+                                              each_frame=args.each_frame)
             print(f"kinect_paper: isometric depth in {time.perf_counter() - start:.0f} s")
             start = time.perf_counter()
             cloth = phisft_isometric(video.shape, args.points[0], args.neighbours[0], args.far, args.reach, args.window, not args.forward, args.template, drop,
-                                     hold=args.hold)
+                                     hold=args.hold, each_frame=args.each_frame)
             print(f"phisft_R1: isometric depth in {time.perf_counter() - start:.0f} s")
         reading = "network" if scale is None else ("isometric" if scale == 0 else f"fused at {scale:g}") + (f", drop {drop:g}" if len(args.drop) > 1 else "")
         row = {"reading": reading, "drop": "" if drop is None else drop, "scale": "" if scale is None else scale}
@@ -195,6 +197,7 @@ def main() -> None:
     parser.add_argument("--hold", action="store_true", help="each point found again by its look in the first frame (isometric.track_grid's hold)")
     parser.add_argument("--template", default="joint", choices=isometric.TEMPLATES,
                         help="mdh_depths's template distances: over keyframes, refined by least squares, or the first frame as a flat sheet facing the camera")
+    parser.add_argument("--each-frame", default="program", choices=isometric.EACH_FRAME, help="mdh_depths's each_frame")
     parser.add_argument("--drop", type=numbers(float), default=[0.0],
                         help="shares of the points whose flows both ways disagree most, left out (isometric.track_grid), each read in turn (the first is used with "
                         "--grid; default 0, every point: reconstruct(focal=...) leaves out isometric.DROP)")

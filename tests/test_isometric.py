@@ -513,6 +513,8 @@ def test_bad_input_names_the_argument():
         isometric.isometric_depth(video, 0.0)
     with pytest.raises(ValueError, match="template"):
         isometric.isometric_depth(video, FOCAL, template=np.ones(4))
+    with pytest.raises(ValueError, match="each_frame"):
+        isometric.isometric_depth(video, FOCAL, each_frame="best")
     with pytest.raises(ValueError, match="scale"):
         isometric.fuse(np.zeros((1, 8, 8)), np.zeros((1, 8, 8)), -1.0)
     with pytest.raises(ValueError, match="depth, isometric"):
