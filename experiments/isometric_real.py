@@ -197,7 +197,7 @@ def main() -> None:
     parser.add_argument("--hold", action="store_true", help="each point found again by its look in the first frame (isometric.track_grid's hold)")
     parser.add_argument("--template", default="joint", choices=isometric.TEMPLATES,
                         help="mdh_depths's template distances: over keyframes, refined by least squares, or the first frame as a flat sheet facing the camera")
-    parser.add_argument("--each-frame", default="program", choices=isometric.EACH_FRAME, help="mdh_depths's each_frame")
+    parser.add_argument("--each-frame", default="program", choices=isometric.EACH_FRAME, help="mdh_depths's each_frame (default: the stage's)")
     parser.add_argument("--drop", type=numbers(float), default=[0.0],
                         help="shares of the points whose flows both ways disagree most, left out (isometric.track_grid), each read in turn (the first is used with "
                         "--grid; default 0, every point: reconstruct(focal=...) leaves out isometric.DROP)")
