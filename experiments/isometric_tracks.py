@@ -86,11 +86,11 @@ def main() -> None:
     names = {reading: reading[0] if args.each_frame == ["program"] else "{}, each frame {}".format(*reading) for reading in readings}
     read = lambda xy, keyframes, reading: mdh_depths(xy, focal, centre, neighbours=NEIGHBOURS, keyframes=keyframes, template=reading[0],  # noqa: E731
                                                      each_frame=reading[1])
-    for template in readings:
-        print(f"{names[template]}: the truth's image positions, {len(uv)} frames: {score(read(uv, len(uv), template), uv, truth['z']):.2f} mm")
+    for reading in readings:
+        print(f"{names[reading]}: the truth's image positions, {len(uv)} frames: {score(read(uv, len(uv), reading), uv, truth['z']):.2f} mm")
     for sigma in args.noise:
         noisy = uv + np.random.default_rng(0).normal(0, sigma, uv.shape)
-        print(f"the truth's positions plus noise of {sigma:g} px: " + ", ".join(f"{names[template]} {score(read(noisy, len(uv), template), uv, truth['z']):.2f} mm" for template in readings))
+        print(f"the truth's positions plus noise of {sigma:g} px: " + ", ".join(f"{names[reading]} {score(read(noisy, len(uv), reading), uv, truth['z']):.2f} mm" for reading in readings))
     video = read_video(DATA / "kinect_paper").frames
     span = [i for i, f in enumerate(frames_with_truth) if f <= 112]
     for tracker in ("Lucas–Kanade", "Farneback"):
@@ -99,20 +99,20 @@ def main() -> None:
         print(f"{tracker}: median distance from the truth's positions after frame 112: " + ", ".join(f"{f}: {d:.1f}" for f, d in later.items()) + " px")
         tracked = np.stack([positions[frames_with_truth[i]] for i in span])
         drift = np.median(np.linalg.norm(tracked - uv[span], axis=2), axis=1)
-        for template in readings:
-            print(f"{names[template]}, {tracker}, frames {frames_with_truth[span[0]]}–{frames_with_truth[span[-1]]} ({len(span)} with truth): "
-                  f"{score(read(tracked, len(span), template), uv[span], truth['z'][span]):.2f} mm (the truth's positions: "
-                  f"{score(read(uv[span], len(span), template), uv[span], truth['z'][span]):.2f}); "
+        for reading in readings:
+            print(f"{names[reading]}, {tracker}, frames {frames_with_truth[span[0]]}–{frames_with_truth[span[-1]]} ({len(span)} with truth): "
+                  f"{score(read(tracked, len(span), reading), uv[span], truth['z'][span]):.2f} mm (the truth's positions: "
+                  f"{score(read(uv[span], len(span), reading), uv[span], truth['z'][span]):.2f}); "
                   f"median drift from the truth's positions {drift.mean():.2f} px over the frames, {drift[-1]:.2f} at the last")
     followed, disagreement = track_points(video[frames_with_truth[0] :], uv[0], disagreement=True)
     seen = np.array(frames_with_truth) - frames_with_truth[0]
     for drop in args.drop:
         kept = least_disagreeing(disagreement, drop)  # track_grid's drop
         drift = np.median(np.linalg.norm(followed[seen][:, kept] - uv[:, kept], axis=2), axis=1)
-        for template in readings:
-            print(f"{names[template]}, the flow both ways, frames {frames_with_truth[0]}–{len(video) - 1}, 24 keyframes, {len(kept)} points (drop {drop:g}): "
-                  f"{score(read(followed[:, kept], 24, template)[seen], uv[:, kept], truth['z'][:, kept]):.2f} mm "
-                  f"(at the truth's positions: {score(read(uv[:, kept], len(uv), template), uv[:, kept], truth['z'][:, kept]):.2f}); "
+        for reading in readings:
+            print(f"{names[reading]}, the flow both ways, frames {frames_with_truth[0]}–{len(video) - 1}, 24 keyframes, {len(kept)} points (drop {drop:g}): "
+                  f"{score(read(followed[:, kept], 24, reading)[seen], uv[:, kept], truth['z'][:, kept]):.2f} mm "
+                  f"(at the truth's positions: {score(read(uv[:, kept], len(uv), reading), uv[:, kept], truth['z'][:, kept]):.2f}); "
                   f"median drift {drift.mean():.2f} px over the 23 frames, {drift[-1]:.2f} at the last", flush=True)
 
 
