@@ -88,6 +88,21 @@ def in_view(xy: np.ndarray, size: int) -> np.ndarray:
     return np.logical_and.accumulate(inside, axis=0)
 
 
+LIGHTS = {"below": (math.pi - 1.22, math.pi + 1.22), "above": None}
+"""The sheets' lights: azimuth 180° ± 70° (the shading prior reads them inverted), or the generator's own (from above)."""
+
+
+def long_sheets(frames: int, phases: int, textures, light: str = "above", sets=(), **fields) -> GeneratorConfig:
+    """The long generated sheets these experiments read: 256², through a
+    pinhole of 40–80°, lit from ``light`` (:data:`LIGHTS`), ``textures``
+    their families, ``sets`` (``--set``'s (field, value) pairs) and
+    ``fields`` any other ``GeneratorConfig`` field."""
+    azimuth = LIGHTS[light]
+    base = dict(frames=frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=phases, texture_families=tuple(textures),
+                camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **({} if azimuth is None else {"light_azimuth": azimuth}))
+    return GeneratorConfig(**{**base, **fields, **dict(sets)})
+
+
 def setting(item: str) -> tuple:
     """``--set``'s ``field=v`` or ``field=lo,hi`` as (field, float or (lo, hi)), the field one of ``GeneratorConfig``'s."""
     from dataclasses import fields
@@ -137,13 +152,10 @@ def main() -> None:
     names = ["network"] + [name for *_, name in fused]
     first = {name: f"fused at {s:g}{label(*combinations[0])}" for *_, s, name in fused}  # the first combination at the same scale
     every, lights = [], []
-    for light, azimuth in (("below", (math.pi - 1.22, math.pi + 1.22)), ("above", None)):
+    for light in LIGHTS:
         if light not in args.lights:
             continue
-        extra = {} if azimuth is None else {"light_azimuth": azimuth}
-        fields = dict(frames=args.frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=args.phases, sheet_flat_start=args.flat_start,
-                      texture_families=args.textures, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
-        config = GeneratorConfig(**{**fields, **dict(args.set)})
+        config = long_sheets(args.frames, args.phases, args.textures, light, args.set, sheet_flat_start=args.flat_start)
         clips = generate_clips(args.videos, seed=SEED, config=config, start=args.start, vertices=bool({"truth", "in view"} & set(args.trackers)))
         rows, start = [], time.perf_counter()
         for k, (video, truth, params) in enumerate(zip(clips.video, clips.depth, clips.params)):

@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 import nrdepth
-from nrdepth import GeneratorConfig, generate_clips, isometric
+from nrdepth import generate_clips, isometric
 from nrdepth.baselines.tracks import densify
 from nrdepth.isometric import held_share
 from nrdepth.isometric.mdh import _between
@@ -51,7 +51,7 @@ from nrdepth.scores.metrics import dense_baselines, mae_sn
 sys.path.insert(0, str(Path(__file__).parent))
 sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
 from bench_sheet_stage import keep_held, parse  # noqa: E402
-from isometric_generated import SEED, camera, in_view, setting, true_tracks  # noqa: E402
+from isometric_generated import LIGHTS, SEED, camera, in_view, long_sheets, setting, true_tracks  # noqa: E402
 
 
 def main() -> None:
@@ -94,13 +94,10 @@ def main() -> None:
         with open(args.csv, newline="") as file:
             rows = [{k: (v if k == "light" else int(v) if k == "clip" else float(v)) for k, v in row.items()} for row in csv.DictReader(file)]
     done = {(row["light"], row["clip"]) for row in rows}
-    for light, azimuth in (("below", (math.pi - 1.22, math.pi + 1.22)), ("above", None)):
+    for light in LIGHTS:
         if light not in args.lights.split(","):
             continue
-        extra = {} if azimuth is None else {"light_azimuth": azimuth}
-        fields = dict(frames=args.frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=args.phases,
-                      texture_families=tuple(args.families.split(",")), camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
-        config = GeneratorConfig(**{**fields, **dict(args.set)})
+        config = long_sheets(args.frames, args.phases, args.families.split(","), light, args.set)
         clips = generate_clips(args.videos, seed=SEED, config=config, start=args.start, vertices=args.truth)
         for k, (video, truth, params) in enumerate(zip(clips.video, clips.depth, clips.params)):
             if (light, args.start + k) in done:

@@ -21,12 +21,12 @@ import time
 
 import numpy as np
 
-from nrdepth import GeneratorConfig, generate_clips, isometric
+from nrdepth import generate_clips, isometric
 from nrdepth.baselines.tracks import densify
 from nrdepth.camera import Camera
 from nrdepth.scores.metrics import dense_baselines, mae_sn, sign_rates
 
-from isometric_generated import SEED, camera, setting, true_tracks
+from isometric_generated import SEED, camera, long_sheets, setting, true_tracks
 
 
 def main() -> None:
@@ -40,9 +40,7 @@ def main() -> None:
     parser.add_argument("--noise", type=float, default=0.0, help="px of independent noise added to the true tracks")
     parser.add_argument("--set", action="append", default=[], metavar="FIELD=V[,V]", type=setting)
     args = parser.parse_args()
-    fields = dict(frames=args.frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=args.phases, texture_families=("print",),
-                  camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), light_azimuth=(math.pi - 1.22, math.pi + 1.22))
-    config = GeneratorConfig(**{**fields, **dict(args.set)})
+    config = long_sheets(args.frames, args.phases, ("print",), "below", args.set)
     clips = generate_clips(args.videos, seed=SEED, config=config, start=args.start, vertices=True)
     names = ["program", "refined", "mirror refined", "by strain", "by truth"]
     rows, started = [], time.perf_counter()

@@ -15,15 +15,14 @@ its size gives it less to read.
 from __future__ import annotations
 
 import argparse
-import math
 
 import numpy as np
 
-from nrdepth import GeneratorConfig, generate_clips, image_points
+from nrdepth import generate_clips, image_points
 from nrdepth.camera import Camera
 from nrdepth.scores.real import data_folder
 
-from isometric_generated import SEED, camera, setting
+from isometric_generated import SEED, camera, long_sheets, setting
 
 
 def relief_over_extent(points: np.ndarray) -> float:
@@ -47,9 +46,7 @@ def main() -> None:
     offsets = clouds["offsets"]
     cloth = [relief_over_extent(clouds["points"][offsets[t] : offsets[t + 1]].astype(np.float64)) for t in range(0, len(offsets) - 1, 3)]
     print(f"phisft_R1: median {np.median(cloth):.4f}")
-    fields = dict(frames=args.frames, size=256, grid=64, sheet_probability=1.0, sheet_phases=args.phases, texture_families=("print",),
-                  camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0))
-    config = GeneratorConfig(**{**fields, **dict(args.set)})
+    config = long_sheets(args.frames, args.phases, ("print",), "above", args.set, grid=64)  # the shape, not the light, is read
     clips = generate_clips(args.videos, seed=SEED, config=config, start=args.start, vertices=True)
     medians = []
     for k, params in enumerate(clips.params):

@@ -515,6 +515,19 @@ def test_bad_input_names_the_argument():
         isometric.isometric_depth(video, FOCAL, template=np.ones(4))
     with pytest.raises(ValueError, match="each_frame"):
         isometric.isometric_depth(video, FOCAL, each_frame="best")
+    rays, pairs = np.column_stack([xy[0] / FOCAL, np.ones(len(xy[0]))]), isometric.neighbour_pairs(xy[0], 4)
+    with pytest.raises(ValueError, match="rays"):
+        isometric.mirror_depths(rays[:, :2], np.ones(len(rays)))
+    with pytest.raises(ValueError, match="depths"):
+        isometric.mirror_depths(rays, np.ones(len(rays) - 1))
+    with pytest.raises(ValueError, match="depths: expected at least 3"):
+        isometric.mirror_depths(rays, np.r_[1.0, 1.0, np.full(len(rays) - 2, np.nan)])
+    with pytest.raises(ValueError, match="pairs"):
+        isometric.keep_lengths(rays, pairs + len(rays), np.ones(len(rays)), np.ones(len(pairs)))
+    with pytest.raises(ValueError, match="distances"):
+        isometric.keep_lengths(rays, pairs, np.ones(len(rays)), -np.ones(len(pairs)))
+    with pytest.raises(ValueError, match="evaluations"):
+        isometric.mirror_or_not(rays, pairs, np.ones(len(rays)), np.ones(len(pairs)), evaluations=0)
     with pytest.raises(ValueError, match="scale"):
         isometric.fuse(np.zeros((1, 8, 8)), np.zeros((1, 8, 8)), -1.0)
     with pytest.raises(ValueError, match="depth, isometric"):

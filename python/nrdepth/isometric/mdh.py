@@ -282,8 +282,7 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
             depths[t] = solved
     finally:
         pool.shutdown(cancel_futures=True)  # on Ctrl-C: the frames not yet started are dropped, not waited for
-    if each_frame != "program":
-        depths[~seen] = np.nan
+    if each_frame != "program":  # the solved frames are NaN out of view already
         fit = (lambda t: keep_lengths(rays[t], pairs, depths[t], distances)[0]) if each_frame == "lengths" else \
             (lambda t: mirror_or_not(rays[t], pairs, depths[t], distances)[0])
         from threadpoolctl import threadpool_limits

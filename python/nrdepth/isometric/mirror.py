@@ -22,12 +22,25 @@ import numpy as np
 __all__ = ["mirror_depths", "keep_lengths", "mirror_or_not"]
 
 
+def _check_frame(rays: np.ndarray, depths: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    rays, depths = np.asarray(rays, np.float64), np.asarray(depths, np.float64)
+    if rays.ndim != 2 or rays.shape[1] != 3 or not np.isfinite(rays).all():
+        raise ValueError(f"rays: expected one frame's finite rays (n, 3), got shape {rays.shape}")
+    # Not checked positive: the cone program's answer may sit a rounding below its bound at 0.
+    if depths.shape != (len(rays),) or np.isinf(depths).any():
+        raise ValueError(f"depths: expected ({len(rays)},) depths, one a ray (NaN: out of view), got shape {depths.shape}")
+    if np.count_nonzero(np.isfinite(depths)) < 3:
+        raise ValueError("depths: expected at least 3 points in view (a plane needs 3)")
+    return rays, depths
+
+
 def mirror_depths(rays: np.ndarray, depths: np.ndarray) -> np.ndarray:
     """The depths (n,) that put each point of one frame (``rays`` (n, 3),
     ``depths`` (n,), NaN: out of view) as far on the other side of the
     points' best plane ``Z = a X + b Y + c`` as it was on this one,
     measured along the optical axis, on its own ray: the image stays, the
     bend turns over. Depths kept positive."""
+    rays, depths = _check_frame(rays, depths)
     seen = np.isfinite(depths)
     points = rays[seen] * depths[seen, None]
     (a, b, c), *_ = np.linalg.lstsq(np.column_stack([points[:, 0], points[:, 1], np.ones(len(points))]), points[:, 2], rcond=None)
@@ -50,6 +63,14 @@ def keep_lengths(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distan
     from scipy.optimize import least_squares
     from threadpoolctl import threadpool_limits
 
+    rays, depths = _check_frame(rays, depths)
+    pairs, distances = np.asarray(pairs), np.asarray(distances, np.float64)
+    if pairs.ndim != 2 or pairs.shape[1] != 2 or not np.issubdtype(pairs.dtype, np.integer) or pairs.min(initial=0) < 0 or pairs.max(initial=0) >= len(rays):
+        raise ValueError(f"pairs: expected (E, 2) indices of the {len(rays)} points, got {pairs.dtype} {pairs.shape}")
+    if distances.shape != (len(pairs),) or not (np.isfinite(distances) & (distances > 0)).all():
+        raise ValueError(f"distances: expected the {len(pairs)} pairs' template distances, positive, got shape {distances.shape}")
+    if not (isinstance(evaluations, (int, np.integer)) and evaluations >= 1):
+        raise ValueError(f"evaluations: expected an int >= 1, got {evaluations!r}")
     seen = np.isfinite(depths)
     active = seen[pairs[:, 0]] & seen[pairs[:, 1]]
     i, j, distance = pairs[active, 0], pairs[active, 1], distances[active]
