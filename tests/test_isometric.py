@@ -459,6 +459,9 @@ def test_the_mirror_turns_the_bend_over_on_the_same_rays_and_keeps_a_plane():
     assert np.allclose(mirrored[:, :2] / mirrored[:, 2:], points[:, :2] / points[:, 2:])  # the same image
     flat = 4.0 / (1 - 0.3 * rays[:, 0] + 0.2 * rays[:, 1])  # the plane Z = 4 + 0.3 X − 0.2 Y along the rays
     assert np.allclose(isometric.mirror_depths(rays, flat), flat)
+    assert not isometric.same_bend(rays, truth[-1], isometric.mirror_depths(rays, truth[-1]))
+    assert isometric.same_bend(rays, truth[-1], 2 * truth[-1] * (1 + 0.01 * np.sin(np.arange(len(rays)))))
+    assert isometric.same_bend(rays, flat, truth[-1]) and isometric.same_bend(rays, truth[-1], flat)  # a plane bends either way
 
 
 def test_the_frame_that_keeps_its_lengths_is_the_truth_not_its_mirror():
@@ -486,6 +489,18 @@ def test_mdh_each_frame_keeps_the_lengths_the_program_only_bounds():
     assert np.array_equal(isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, each_frame="mirror"), kept)
     with pytest.raises(ValueError, match="each_frame"):
         isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), each_frame="best")
+    rays = nrdepth.Camera(FOCAL, (0.0, 0.0)).rays(xy)
+    assert all(isometric.same_bend(r, p, k) for r, p, k in zip(rays, program, kept))
+
+
+def test_mdh_lengths_keeps_the_programs_bend_where_refining_turns_it_over(monkeypatch):
+    # Where a frame barely bends, keeping its lengths can turn it over (the cloth's flat start): then the program's frame stays.
+    from nrdepth.isometric import mdh
+
+    xy, _ = rolled_sheet()
+    program = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4)
+    monkeypatch.setattr(mdh, "keep_lengths", lambda rays, pairs, depths, distances: (isometric.mirror_depths(rays, depths), 0.0))
+    assert np.array_equal(isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, each_frame="lengths"), program)
 
 
 def test_bad_input_names_the_argument():
@@ -528,6 +543,8 @@ def test_bad_input_names_the_argument():
         isometric.keep_lengths(rays, pairs, np.ones(len(rays)), -np.ones(len(pairs)))
     with pytest.raises(ValueError, match="evaluations"):
         isometric.mirror_or_not(rays, pairs, np.ones(len(rays)), np.ones(len(pairs)), evaluations=0)
+    with pytest.raises(ValueError, match="other"):
+        isometric.same_bend(rays, np.ones(len(rays)), np.r_[np.nan, np.ones(len(rays) - 1)])
     with pytest.raises(ValueError, match="scale"):
         isometric.fuse(np.zeros((1, 8, 8)), np.zeros((1, 8, 8)), -1.0)
     with pytest.raises(ValueError, match="depth, isometric"):

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..baselines.tracks import densify
 from ..camera import Camera
-from .mirror import keep_lengths, mirror_or_not
+from .mirror import keep_lengths, mirror_or_not, same_bend
 from .points import DROP, check_video, track_grid
 
 __all__ = ["neighbour_pairs", "mdh_depths", "isometric_depth", "TooFewPoints", "TEMPLATES", "EACH_FRAME"]
@@ -221,8 +221,10 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
     little in a few frames). ``each_frame``: what each solved frame's
     depths are: "program", the maximum-depth program's with the distances
     fixed; "lengths", those refined so that each pair keeps its template
-    distance (:func:`~nrdepth.isometric.keep_lengths`); "mirror", the same
-    refined from the program's answer and from its mirror, whichever keeps
+    distance (:func:`~nrdepth.isometric.keep_lengths`), or the program's
+    where the refined frame bends the other way
+    (:func:`~nrdepth.isometric.same_bend`); "mirror", refined from the
+    program's answer and from its mirror, whichever keeps
     the lengths better (:func:`~nrdepth.isometric.mirror_or_not`: the
     program bends every sheet away from the camera). ``with_distances``: also return the pairs'
     template distances (E,) used, in the depths' units."""
@@ -283,8 +285,12 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
     finally:
         pool.shutdown(cancel_futures=True)  # on Ctrl-C: the frames not yet started are dropped, not waited for
     if each_frame != "program":  # the solved frames are NaN out of view already
-        fit = (lambda t: keep_lengths(rays[t], pairs, depths[t], distances)[0]) if each_frame == "lengths" else \
-            (lambda t: mirror_or_not(rays[t], pairs, depths[t], distances)[0])
+        def kept(t: int) -> np.ndarray:
+            refined = keep_lengths(rays[t], pairs, depths[t], distances)[0]
+            # Where a frame barely bends, keeping its lengths can turn the bend over (docs/campaign.md, "The rule, read").
+            return refined if same_bend(rays[t], depths[t], refined) else depths[t]
+
+        fit = kept if each_frame == "lengths" else (lambda t: mirror_or_not(rays[t], pairs, depths[t], distances)[0])
         from threadpoolctl import threadpool_limits
 
         # One BLAS thread around the whole pool: threadpoolctl's limits are the process's, not a thread's.

@@ -19,7 +19,7 @@ from typing import Tuple
 
 import numpy as np
 
-__all__ = ["mirror_depths", "keep_lengths", "mirror_or_not"]
+__all__ = ["mirror_depths", "keep_lengths", "mirror_or_not", "same_bend"]
 
 
 def _check_frame(rays: np.ndarray, depths: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
@@ -34,6 +34,15 @@ def _check_frame(rays: np.ndarray, depths: np.ndarray) -> Tuple[np.ndarray, np.n
     return rays, depths
 
 
+def _heights(rays: np.ndarray, depths: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The points in view (mask (n,)), their heights above their best plane
+    ``Z = a X + b Y + c`` along the optical axis, and (a, b, c)."""
+    seen = np.isfinite(depths)
+    points = rays[seen] * depths[seen, None]
+    plane, *_ = np.linalg.lstsq(np.column_stack([points[:, 0], points[:, 1], np.ones(len(points))]), points[:, 2], rcond=None)
+    return seen, points[:, 2] - (plane[0] * points[:, 0] + plane[1] * points[:, 1] + plane[2]), plane
+
+
 def mirror_depths(rays: np.ndarray, depths: np.ndarray) -> np.ndarray:
     """The depths (n,) that put each point of one frame (``rays`` (n, 3),
     ``depths`` (n,), NaN: out of view) as far on the other side of the
@@ -41,14 +50,23 @@ def mirror_depths(rays: np.ndarray, depths: np.ndarray) -> np.ndarray:
     measured along the optical axis, on its own ray: the image stays, the
     bend turns over. Depths kept positive."""
     rays, depths = _check_frame(rays, depths)
-    seen = np.isfinite(depths)
-    points = rays[seen] * depths[seen, None]
-    (a, b, c), *_ = np.linalg.lstsq(np.column_stack([points[:, 0], points[:, 1], np.ones(len(points))]), points[:, 2], rcond=None)
-    height = points[:, 2] - (a * points[:, 0] + b * points[:, 1] + c)
+    seen, height, (a, b, c) = _heights(rays, depths)
     slant = 1.0 - a * rays[seen, 0] - b * rays[seen, 1]  # > 0 unless the plane holds the ray
     out = np.full_like(depths, np.nan)
     out[seen] = np.maximum((c - height) / np.maximum(slant, 1e-6), 1e-6 * abs(c))
     return out
+
+
+def same_bend(rays: np.ndarray, depths: np.ndarray, other: np.ndarray) -> bool:
+    """Whether two readings of one frame (``depths`` and ``other`` (n,),
+    NaN: out of view, the same points in view) bend the same way: their
+    points' heights above their own best planes do not correlate
+    negatively. A frame with no relief bends either way."""
+    rays, depths = _check_frame(rays, depths)
+    other = np.asarray(other, np.float64)
+    if other.shape != depths.shape or not np.array_equal(np.isfinite(other), np.isfinite(depths)):
+        raise ValueError(f"other: expected depths {depths.shape} in view where depths are, got shape {other.shape}")
+    return bool(np.dot(_heights(rays, depths)[1], _heights(rays, other)[1]) >= 0)
 
 
 def keep_lengths(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distances: np.ndarray,
