@@ -124,9 +124,9 @@ def main() -> None:
                 elif key not in tracks:
                     tracks[key] = isometric.track_grid(video, region, points=lever["points"], drop=lever["drop"], flow=lever["flow"], margin=lever["margin"],
                                                        hold=bool(lever["hold"]), backward=bool(lever["backward"]))
+                held = held_share(tracks[key], video.shape[1:]) if lever["hold"] else 1.0  # before keep, as the stage gates
                 xy = keep_held(tracks[key], video.shape[1:], lever)
                 tracked = time.perf_counter()
-                held = held_share(xy, video.shape[1:]) if lever["hold"] else 1.0
                 row[f"{name} held"] = held
                 try:
                     if held < args.min_held:
