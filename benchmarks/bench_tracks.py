@@ -10,10 +10,11 @@ tracker, on three kinds of truth:
   pairs than the way there: the flow both ways would retrace its own
   steps exactly): the closed loop's distance (px) from where each began;
 - generated long sheets (256² × ``--frames``, ``--phases`` bends, through
-  pinholes of 40–80°, lit from below and from above, textured by
-  ``--families``, seed
+  pinholes of 40–80°, lit from below and from above (``--lights``),
+  textured by ``--families``, any other generator field by ``--set``, seed
   ``isometric_generated.SEED`` from ``--start``): the mesh vertices nearest a
-  400-point grid followed from their true positions in the first frame,
+  400-point grid (over a backdrop, the grid's points on the sheet)
+  followed from their true positions in the first frame,
   their distance (px) from the true ones (``nrdepth.image_points``) in every
   frame while in view.
 
@@ -23,13 +24,12 @@ point-frames lost (NaN), and the seconds; for the sheets, the videos'
 (``track_points``' ``hold``, ``backward``, ``flow``, ``margin``; an empty one
 is its defaults).
 
-    python benchmarks/bench_tracks.py [--trackers ",margin=48:hold=1"] [--videos 16] [--start 96] [--skip generated]
+    python benchmarks/bench_tracks.py [--trackers ",margin=48:hold=1"] [--videos 16] [--start 96] [--skip generated] [--lights below] [--set FIELD=V]
 """
 
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import time
 from pathlib import Path
@@ -96,22 +96,21 @@ def phisft(trackers: list) -> None:
         print(f"phisft_R1 closed loop {name or 'default':26s} {summary(np.linalg.norm(back - grid, axis=1))}; {seconds:.1f} s", flush=True)
 
 
-def generated(trackers: list, videos: int, start: int, frames: int, phases: int, families: tuple) -> None:
-    from isometric_generated import SEED, in_view, true_tracks
+def generated(trackers: list, videos: int, start: int, frames: int, phases: int, families: tuple, lights: list, sets: list) -> None:
+    from isometric_generated import SEED, in_view, long_sheets, true_tracks
 
-    from nrdepth import GeneratorConfig, generate_clips
+    from nrdepth import generate_clips
     from nrdepth.isometric import track_points
 
     per_video = {name: [] for name in trackers}
     pooled = {name: [] for name in trackers}
     seconds = {name: 0.0 for name in trackers}
-    for light, azimuth in (("below", (math.pi - 1.22, math.pi + 1.22)), ("above", None)):
-        extra = {} if azimuth is None else {"light_azimuth": azimuth}
-        config = GeneratorConfig(frames=frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=phases,
-                                 texture_families=families, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
+    for light in lights:
+        config = long_sheets(frames, phases, families, light, sets)
         clips = generate_clips(videos, seed=SEED, config=config, start=start, vertices=True)
-        for k, (video, params) in enumerate(zip(clips.video, clips.params)):
-            truth, _ = true_tracks(clips.vertices[k], params, config.size)
+        for k, (video, depth, params) in enumerate(zip(clips.video, clips.depth, clips.params)):
+            sheet = np.isfinite(depth[0])  # over a backdrop, the points start on the sheet
+            truth, _ = true_tracks(clips.vertices[k], params, config.size, region=None if sheet.all() else sheet)
             visible = in_view(truth, config.size)
             for name in trackers:
                 begin = time.perf_counter()
@@ -123,11 +122,13 @@ def generated(trackers: list, videos: int, start: int, frames: int, phases: int,
                 pooled[name].append(errors)
             print(f"  {light} {start + k}: " + ", ".join(f"{name or 'default'} p95 {per_video[name][-1]:.2f}" for name in trackers), flush=True)
     for name in trackers:
-        print(f"generated sheets ({2 * videos}) {name or 'default':22s} {summary(np.concatenate(pooled[name]))}; the videos' p95s' median "
+        print(f"generated sheets ({len(lights) * videos}) {name or 'default':22s} {summary(np.concatenate(pooled[name]))}; the videos' p95s' median "
               f"{np.median(per_video[name]):.2f} px; {seconds[name]:.1f} s", flush=True)
 
 
 def main() -> None:
+    from isometric_generated import setting
+
     from nrdepth.scores.generated import SHEET_FAMILIES
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -139,6 +140,10 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=1, help="OpenCV's threads")
     parser.add_argument("--families", default=",".join(SHEET_FAMILIES), help="the generated sheets' texture families (comma-separated)")
     parser.add_argument("--skip", default="", help="comma-separated: kinect, phisft, generated")
+    parser.add_argument("--lights", default="below,above", help="the generated sheets lit from below, above, or both (each its own --videos)")
+    parser.add_argument("--set", action="append", default=[], metavar="FIELD=V[,V]", type=setting,
+                        help="a GeneratorConfig field of the generated sheets, one value or lo,hi (e.g. the paper-like sheets' "
+                        "backdrop_probability=1; over a backdrop the points start on the sheet), repeatable")
     args = parser.parse_args()
     import cv2
 
@@ -150,7 +155,7 @@ def main() -> None:
     if "phisft" not in skip:
         phisft(trackers)
     if "generated" not in skip:
-        generated(trackers, args.videos, args.start, args.frames, args.phases, tuple(args.families.split(",")))
+        generated(trackers, args.videos, args.start, args.frames, args.phases, tuple(args.families.split(",")), args.lights.split(","), args.set)
 
 
 if __name__ == "__main__":

@@ -44,6 +44,7 @@ import argparse
 import math
 import time
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
@@ -65,16 +66,20 @@ def camera(params: dict, size: int) -> tuple:
     return params["pinhole"]["camera_z"] * size / (x1 - x0), ((px - x0) / (x1 - x0) * size - 0.5, (y1 - py) / (y1 - y0) * size - 0.5)
 
 
-def true_tracks(vertices: np.ndarray, params: dict, size: int, points: int = 400) -> tuple:
+def true_tracks(vertices: np.ndarray, params: dict, size: int, points: int = 400, region: Optional[np.ndarray] = None) -> tuple:
     """The true image positions (T, n, 2) of the mesh vertices (``vertices``
     (T, grid, grid, 3)) nearest the points of ``track_grid``'s grid over the
-    first frame, in every frame (in view or not), and where those vertices
-    lie on the flat sheet (n, 2), before it bends."""
+    first frame (only those inside ``region`` (size, size), the sheet's
+    pixels over a backdrop, where given), in every frame (in view or not),
+    and where those vertices lie on the flat sheet (n, 2), before it bends."""
     from scipy.spatial import cKDTree
 
     seen = image_points(vertices.reshape(len(vertices), -1, 3), params, size)[..., :2]
     spacing = size / np.sqrt(points)
     rows, cols = np.mgrid[spacing / 2 : size : spacing, spacing / 2 : size : spacing]
+    if region is not None:
+        inside = region[rows.astype(int), cols.astype(int)]
+        rows, cols = rows[inside], cols[inside]
     _, nearest = cKDTree(seen[0]).query(np.column_stack([cols.ravel(), rows.ravel()]))
     index, grid = np.unique(nearest), vertices.shape[1]
     return seen[:, index], np.column_stack([index % grid, index // grid]) * 2.0 / (grid - 1) - 1.0
