@@ -459,9 +459,22 @@ def test_the_mirror_turns_the_bend_over_on_the_same_rays_and_keeps_a_plane():
     assert np.allclose(mirrored[:, :2] / mirrored[:, 2:], points[:, :2] / points[:, 2:])  # the same image
     flat = 4.0 / (1 - 0.3 * rays[:, 0] + 0.2 * rays[:, 1])  # the plane Z = 4 + 0.3 X − 0.2 Y along the rays
     assert np.allclose(isometric.mirror_depths(rays, flat), flat)
-    assert not isometric.same_bend(rays, truth[-1], isometric.mirror_depths(rays, truth[-1]))
-    assert isometric.same_bend(rays, truth[-1], 2 * truth[-1] * (1 + 0.01 * np.sin(np.arange(len(rays)))))
-    assert isometric.same_bend(rays, flat, truth[-1]) and isometric.same_bend(rays, truth[-1], flat)  # a plane bends either way
+    assert not isometric.shape_kept(rays, truth[-1], isometric.mirror_depths(rays, truth[-1]))
+    assert isometric.shape_kept(rays, truth[-1], 2 * truth[-1] * (1 + 0.01 * np.sin(np.arange(len(rays)))))
+    assert isometric.shape_kept(rays, flat, truth[-1]) and isometric.shape_kept(rays, truth[-1], flat)  # a plane keeps any shape
+
+
+def test_shape_kept_is_the_heights_correlation_against_a_threshold():
+    xy, truth = rolled_sheet()
+    rays = nrdepth.Camera(FOCAL, (0.0, 0.0)).rays(xy[-1])
+    rng = np.random.default_rng(5)
+    for wobble in (0.01, 0.05, 0.2):
+        other = truth[-1] * (1 + wobble * rng.standard_normal(len(rays)))
+        heights = [p[:, 2] - np.column_stack([p[:, :2], np.ones(len(p))]) @ np.linalg.lstsq(np.column_stack([p[:, :2], np.ones(len(p))]), p[:, 2], rcond=None)[0]
+                   for p in (rays * truth[-1, :, None], rays * other[:, None])]
+        correlation = np.corrcoef(*heights)[0, 1]  # brute force
+        for threshold in (correlation - 1e-6, correlation + 1e-6):
+            assert isometric.shape_kept(rays, truth[-1], other, threshold) is bool(threshold <= correlation)
 
 
 def test_the_frame_that_keeps_its_lengths_is_the_truth_not_its_mirror():
@@ -485,16 +498,19 @@ def test_mdh_each_frame_keeps_the_lengths_the_program_only_bounds():
     program = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4)
     kept = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, each_frame="lengths")
     assert relief_error(kept, truth, xy)[2:].mean() < 0.7 * relief_error(program, truth, xy)[2:].mean()  # the bent frames
-    # The program bends this roll the right way: no frame is taken mirrored.
-    assert np.array_equal(isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, each_frame="mirror"), kept)
+    # The program bends this roll the right way, so "mirror" takes the refinement from it in every frame; "lengths" takes that
+    # where it keeps the program's shape (not in the nearly flat second frame), the program's frame elsewhere.
+    mirror = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, each_frame="mirror")
+    kept_shape = [isometric.shape_kept(r, p, m) for r, p, m in zip(nrdepth.Camera(FOCAL, (0.0, 0.0)).rays(xy), program, mirror)]
+    assert 0 < sum(kept_shape) < len(xy)
+    for keeps, p, k, m in zip(kept_shape, program, kept, mirror):
+        assert np.array_equal(k, m if keeps else p)
     with pytest.raises(ValueError, match="each_frame"):
         isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), each_frame="best")
-    rays = nrdepth.Camera(FOCAL, (0.0, 0.0)).rays(xy)
-    assert all(isometric.same_bend(r, p, k) for r, p, k in zip(rays, program, kept))
 
 
-def test_mdh_lengths_keeps_the_programs_bend_where_refining_turns_it_over(monkeypatch):
-    # Where a frame barely bends, keeping its lengths can turn it over (the cloth's flat start): then the program's frame stays.
+def test_mdh_lengths_keeps_the_programs_frame_where_refining_changes_its_shape(monkeypatch):
+    # Where a frame barely bends, keeping its lengths can bend it anew (the cloth's flat start): then the program's frame stays.
     from nrdepth.isometric import mdh
 
     xy, _ = rolled_sheet()
@@ -544,7 +560,7 @@ def test_bad_input_names_the_argument():
     with pytest.raises(ValueError, match="evaluations"):
         isometric.mirror_or_not(rays, pairs, np.ones(len(rays)), np.ones(len(pairs)), evaluations=0)
     with pytest.raises(ValueError, match="other"):
-        isometric.same_bend(rays, np.ones(len(rays)), np.r_[np.nan, np.ones(len(rays) - 1)])
+        isometric.shape_kept(rays, np.ones(len(rays)), np.r_[np.nan, np.ones(len(rays) - 1)])
     with pytest.raises(ValueError, match="scale"):
         isometric.fuse(np.zeros((1, 8, 8)), np.zeros((1, 8, 8)), -1.0)
     with pytest.raises(ValueError, match="depth, isometric"):

@@ -49,9 +49,9 @@ intrinsics, and the optional dependencies: ``pip install 'nrdepth[isometric]'``.
 """
 
 from .fuse import fuse
-from .mirror import keep_lengths, mirror_depths, mirror_or_not, same_bend
+from .mirror import SHAPE_KEPT, keep_lengths, mirror_depths, mirror_or_not, shape_kept
 from .mdh import EACH_FRAME, TEMPLATES, TooFewPoints, isometric_depth, mdh_depths, neighbour_pairs
 from .points import BORDER, DROP, FLOWS, frames_of, held_share, inside, least_disagreeing, point_held_shares, require_isometric, start_grid, track_grid, track_points
 
-__all__ = ["track_grid", "start_grid", "track_points", "least_disagreeing", "inside", "held_share", "point_held_shares", "neighbour_pairs", "mdh_depths", "isometric_depth", "fuse", "mirror_depths", "keep_lengths", "mirror_or_not", "same_bend",
+__all__ = ["track_grid", "start_grid", "track_points", "least_disagreeing", "inside", "held_share", "point_held_shares", "neighbour_pairs", "mdh_depths", "isometric_depth", "fuse", "mirror_depths", "keep_lengths", "mirror_or_not", "shape_kept", "SHAPE_KEPT",
            "require_isometric", "frames_of", "TooFewPoints", "TEMPLATES", "EACH_FRAME", "DROP", "BORDER", "FLOWS"]

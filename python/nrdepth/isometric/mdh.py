@@ -16,7 +16,7 @@ import numpy as np
 
 from ..baselines.tracks import densify
 from ..camera import Camera
-from .mirror import keep_lengths, mirror_or_not, same_bend
+from .mirror import keep_lengths, mirror_or_not, shape_kept
 from .points import DROP, check_video, track_grid
 
 __all__ = ["neighbour_pairs", "mdh_depths", "isometric_depth", "TooFewPoints", "TEMPLATES", "EACH_FRAME"]
@@ -222,8 +222,8 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
     depths are: "program", the maximum-depth program's with the distances
     fixed; "lengths", those refined so that each pair keeps its template
     distance (:func:`~nrdepth.isometric.keep_lengths`), or the program's
-    where the refined frame bends the other way
-    (:func:`~nrdepth.isometric.same_bend`); "mirror", refined from the
+    where the refined frame does not keep its shape
+    (:func:`~nrdepth.isometric.shape_kept`); "mirror", refined from the
     program's answer and from its mirror, whichever keeps
     the lengths better (:func:`~nrdepth.isometric.mirror_or_not`: the
     program bends every sheet away from the camera). ``with_distances``: also return the pairs'
@@ -287,8 +287,8 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
     if each_frame != "program":  # the solved frames are NaN out of view already
         def kept(t: int) -> np.ndarray:
             refined = keep_lengths(rays[t], pairs, depths[t], distances)[0]
-            # Where a frame barely bends, keeping its lengths can turn the bend over (docs/campaign.md, "The rule, read").
-            return refined if same_bend(rays[t], depths[t], refined) else depths[t]
+            # Where a frame barely bends, keeping its lengths can bend it anew, even over (docs/campaign.md, "The rule, read").
+            return refined if shape_kept(rays[t], depths[t], refined) else depths[t]
 
         fit = kept if each_frame == "lengths" else (lambda t: mirror_or_not(rays[t], pairs, depths[t], distances)[0])
         from threadpoolctl import threadpool_limits
