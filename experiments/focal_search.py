@@ -20,7 +20,7 @@ pinholes of 40–80°, lit from below and from above, a seed no other run
 draws) within 25 % of the truth, and the real videos (``kinect_paper``,
 its sheet's box; ``phisft_R1``, the cloth, full frames) are checks.
 
-    python experiments/focal_search.py [--videos 16] [--frames 64] [--phases 4] [--template joint] [--hold [--keep 0.8]] [--start 0] [--real [--kinect-box print]]
+    python experiments/focal_search.py [--videos 16] [--frames 64] [--phases 4] [--template joint] [--hold [--keep 0.8]] [--start 0] [--families print] [--set FIELD=V] [--real [--kinect-box print]]
 """
 
 from __future__ import annotations
@@ -33,14 +33,14 @@ from pathlib import Path
 
 import numpy as np
 
-from nrdepth import Camera, GeneratorConfig, generate_clips, isometric
+from nrdepth import Camera, generate_clips, isometric
 from nrdepth.scores.generated import SHEET_FAMILIES
 from nrdepth.isometric import held_share
 from nrdepth.reconstruct.sheet import FLOW_MARGIN, MIN_HELD
 from nrdepth.scores.real import DATA, FOCAL, KINECT_INNER, KINECT_ROI
 
 sys.path.insert(0, str(Path(__file__).parent))
-from isometric_generated import camera  # noqa: E402
+from isometric_generated import LIGHTS, camera, long_sheets, setting  # noqa: E402
 
 SEED = 7171
 """A seed no training run or other benchmark draws from."""
@@ -131,6 +131,10 @@ def main() -> None:
     parser.add_argument("--keep", type=float, default=0.0, help="with --hold: only the points held in at least this share of their "
                         "frames in view (isometric.point_held_shares), after the stage's gate, as the stage keeps them")
     parser.add_argument("--start", type=int, default=0, help="the first sheet's index in the seed's draws")
+    parser.add_argument("--families", default=None, help="the generated sheets' texture families (comma-separated; default: every sheet family)")
+    parser.add_argument("--set", action="append", default=[], metavar="FIELD=V[,V]", type=setting,
+                        help="a GeneratorConfig field of the generated sheets, one value or lo,hi (e.g. the paper-like sheets' "
+                        "backdrop_probability=1; over a backdrop the points start on the sheet), repeatable")
     parser.add_argument("--kinect-box", choices=("sheet", "print"), default="sheet",
                         help="with --real: kinect_paper's points over the whole sheet's box (KINECT_ROI, with background) or the print's (KINECT_INNER)")
     args = parser.parse_args()
@@ -142,13 +146,12 @@ def main() -> None:
             read(name, video, mask, truth, args)
         return
     ratios = []
-    for light, azimuth in (("below", (math.pi - 1.22, math.pi + 1.22)), ("above", None)):
-        extra = {} if azimuth is None else {"light_azimuth": azimuth}
-        config = GeneratorConfig(frames=args.frames, size=256, grid=128, sheet_probability=1.0, sheet_phases=args.phases,
-                                 texture_families=SHEET_FAMILIES, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0), **extra)
+    for light in LIGHTS:
+        config = long_sheets(args.frames, args.phases, SHEET_FAMILIES if args.families is None else args.families.split(","), light, args.set)
         clips = generate_clips(args.videos, seed=SEED, config=config, start=args.start)
-        for k, (video, params) in enumerate(zip(clips.video, clips.params)):
-            ratios.append(read(f"sheet {k} lit from {light}", video, None, camera(params, config.size)[0], args))
+        for k, (video, depth, params) in enumerate(zip(clips.video, clips.depth, clips.params)):
+            sheet = np.isfinite(depth[0])  # over a backdrop the points start on the sheet, as reconstruct(sheet=mask) puts them
+            ratios.append(read(f"sheet {args.start + k} lit from {light}", video, None if sheet.all() else sheet, camera(params, config.size)[0], args))
     ratios = np.array(ratios)
     if np.isnan(ratios).any():
         print(f"{int(np.isnan(ratios).sum())} of {len(ratios)} sheets left out: the stage steps aside on them")
