@@ -167,7 +167,7 @@ class ReconstructOptions:
                                       "isometric_drop 0.3 and isometric_scale 0.2), first (the first frame a flat sheet facing the camera)",
                                       choices=TEMPLATES)
     isometric_each_frame: str = _option(EACH_FRAME[0], "with focal: each frame's depths (nrdepth.isometric.mdh_depths' each_frame): program "
-                                        "(the maximum-depth program's), lengths (refined so that each pair keeps its template distance), "
+                                        "(the maximum-depth program's), lengths (refined so that each pair keeps its template distance, where that keeps the frame's shape), "
                                         "mirror (the same, from the program's answer or its mirror, whichever keeps the lengths better)",
                                         choices=EACH_FRAME)
     isometric_drop: float = _option(ISOMETRIC_DROP, "with focal: the share of the points left out where the flow's two directions disagree most",
