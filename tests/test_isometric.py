@@ -561,6 +561,8 @@ def test_bad_input_names_the_argument():
         isometric.mirror_or_not(rays, pairs, np.ones(len(rays)), np.ones(len(pairs)), evaluations=0)
     with pytest.raises(ValueError, match="other"):
         isometric.shape_kept(rays, np.ones(len(rays)), np.r_[np.nan, np.ones(len(rays) - 1)])
+    with pytest.raises(ValueError, match="correlation"):
+        isometric.shape_kept(rays, np.ones(len(rays)), np.ones(len(rays)), correlation=2.0)
     with pytest.raises(ValueError, match="scale"):
         isometric.fuse(np.zeros((1, 8, 8)), np.zeros((1, 8, 8)), -1.0)
     with pytest.raises(ValueError, match="depth, isometric"):

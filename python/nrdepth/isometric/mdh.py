@@ -287,7 +287,7 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
     if each_frame != "program":  # the solved frames are NaN out of view already
         def kept(t: int) -> np.ndarray:
             refined = keep_lengths(rays[t], pairs, depths[t], distances)[0]
-            # Where a frame barely bends, keeping its lengths can bend it anew, even over (docs/campaign.md, "The rule, read").
+            # Where a frame barely bends, keeping its lengths can bend it anew, even over (docs/findings.md).
             return refined if shape_kept(rays[t], depths[t], refined) else depths[t]
 
         fit = kept if each_frame == "lengths" else (lambda t: mirror_or_not(rays[t], pairs, depths[t], distances)[0])

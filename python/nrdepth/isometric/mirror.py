@@ -5,7 +5,8 @@ they allow: a taut dome, and a sheet bent towards the camera comes out
 bent away from it, its mirror. :func:`keep_lengths` refines a frame so
 that every pair keeps its template distance; :func:`mirror_or_not` does
 so from the program's answer and from its mirror and takes the start
-that keeps the lengths better. An orthographic camera cannot tell a
+that keeps the lengths better; :func:`shape_kept` tells whether a
+refined frame still has the program's shape. An orthographic camera cannot tell a
 shape from its mirror; a pinhole can where the sheet bends enough for
 its size (docs/campaign.md, "Sheets that bend as real sheets do").
 
@@ -63,8 +64,8 @@ above their best plane correlate with the program's at least this much:
 the least seen over 200 solved frames of 8 paper-like generated sheets
 from their true tracks, where keeping the lengths paid in every band of
 correlation; on the cloth's nearly flat frames whose bend it turned over
-the correlation was 0.04–0.58 (docs/campaign.md, "Each frame's lengths
-kept, its shape kept")."""
+the correlation was 0.04–0.58 (docs/campaign.md, "Sheets that bend as
+real sheets do, and each frame's lengths kept")."""
 
 
 def shape_kept(rays: np.ndarray, depths: np.ndarray, other: np.ndarray, correlation: float = SHAPE_KEPT) -> bool:
@@ -73,6 +74,8 @@ def shape_kept(rays: np.ndarray, depths: np.ndarray, other: np.ndarray, correlat
     their points' heights above their own best planes correlate at least
     ``correlation``. A frame with no relief keeps any shape."""
     rays, depths = _check_frame(rays, depths)
+    if not (isinstance(correlation, (int, float, np.number)) and -1 <= correlation <= 1):
+        raise ValueError(f"correlation: expected a number in [-1, 1], got {correlation!r}")
     other = np.asarray(other, np.float64)
     if other.shape != depths.shape or not np.array_equal(np.isfinite(other), np.isfinite(depths)):
         raise ValueError(f"other: expected depths {depths.shape} in view where depths are, got shape {other.shape}")
