@@ -113,7 +113,7 @@ def main() -> None:
             row = {"light": light, "clip": args.start + k, "network per frame": mae_sn(network, truth, mask=on)}
             base = dense_baselines(truth, on)
             row["plane per frame"], row["bowl per frame"] = base["plane"], base["bowl"]
-            tracks = {}
+            tracks, programs = {}, {}
             for name, lever in zip([s or "default" for s in settings], levers):
                 start = time.perf_counter()
                 key = (lever["flow"], lever["margin"], lever["points"], lever["hold"], lever["backward"], lever["drop"])  # keep, each: after the tracks
@@ -142,6 +142,12 @@ def main() -> None:
                     row[f"{name} points s"], row[f"{name} programs s"] = tracked - start, 0.0
                     continue
                 solved = time.perf_counter()
+                same = (key, lever["keep"], lever["keyframes"], lever["neighbours"])
+                programs[same + (lever["each"],)] = depths
+                if lever["each"] == "lengths" and same + ("program",) in programs:
+                    # every solved frame refined, or none (mdh_depths): which, beside the same points' program read before
+                    refined = float(not np.array_equal(depths, programs[same + ("program",)], equal_nan=True))
+                    row.update({f"{label(name, n)} refined": refined for n in everies})
                 for n in everies:
                     kept = depths.copy()
                     if n > 1 and len(everies) > 1:
@@ -157,7 +163,7 @@ def main() -> None:
             rows.append(row)
             if args.csv is not None:  # rewritten whole after each video: a stopped run keeps what it read
                 with open(args.csv, "w", newline="") as out:
-                    writer = csv.DictWriter(out, fieldnames=list(rows[0]))
+                    writer = csv.DictWriter(out, fieldnames=list(dict.fromkeys(k for r in rows for k in r)), restval="nan")
                     writer.writeheader()
                     writer.writerows({k: (f"{v:.5f}" if isinstance(v, float) else v) for k, v in r.items()} for r in rows)
             print(f"{light} {args.start + k}: " + ", ".join(f"{n} {row[f'{n} per frame']:.4f}" for n in ["network", *names]), flush=True)
@@ -185,6 +191,9 @@ def report(rows: list, names: list) -> None:
         if name in names[1:]:
             difference = np.array([r[f"{name} per frame"] - r[f"{names[0]} per frame"] for r in rows])
             line += f", against {names[0]} {difference.mean():+.5f} ± {difference.std(ddof=1) / math.sqrt(len(rows)):.5f} (better on {int((difference < 0).sum())})"
+        refined = [r[f"{name} refined"] for r in rows if np.isfinite(r.get(f"{name} refined", np.nan))]
+        if refined:
+            line += f", every frame refined on {int(sum(refined))} of {len(refined)}"
         print(line)
     if "margin shift max px" in rows[0]:
         print(f"  the flow over the points' box moves their tracks by a median {np.median([r['margin shift median px'] for r in rows]):.4f} px "

@@ -221,9 +221,10 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
     little in a few frames). ``each_frame``: what each solved frame's
     depths are: "program", the maximum-depth program's with the distances
     fixed; "lengths", those refined so that each pair keeps its template
-    distance (:func:`~nrdepth.isometric.keep_lengths`), or the program's
-    where the refined frame does not keep its shape
-    (:func:`~nrdepth.isometric.shape_kept`); "mirror", refined from the
+    distance (:func:`~nrdepth.isometric.keep_lengths`) in every solved
+    frame, or the program's in every frame where one refined frame does
+    not keep its shape (:func:`~nrdepth.isometric.shape_kept`: the
+    relief's depth stays of one kind over the video); "mirror", refined from the
     program's answer and from its mirror, whichever keeps
     the lengths better (:func:`~nrdepth.isometric.mirror_or_not`: the
     program bends every sheet away from the camera). ``with_distances``: also return the pairs'
@@ -285,22 +286,22 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
     finally:
         pool.shutdown(cancel_futures=True)  # on Ctrl-C: the frames not yet started are dropped, not waited for
     if each_frame != "program":  # the solved frames are NaN out of view already
-        def kept(t: int) -> np.ndarray:
-            refined = keep_lengths(rays[t], pairs, depths[t], distances)[0]
-            # Where a frame barely bends, keeping its lengths can bend it anew, even over (docs/findings.md).
-            return refined if shape_kept(rays[t], depths[t], refined) else depths[t]
-
-        fit = kept if each_frame == "lengths" else (lambda t: mirror_or_not(rays[t], pairs, depths[t], distances)[0])
+        fit = (lambda t: keep_lengths(rays[t], pairs, depths[t], distances)[0]) if each_frame == "lengths" else \
+            (lambda t: mirror_or_not(rays[t], pairs, depths[t], distances)[0])
         from threadpoolctl import threadpool_limits
 
         # One BLAS thread around the whole pool: threadpoolctl's limits are the process's, not a thread's.
         with threadpool_limits(limits=1, user_api="blas"):
             pool = ThreadPoolExecutor(max_workers=max(1, min(len(anchors), os.cpu_count() or 1)))
             try:
-                for t, fitted in zip(anchors, pool.map(fit, anchors)):
-                    depths[t] = fitted
+                fitted = np.stack(list(pool.map(fit, anchors)))
             finally:
                 pool.shutdown(cancel_futures=True)
+        # Where a frame barely bends, keeping its lengths can bend it anew; one such frame falling back alone beside
+        # refined ones, bent more deeply, makes the relief's depth jump from frame to frame (docs/findings.md): so
+        # every solved frame is refined, or none.
+        if each_frame == "mirror" or all(shape_kept(rays[t], depths[t], f) for t, f in zip(anchors, fitted)):
+            depths[anchors] = fitted
     if len(anchors) < T:
         _between(depths, anchors, seen)
     return (depths, distances) if with_distances else depths
