@@ -50,6 +50,7 @@ import nrdepth  # noqa: E402
 from nrdepth import isometric  # noqa: E402
 from nrdepth.scores.metrics import dense_baselines, flat_baseline, mae_sn, sign_rates  # noqa: E402
 from nrdepth.io import read_video  # noqa: E402
+from nrdepth.reconstruct.options import ISOMETRIC_EACH_FRAME  # noqa: E402
 
 FIGURES = ("kinect_mm", "kinect_inner_mm", "phisft_frame", "phisft_first")
 
@@ -197,7 +198,7 @@ def main() -> None:
     parser.add_argument("--hold", action="store_true", help="each point found again by its look in the first frame (isometric.track_grid's hold)")
     parser.add_argument("--template", default="joint", choices=isometric.TEMPLATES,
                         help="mdh_depths's template distances: over keyframes, refined by least squares, or the first frame as a flat sheet facing the camera")
-    parser.add_argument("--each-frame", default="program", choices=isometric.EACH_FRAME, help="mdh_depths's each_frame (default: the stage's)")
+    parser.add_argument("--each-frame", default=ISOMETRIC_EACH_FRAME, choices=isometric.EACH_FRAME, help="mdh_depths's each_frame (default: the stage's)")
     parser.add_argument("--drop", type=numbers(float), default=[0.0],
                         help="shares of the points whose flows both ways disagree most, left out (isometric.track_grid), each read in turn (the first is used with "
                         "--grid; default 0, every point: reconstruct(focal=...) leaves out isometric.DROP)")

@@ -116,7 +116,7 @@ def test_mdh_fixed_distances_give_back_the_joint_solution():
         np.testing.assert_allclose(alone[0], joint[t], rtol=1e-4)
 
 
-@pytest.mark.parametrize("each_frame", ["program", "mirror"])
+@pytest.mark.parametrize("each_frame", ["program", "lengths", "mirror"])
 def test_mdh_is_reproducible_at_any_thread_count(monkeypatch, each_frame):
     xy, _ = rolled_sheet(frames=6, side=7)
     read = lambda: isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=6, keyframes=3, each_frame=each_frame)  # noqa: E731
@@ -495,27 +495,34 @@ def test_the_frame_that_keeps_its_lengths_is_the_truth_not_its_mirror():
 
 def test_mdh_each_frame_keeps_the_lengths_the_program_only_bounds():
     xy, truth = rolled_sheet()
-    program = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4)
-    kept = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, each_frame="lengths")
+    # Every other frame solved: the nearly flat second frame, whose refinement does not keep its shape, is not among them.
+    program = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, every=2)
+    kept = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, every=2, each_frame="lengths")
     assert relief_error(kept, truth, xy)[2:].mean() < 0.7 * relief_error(program, truth, xy)[2:].mean()  # the bent frames
-    # The program bends this roll the right way, so "mirror" takes the refinement from it in every frame; "lengths" takes that
-    # where it keeps the program's shape (not in the nearly flat second frame), the program's frame elsewhere.
-    mirror = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, each_frame="mirror")
-    kept_shape = [isometric.shape_kept(r, p, m) for r, p, m in zip(nrdepth.Camera(FOCAL, (0.0, 0.0)).rays(xy), program, mirror)]
-    assert 0 < sum(kept_shape) < len(xy)
-    for keeps, p, k, m in zip(kept_shape, program, kept, mirror):
-        assert np.array_equal(k, m if keeps else p)
+    # The program bends this roll the right way, so "mirror" takes the refinement from it in every frame, as "lengths" does.
+    mirror = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, every=2, each_frame="mirror")
+    assert np.array_equal(kept, mirror)
     with pytest.raises(ValueError, match="each_frame"):
         isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), each_frame="best")
 
 
-def test_mdh_lengths_keeps_the_programs_frame_where_refining_changes_its_shape(monkeypatch):
-    # Where a frame barely bends, keeping its lengths can bend it anew (the cloth's flat start): then the program's frame stays.
+def test_mdh_lengths_refines_every_frame_or_none(monkeypatch):
+    # Where a frame barely bends, keeping its lengths can bend it anew (the cloth's flat start): then no frame is refined,
+    # so that the relief's depth does not jump between refined frames and the program's.
     from nrdepth.isometric import mdh
 
     xy, _ = rolled_sheet()
+    rays = nrdepth.Camera(FOCAL, (0.0, 0.0)).rays(xy)
     program = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4)
-    monkeypatch.setattr(mdh, "keep_lengths", lambda rays, pairs, depths, distances: (isometric.mirror_depths(rays, depths), 0.0))
+    mirror = isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, each_frame="mirror")
+    kept_shape = [isometric.shape_kept(r, p, m) for r, p, m in zip(rays, program, mirror)]
+    assert 0 < sum(kept_shape) < len(xy)  # all solved here: the second frame's refinement turns its shape
+    assert np.array_equal(isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, each_frame="lengths"), program)
+    # A refinement that keeps every frame's shape (here a scaling) is taken in every frame; one that turns any over, in none.
+    monkeypatch.setattr(mdh, "keep_lengths", lambda rays, pairs, depths, distances: (1.5 * depths, 0.0))
+    assert np.array_equal(isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, each_frame="lengths"), 1.5 * program)
+    last_over = lambda rays, pairs, depths, distances: (isometric.mirror_depths(rays, depths) if depths[0] == program[-1, 0] else 1.5 * depths, 0.0)
+    monkeypatch.setattr(mdh, "keep_lengths", last_over)  # the last frame's turned over, every other scaled
     assert np.array_equal(isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, each_frame="lengths"), program)
 
 

@@ -83,7 +83,7 @@ def test_an_unknown_option_is_named():
     ({"focal": 100.0, "isometric_points": 2.5}, "isometric_points"),
     ({"focal": 100.0, "isometric_hold": "yes"}, "isometric_hold"),
     ({"focal": 100.0, "isometric_each_frame": "best"}, "isometric_each_frame"),
-    ({"isometric_each_frame": "lengths"}, "focal"),
+    ({"isometric_each_frame": "program"}, "focal"),
     ({"roi": (0, 0, 8.5, 8)}, "roi"),
     ({"max_side": 4}, "max_side"),
     ({"tile": (8, 36, 64)}, "tile"),

@@ -286,22 +286,26 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
     finally:
         pool.shutdown(cancel_futures=True)  # on Ctrl-C: the frames not yet started are dropped, not waited for
     if each_frame != "program":  # the solved frames are NaN out of view already
-        fit = (lambda t: keep_lengths(rays[t], pairs, depths[t], distances)[0]) if each_frame == "lengths" else \
-            (lambda t: mirror_or_not(rays[t], pairs, depths[t], distances)[0])
+        refine = keep_lengths if each_frame == "lengths" else mirror_or_not
         from threadpoolctl import threadpool_limits
 
         # One BLAS thread around the whole pool: threadpoolctl's limits are the process's, not a thread's.
         with threadpool_limits(limits=1, user_api="blas"):
             pool = ThreadPoolExecutor(max_workers=max(1, min(len(anchors), os.cpu_count() or 1)))
+            fitted = []
             try:
-                fitted = np.stack(list(pool.map(fit, anchors)))
+                for t, refined in zip(anchors, pool.map(lambda t: refine(rays[t], pairs, depths[t], distances)[0], anchors)):
+                    # Where a frame barely bends, keeping its lengths can bend it anew; one such frame falling back alone
+                    # beside refined ones, bent more deeply, makes the relief's depth jump from frame to frame
+                    # (docs/findings.md): so every solved frame is refined, or none, and the first that turns stops the rest.
+                    if each_frame == "lengths" and not shape_kept(rays[t], depths[t], refined):
+                        fitted = []
+                        break
+                    fitted.append(refined)
             finally:
                 pool.shutdown(cancel_futures=True)
-        # Where a frame barely bends, keeping its lengths can bend it anew; one such frame falling back alone beside
-        # refined ones, bent more deeply, makes the relief's depth jump from frame to frame (docs/findings.md): so
-        # every solved frame is refined, or none.
-        if each_frame == "mirror" or all(shape_kept(rays[t], depths[t], f) for t, f in zip(anchors, fitted)):
-            depths[anchors] = fitted
+        if fitted:
+            depths[anchors] = np.stack(fitted)
     if len(anchors) < T:
         _between(depths, anchors, seen)
     return (depths, distances) if with_distances else depths
