@@ -222,9 +222,9 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
     depths are: "program", the maximum-depth program's with the distances
     fixed; "lengths", those refined so that each pair keeps its template
     distance (:func:`~nrdepth.isometric.keep_lengths`) in every solved
-    frame, or the program's in every frame where one refined frame does
-    not keep its shape (:func:`~nrdepth.isometric.shape_kept`: the
-    relief's depth stays of one kind over the video); "mirror", refined from the
+    frame, or, where one refined frame does not keep its shape
+    (:func:`~nrdepth.isometric.shape_kept`), the program's in every frame
+    (the relief's depth stays of one kind over the video); "mirror", refined from the
     program's answer and from its mirror, whichever keeps
     the lengths better (:func:`~nrdepth.isometric.mirror_or_not`: the
     program bends every sheet away from the camera). ``with_distances``: also return the pairs'

@@ -61,7 +61,8 @@ each pair keeps its template distance, in every frame or, where one
 refined frame would change its shape, in none. By the rule fixed
 beforehand, on 32 generated paper-like sheets −0.0129 ± 0.0059 per frame
 against the program's; both real videos read as the program's, every
-frame falling back (docs/campaign.md, "Every frame refined or none")."""
+frame falling back (docs/campaign.md, "Sheets that bend as real sheets
+do, and each frame's lengths kept")."""
 
 
 def _option(default: Any, help: str, flag: Optional[str] = None, **argparse_kwargs: Any) -> Any:
