@@ -16,7 +16,8 @@ n-th frame's program solved, the rest linear in time), ``points``, ``hold``
 (0: the forward flow alone), ``drop`` (the share of points left out; 0 with
 ``backward=0``), ``keep`` (with ``hold``: only the points held in at least
 this share of their frames in view, ``isometric.point_held_shares``),
-``each`` (``mdh_depths``' ``each_frame``: program, lengths, mirror).
+``each`` (``mdh_depths``' ``each_frame``: program, lengths, mirror),
+``anchor`` (with ``each=lengths``, ``mdh_depths``' ``anchor``).
 With ``hold``, where fewer of the point-frames in view are held than the
 stage's ``MIN_HELD``, the stage steps aside, as it does in the job.
 
@@ -46,12 +47,12 @@ def sgemm() -> float:
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program"}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
             raise SystemExit(f"--settings: unknown lever {key!r} (known: {', '.join(out)})")
-        out[key] = value if key in ("flow", "each") else float(value) if key in ("drop", "keep") else (None if value == "none" else int(value))
+        out[key] = value if key in ("flow", "each") else float(value) if key in ("drop", "keep", "anchor") else (None if value == "none" else int(value))
     if out["keep"] and not out["hold"]:
         raise SystemExit(f"--settings {setting!r}: keep needs hold=1")
     if not out["backward"] and out["drop"]:
@@ -132,7 +133,7 @@ def main() -> None:
         xy = keep_held(xy, frames.shape[1:], lever)
         tracked = time.perf_counter()
         depths = isometric.mdh_depths(xy, camera, keyframes=lever["keyframes"], neighbours=lever["neighbours"], every=lever["every"],
-                                       each_frame=lever["each"])
+                                       each_frame=lever["each"], anchor=lever["anchor"])
         solved = time.perf_counter()
         dense = densify(xy - np.array([rx, ry]), depths, network.shape)
         scales = [ISOMETRIC_SCALE] if args.scales is None else [float(v) for v in args.scales.split(",")]

@@ -109,13 +109,16 @@ def long_sheets(frames: int, phases: int, textures, light: str = "above", sets=(
 
 
 def setting(item: str) -> tuple:
-    """``--set``'s ``field=v`` or ``field=lo,hi`` as (field, float or (lo, hi)), the field one of ``GeneratorConfig``'s."""
+    """``--set``'s ``field=v`` or ``field=lo,hi`` as (field, float or (lo, hi)), the field one of ``GeneratorConfig``'s
+    (a bool field's ``v`` as a bool: 0 or 1)."""
     from dataclasses import fields
 
     field, _, value = item.partition("=")
     if field not in {f.name for f in fields(GeneratorConfig)} or not value:
         raise ValueError(f"expected FIELD=V or FIELD=LO,HI with a GeneratorConfig field, got {item!r}")
     values = tuple(float(v) for v in value.split(","))
+    if isinstance(getattr(GeneratorConfig(), field), bool):
+        return field, bool(values[0])
     return field, values[0] if len(values) == 1 else values
 
 

@@ -19,11 +19,12 @@ frame's GBR) at the truth's points:
 
 ``--template``: ``mdh_depths``'s template distances, each read in turn
 (``joint``, ``refined``), with each of ``--each-frame`` (``mdh_depths``'s
-``each_frame``: ``program``, ``lengths``, ``mirror``). ``--noise``: also at the truth's positions plus
+``each_frame``: ``program``, ``lengths``, ``mirror``; ``--anchor`` its
+``anchor``). ``--noise``: also at the truth's positions plus
 independent Gaussian noise of each standard deviation given (pixels, seed
 0): noise of no spatial pattern, beside a tracker's drift.
 
-    python experiments/isometric_tracks.py [--template joint,refined] [--each-frame program,lengths,mirror] [--noise 0.25,0.5,1] [--drop 0,0.1,0.2]
+    python experiments/isometric_tracks.py [--template joint,refined] [--each-frame program,lengths,mirror] [--anchor 10] [--noise 0.25,0.5,1] [--drop 0,0.1,0.2]
 """
 
 from __future__ import annotations
@@ -76,6 +77,8 @@ def main() -> None:
     parser.add_argument("--each-frame", type=lambda text: text.split(","), default=["program"],
                         help="mdh_depths's each_frame (program, lengths, mirror), each read in turn with each template")
     parser.add_argument("--noise", type=lambda text: [float(v) for v in text.split(",")], default=[], help="standard deviations in pixels")
+    parser.add_argument("--anchor", type=float, default=0.0, help="mdh_depths's anchor (with each frame lengths: each refined depth pulled "
+                        "towards the program's)")
     args = parser.parse_args()
     truth = kinect_truth()
     K = np.load(DATA / "kinect_paper" / "gt_mdh.npz")["K"].astype(np.float64)
@@ -85,7 +88,7 @@ def main() -> None:
     readings = [(template, each) for template in args.template for each in args.each_frame]
     names = {reading: reading[0] if args.each_frame == ["program"] else "{}, each frame {}".format(*reading) for reading in readings}
     read = lambda xy, keyframes, reading: mdh_depths(xy, focal, centre, neighbours=NEIGHBOURS, keyframes=keyframes, template=reading[0],  # noqa: E731
-                                                     each_frame=reading[1])
+                                                     each_frame=reading[1], anchor=args.anchor)
     for reading in readings:
         print(f"{names[reading]}: the truth's image positions, {len(uv)} frames: {score(read(uv, len(uv), reading), uv, truth['z']):.2f} mm")
     for sigma in args.noise:

@@ -9,7 +9,7 @@ the stage's defaults otherwise (``reconstruct(focal=...)``'s points, drop
 and scale): per-frame MAE-SN of each, and its seconds for the points and
 the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 ``benchmarks/bench_sheet_stage.py`` (``margin``, ``flow``, ``keyframes``,
-``neighbours``, ``points``, ``hold``, ``backward``, ``drop``, ``keep``, ``each``); the first is the reference, each
+``neighbours``, ``points``, ``hold``, ``backward``, ``drop``, ``keep``, ``each``, ``anchor``); the first is the reference, each
 other is paired against it. ``--scales``: each also fused at each scale. ``--truth``: the first setting's programs also read the sheet's true
 tracks (the mesh's vertices nearest the points' grid, where a tracker
 could still hold them: ``isometric_generated.true_tracks``), named
@@ -133,7 +133,7 @@ def main() -> None:
                         raise ValueError(f"{held:.2f} of the point-frames held")
                     # One every: solved as the stage solves it; several: read off the every-frame solution
                     depths = isometric.mdh_depths(xy, focal, centre, keyframes=lever["keyframes"], neighbours=lever["neighbours"],
-                                                  every=everies[0] if len(everies) == 1 else 1, each_frame=lever["each"])
+                                                  every=everies[0] if len(everies) == 1 else 1, each_frame=lever["each"], anchor=lever["anchor"])
                 except ValueError as error:  # the stage steps aside: the network's depth
                     print(f"  {name}: steps aside ({error})", flush=True)
                     for n in everies:

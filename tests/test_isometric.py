@@ -493,6 +493,34 @@ def test_the_frame_that_keeps_its_lengths_is_the_truth_not_its_mirror():
     assert mirror_strain > 10 * strain  # the mirror does not keep them
 
 
+def test_an_anchored_frame_minimises_strains_and_pull_together_and_stays_nearer_its_start():
+    # Keeping the lengths of a frame that starts off the truth, with each depth pulled towards its start by each weight.
+    xy, truth = rolled_sheet()
+    rays = nrdepth.Camera(FOCAL, (0.0, 0.0)).rays(xy[-1])
+    pairs = isometric.neighbour_pairs(xy[-1], 8)
+    points = rays * truth[-1, :, None]
+    distances = np.linalg.norm(points[pairs[:, 0]] - points[pairs[:, 1]], axis=1)
+    start = truth[-1] * (1 + 0.05 * np.sin(np.arange(len(rays))))
+
+    def objective(z, anchor):
+        strains = np.linalg.norm(z[pairs[:, 0], None] * rays[pairs[:, 0]] - z[pairs[:, 1], None] * rays[pairs[:, 1]], axis=1) / distances - 1
+        return np.sum(strains**2) + anchor * np.sum(((z - start) / start.mean()) ** 2)
+
+    anchors = (0.0, 1.0, 100.0, 1e6)
+    kept = [isometric.keep_lengths(rays, pairs, start, distances, evaluations=500, anchor=a) for a in anchors]
+    moved = [np.linalg.norm(z - start) for z, _ in kept]
+    strains = [strain for _, strain in kept]
+    assert all(a >= b for a, b in zip(moved, moved[1:])) and all(a <= b for a, b in zip(strains, strains[1:]))
+    assert moved[-1] < 0.05 * moved[0] and strains[0] < 1e-4  # held at its start; free, the truth's lengths
+    for a, (z, _) in zip(anchors, kept):  # each the least of its own objective, against the others' answers and the start
+        assert all(objective(z, a) <= objective(other, a) * (1 + 1e-6) + 1e-12 for other in [start] + [y for y, _ in kept])
+    for bad in (-1.0, float("nan"), "1"):
+        with pytest.raises(ValueError, match="anchor"):
+            isometric.keep_lengths(rays, pairs, start, distances, anchor=bad)
+        with pytest.raises(ValueError, match="anchor"):
+            isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), each_frame="lengths", anchor=bad)
+
+
 def test_mdh_each_frame_keeps_the_lengths_the_program_only_bounds():
     xy, truth = rolled_sheet()
     # Every other frame solved: the nearly flat second frame, whose refinement does not keep its shape, is not among them.
@@ -519,9 +547,9 @@ def test_mdh_lengths_refines_every_frame_or_none(monkeypatch):
     assert 0 < sum(kept_shape) < len(xy)  # all solved here: the second frame's refinement turns its shape
     assert np.array_equal(isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, each_frame="lengths"), program)
     # A refinement that keeps every frame's shape (here a scaling) is taken in every frame; one that turns any over, in none.
-    monkeypatch.setattr(mdh, "keep_lengths", lambda rays, pairs, depths, distances: (1.5 * depths, 0.0))
+    monkeypatch.setattr(mdh, "keep_lengths", lambda rays, pairs, depths, distances, **_: (1.5 * depths, 0.0))
     assert np.array_equal(isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, each_frame="lengths"), 1.5 * program)
-    last_over = lambda rays, pairs, depths, distances: (isometric.mirror_depths(rays, depths) if depths[0] == program[-1, 0] else 1.5 * depths, 0.0)
+    last_over = lambda rays, pairs, depths, distances, **_: (isometric.mirror_depths(rays, depths) if depths[0] == program[-1, 0] else 1.5 * depths, 0.0)
     monkeypatch.setattr(mdh, "keep_lengths", last_over)  # the last frame's turned over, every other scaled
     assert np.array_equal(isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=8, keyframes=4, each_frame="lengths"), program)
 

@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import os
 from concurrent.futures import ThreadPoolExecutor
+from functools import partial
 from typing import Optional, Tuple, Union
 
 import numpy as np
 
 from ..baselines.tracks import densify
 from ..camera import Camera
+from ..checks import is_number
 from .mirror import keep_lengths, mirror_or_not, shape_kept
 from .points import DROP, check_video, track_grid
 
@@ -192,7 +194,7 @@ def _check_template(template: str) -> None:
 
 def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]], centre: Optional[Tuple[float, float]] = None, pairs: Optional[np.ndarray] = None, neighbours: int = 20,
                keyframes: int = 24, far: int = 0, reach: int = 0, template="joint", evaluations: int = 100, every: int = 1,
-               each_frame: str = "program", with_distances: bool = False) -> Union[np.ndarray, Tuple[np.ndarray, np.ndarray]]:
+               each_frame: str = "program", anchor: float = 0.0, with_distances: bool = False) -> Union[np.ndarray, Tuple[np.ndarray, np.ndarray]]:
     """Depths (T, n) of tracked points ``xy`` (T, n, 2) by the maximum-depth
     heuristic (module docstring); NaN where ``xy`` is NaN, a point out of
     view in that frame (:func:`track_points`), whose pairs bind nothing
@@ -227,8 +229,11 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
     (the relief's depth stays of one kind over the video); "mirror", refined from the
     program's answer and from its mirror, whichever keeps
     the lengths better (:func:`~nrdepth.isometric.mirror_or_not`: the
-    program bends every sheet away from the camera). ``with_distances``: also return the pairs'
-    template distances (E,) used, in the depths' units."""
+    program bends every sheet away from the camera). ``anchor``: with
+    "lengths", each refined depth also pulled towards the program's
+    (:func:`~nrdepth.isometric.keep_lengths`' ``anchor``; 0: free).
+    ``with_distances``: also return the pairs' template distances (E,)
+    used, in the depths' units."""
     camera = camera if isinstance(camera, Camera) else Camera(camera, centre)
     if camera.centre is None:
         raise ValueError("centre: expected the principal point (c_x, c_y) in pixels, got None")
@@ -243,6 +248,8 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
         raise ValueError(f"evaluations: expected an int >= 1, got {evaluations!r}")
     if each_frame not in EACH_FRAME:
         raise ValueError(f"each_frame: expected one of {EACH_FRAME}, got {each_frame!r}")
+    if not (is_number(anchor) and np.isfinite(anchor) and anchor >= 0):
+        raise ValueError(f"anchor: expected a finite number >= 0, got {anchor!r}")
     if isinstance(template, str):
         _check_template(template)
     elif pairs is None:
@@ -286,7 +293,7 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
     finally:
         pool.shutdown(cancel_futures=True)  # on Ctrl-C: the frames not yet started are dropped, not waited for
     if each_frame != "program":  # the solved frames are NaN out of view already
-        refine = keep_lengths if each_frame == "lengths" else mirror_or_not
+        refine = partial(keep_lengths, anchor=anchor) if each_frame == "lengths" else mirror_or_not
         from threadpoolctl import threadpool_limits
 
         # One BLAS thread around the whole pool: threadpoolctl's limits are the process's, not a thread's.

@@ -20,6 +20,8 @@ from typing import Tuple
 
 import numpy as np
 
+from ..checks import is_number
+
 __all__ = ["mirror_depths", "keep_lengths", "mirror_or_not", "shape_kept", "SHAPE_KEPT"]
 
 
@@ -88,13 +90,16 @@ def shape_kept(rays: np.ndarray, depths: np.ndarray, other: np.ndarray, correlat
 
 
 def keep_lengths(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distances: np.ndarray,
-                 evaluations: int = 50) -> Tuple[np.ndarray, float]:
+                 evaluations: int = 50, anchor: float = 0.0) -> Tuple[np.ndarray, float]:
     """One frame's depths (n,) refined from ``depths`` (NaN: out of view)
     so that each pair (``pairs`` (E, 2)) in view keeps its template
     distance (``distances`` (E,)): least squares of the strains
     ``‖Z_i r_i − Z_j r_j‖ / D_ij − 1``, depths kept positive, at most
     ``evaluations`` evaluations; and the strains' root mean square at the
-    end (how well the frame keeps its lengths)."""
+    end (how well the frame keeps its lengths). ``anchor`` ≥ 0: each depth
+    also pulled towards its start, the residual ``√anchor · (Z_i −
+    Z⁰_i) / mean(Z⁰)``, so that a nearly flat frame, whose lengths many
+    shapes keep, stays near its start (0: free; docs/findings.md)."""
     from scipy import sparse
     from scipy.optimize import least_squares
     from threadpoolctl import threadpool_limits
@@ -107,6 +112,8 @@ def keep_lengths(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distan
         raise ValueError(f"distances: expected the {len(pairs)} pairs' template distances, positive, got shape {distances.shape}")
     if not (isinstance(evaluations, (int, np.integer)) and evaluations >= 1):
         raise ValueError(f"evaluations: expected an int >= 1, got {evaluations!r}")
+    if not (is_number(anchor) and np.isfinite(anchor) and anchor >= 0):
+        raise ValueError(f"anchor: expected a finite number >= 0, got {anchor!r}")
     seen = np.isfinite(depths)
     active = seen[pairs[:, 0]] & seen[pairs[:, 1]]
     i, j, distance = pairs[active, 0], pairs[active, 1], distances[active]
@@ -121,24 +128,29 @@ def keep_lengths(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distan
     def chords(z: np.ndarray) -> np.ndarray:
         return z[vi, None] * ray_i - z[vj, None] * ray_j
 
+    start = np.maximum(depths[seen], 1e-9)
+    pull = np.sqrt(anchor) / start.mean()  # the anchor's residuals: each depth's change, in the frame's mean depth
+
     def residuals(z: np.ndarray) -> np.ndarray:
-        return np.linalg.norm(chords(z), axis=1) / distance - 1
+        strains = np.linalg.norm(chords(z), axis=1) / distance - 1
+        return np.concatenate([strains, pull * (z - start)]) if anchor else strains
 
     def jacobian(z: np.ndarray) -> sparse.csr_matrix:
         chord = chords(z)
         unit = chord / np.maximum(np.linalg.norm(chord, axis=1), 1e-12)[:, None]
         values = np.concatenate([np.einsum("ka,ka->k", unit, ray_i) / distance, -np.einsum("ka,ka->k", unit, ray_j) / distance])
-        return sparse.csr_matrix((values, (rows, columns)), shape=(K, N))
+        strains = sparse.csr_matrix((values, (rows, columns)), shape=(K, N))
+        return sparse.vstack([strains, pull * sparse.identity(N, format="csr")], format="csr") if anchor else strains
 
     out = np.full_like(depths, np.nan)
     if K == 0:
         return out, np.nan
     # One BLAS thread: the answer's bytes do not depend on the thread count (as in mdh._refine).
     with threadpool_limits(limits=1, user_api="blas"):
-        fit = least_squares(residuals, np.maximum(depths[seen], 1e-9), jac=jacobian, bounds=(0, np.inf), method="trf",
+        fit = least_squares(residuals, start, jac=jacobian, bounds=(0, np.inf), method="trf",
                             tr_solver="lsmr", x_scale="jac", max_nfev=evaluations)
     out[seen] = fit.x
-    return out, float(np.sqrt(np.mean(fit.fun**2)))
+    return out, float(np.sqrt(np.mean(fit.fun[:K] ** 2)))
 
 
 def mirror_or_not(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distances: np.ndarray,
