@@ -477,13 +477,18 @@ def test_shape_kept_is_the_heights_correlation_against_a_threshold():
             assert isometric.shape_kept(rays, truth[-1], other, threshold) is bool(threshold <= correlation)
 
 
-def test_the_frame_that_keeps_its_lengths_is_the_truth_not_its_mirror():
-    # Through a pinhole a bent sheet and its mirror differ: from either, keeping the pairs' lengths gives back the truth.
+def last_frame_with_lengths():
+    """The rolled sheet (its image positions and depths), and its last frame's rays, 8 neighbours' pairs and their true distances."""
     xy, truth = rolled_sheet()
     rays = nrdepth.Camera(FOCAL, (0.0, 0.0)).rays(xy[-1])
     pairs = isometric.neighbour_pairs(xy[-1], 8)
     points = rays * truth[-1, :, None]
-    distances = np.linalg.norm(points[pairs[:, 0]] - points[pairs[:, 1]], axis=1)
+    return xy, truth, rays, pairs, np.linalg.norm(points[pairs[:, 0]] - points[pairs[:, 1]], axis=1)
+
+
+def test_the_frame_that_keeps_its_lengths_is_the_truth_not_its_mirror():
+    # Through a pinhole a bent sheet and its mirror differ: from either, keeping the pairs' lengths gives back the truth.
+    xy, truth, rays, pairs, distances = last_frame_with_lengths()
     kept, strain = isometric.keep_lengths(rays, pairs, truth[-1] * (1 + 0.02 * np.sin(np.arange(len(rays)))), distances)
     assert strain < 1e-4 and np.allclose(kept, truth[-1], rtol=1e-3)
     for start, mirrored in ((truth[-1], False), (isometric.mirror_depths(rays, truth[-1]), True)):
@@ -495,11 +500,7 @@ def test_the_frame_that_keeps_its_lengths_is_the_truth_not_its_mirror():
 
 def test_an_anchored_frame_minimises_strains_and_pull_together_and_stays_nearer_its_start():
     # Keeping the lengths of a frame that starts off the truth, with each depth pulled towards its start by each weight.
-    xy, truth = rolled_sheet()
-    rays = nrdepth.Camera(FOCAL, (0.0, 0.0)).rays(xy[-1])
-    pairs = isometric.neighbour_pairs(xy[-1], 8)
-    points = rays * truth[-1, :, None]
-    distances = np.linalg.norm(points[pairs[:, 0]] - points[pairs[:, 1]], axis=1)
+    xy, truth, rays, pairs, distances = last_frame_with_lengths()
     start = truth[-1] * (1 + 0.05 * np.sin(np.arange(len(rays))))
 
     def objective(z, anchor):
