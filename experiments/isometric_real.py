@@ -72,7 +72,7 @@ def phisft_crop() -> tuple:
 
 
 def phisft_isometric(shape: tuple, points: int, neighbours: int, far: int, reach: int, window: int, backward: bool, template: str, drop: float, hold: bool = False,
-                     each_frame: str = "program") -> np.ndarray:
+                     each_frame: str = "program", anchor: float = 0.0) -> np.ndarray:
     """The cloth's isometric depth on the binned crop, of ``shape`` (T, H, W)."""
     from scipy.ndimage import binary_erosion
 
@@ -84,7 +84,8 @@ def phisft_isometric(shape: tuple, points: int, neighbours: int, far: int, reach
     inside = np.zeros_like(cloth)
     inside[4 * top : 4 * bottom, 4 * left : 4 * right] = True
     xy = isometric.track_grid(full, cloth & inside, points, window, backward, drop, hold=hold)
-    depths = isometric.mdh_depths(xy, FOCAL, CENTRE, neighbours=neighbours, far=far, reach=reach, template=template, each_frame=each_frame)
+    depths = isometric.mdh_depths(xy, FOCAL, CENTRE, neighbours=neighbours, far=far, reach=reach, template=template, each_frame=each_frame,
+                                    anchor=anchor)
     binned = (xy + 0.5) / 4 - 0.5 - np.array([left, top])  # full-frame pixels to the binned crop's
     return densify(binned, depths, shape)
 
@@ -113,11 +114,11 @@ def read_all(args) -> list:
             paper = isometric.isometric_depth(frames, focal, centre, mask=print_area, points=args.points[0], neighbours=args.neighbours[0],
                                               far=args.far, reach=args.reach, window=args.window,
                                               backward=not args.forward, template=args.template, drop=drop, hold=args.hold,
-                                              each_frame=args.each_frame)
+                                              each_frame=args.each_frame, anchor=args.anchor)
             print(f"kinect_paper: isometric depth in {time.perf_counter() - start:.0f} s")
             start = time.perf_counter()
             cloth = phisft_isometric(video.shape, args.points[0], args.neighbours[0], args.far, args.reach, args.window, not args.forward, args.template, drop,
-                                     hold=args.hold, each_frame=args.each_frame)
+                                     hold=args.hold, each_frame=args.each_frame, anchor=args.anchor)
             print(f"phisft_R1: isometric depth in {time.perf_counter() - start:.0f} s")
         reading = "network" if scale is None else ("isometric" if scale == 0 else f"fused at {scale:g}") + (f", drop {drop:g}" if len(args.drop) > 1 else "")
         row = {"reading": reading, "drop": "" if drop is None else drop, "scale": "" if scale is None else scale}
@@ -199,6 +200,7 @@ def main() -> None:
     parser.add_argument("--template", default="joint", choices=isometric.TEMPLATES,
                         help="mdh_depths's template distances: over keyframes, refined by least squares, or the first frame as a flat sheet facing the camera")
     parser.add_argument("--each-frame", default=ISOMETRIC_EACH_FRAME, choices=isometric.EACH_FRAME, help="mdh_depths's each_frame (default: the stage's)")
+    parser.add_argument("--anchor", type=float, default=0.0, help="mdh_depths's anchor (with --each-frame lengths: each refined depth pulled towards the program's)")
     parser.add_argument("--drop", type=numbers(float), default=[0.0],
                         help="shares of the points whose flows both ways disagree most, left out (isometric.track_grid), each read in turn (the first is used with "
                         "--grid; default 0, every point: reconstruct(focal=...) leaves out isometric.DROP)")

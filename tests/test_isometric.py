@@ -520,6 +520,8 @@ def test_an_anchored_frame_minimises_strains_and_pull_together_and_stays_nearer_
             isometric.keep_lengths(rays, pairs, start, distances, anchor=bad)
         with pytest.raises(ValueError, match="anchor"):
             isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), each_frame="lengths", anchor=bad)
+        with pytest.raises(ValueError, match="anchor"):
+            isometric.isometric_depth(np.zeros((3, 32, 32), np.uint8), FOCAL, each_frame="lengths", anchor=bad)
 
 
 def test_mdh_each_frame_keeps_the_lengths_the_program_only_bounds():

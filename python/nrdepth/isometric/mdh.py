@@ -17,8 +17,7 @@ import numpy as np
 
 from ..baselines.tracks import densify
 from ..camera import Camera
-from ..checks import is_number
-from .mirror import keep_lengths, mirror_or_not, shape_kept
+from .mirror import check_anchor, keep_lengths, mirror_or_not, shape_kept
 from .points import DROP, check_video, track_grid
 
 __all__ = ["neighbour_pairs", "mdh_depths", "isometric_depth", "TooFewPoints", "TEMPLATES", "EACH_FRAME"]
@@ -248,8 +247,7 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
         raise ValueError(f"evaluations: expected an int >= 1, got {evaluations!r}")
     if each_frame not in EACH_FRAME:
         raise ValueError(f"each_frame: expected one of {EACH_FRAME}, got {each_frame!r}")
-    if not (is_number(anchor) and np.isfinite(anchor) and anchor >= 0):
-        raise ValueError(f"anchor: expected a finite number >= 0, got {anchor!r}")
+    check_anchor(anchor)
     if isinstance(template, str):
         _check_template(template)
     elif pairs is None:
@@ -338,14 +336,15 @@ def _between(depths: np.ndarray, anchors: np.ndarray, seen: np.ndarray) -> None:
 
 def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.ndarray] = None, points: int = 400,
                     neighbours: int = 20, keyframes: int = 24, far: int = 0, reach: int = 0, window: int = 21,
-                    backward: bool = True, template: str = "joint", drop: float = DROP, hold: bool = False, each_frame: str = "program") -> np.ndarray:
+                    backward: bool = True, template: str = "joint", drop: float = DROP, hold: bool = False, each_frame: str = "program",
+                    anchor: float = 0.0) -> np.ndarray:
     """Dense depth (T, H, W) float64 of an inextensible sheet filmed by
     ``video`` (T, H, W) uint8 through a perspective camera of focal length
     ``focal`` pixels (one number or (f_x, f_y)) and principal point
     ``centre`` (default: the frame's centre): :func:`track_grid` over
     ``mask`` (the sheet in the first frame; default: the whole frame;
     ``points``, ``window``, ``backward``, ``drop``: :data:`DROP`, ``hold``), :func:`mdh_depths` (``neighbours``,
-    ``keyframes``, ``far``, ``reach``, ``template``, ``each_frame``), then linear over the points' Delaunay triangles,
+    ``keyframes``, ``far``, ``reach``, ``template``, ``each_frame``, ``anchor``), then linear over the points' Delaunay triangles,
     nearest outside their hull. Units: the mean distance between
     neighbouring points is about 1."""
     video = check_video(video)
@@ -355,6 +354,8 @@ def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.nda
     _check_template(template)
     if each_frame not in EACH_FRAME:  # checked before tracking
         raise ValueError(f"each_frame: expected one of {EACH_FRAME}, got {each_frame!r}")
+    check_anchor(anchor)
     xy = track_grid(video, mask, points, window, backward, drop, hold=hold)
-    depths = mdh_depths(xy, camera, neighbours=neighbours, keyframes=keyframes, far=far, reach=reach, template=template, each_frame=each_frame)
+    depths = mdh_depths(xy, camera, neighbours=neighbours, keyframes=keyframes, far=far, reach=reach, template=template, each_frame=each_frame,
+                        anchor=anchor)
     return densify(xy, depths, video.shape)

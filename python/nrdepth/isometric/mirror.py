@@ -89,6 +89,12 @@ def shape_kept(rays: np.ndarray, depths: np.ndarray, other: np.ndarray, correlat
     return bool(np.dot(mine, theirs) >= correlation * np.linalg.norm(mine) * np.linalg.norm(theirs))  # zero-mean heights: a correlation
 
 
+def check_anchor(anchor: float) -> None:
+    """ValueError naming ``anchor`` unless it is a finite number ≥ 0 (:func:`keep_lengths`)."""
+    if not (is_number(anchor) and np.isfinite(anchor) and anchor >= 0):
+        raise ValueError(f"anchor: expected a finite number >= 0, got {anchor!r}")
+
+
 def keep_lengths(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distances: np.ndarray,
                  evaluations: int = 50, anchor: float = 0.0) -> Tuple[np.ndarray, float]:
     """One frame's depths (n,) refined from ``depths`` (NaN: out of view)
@@ -112,8 +118,7 @@ def keep_lengths(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distan
         raise ValueError(f"distances: expected the {len(pairs)} pairs' template distances, positive, got shape {distances.shape}")
     if not (isinstance(evaluations, (int, np.integer)) and evaluations >= 1):
         raise ValueError(f"evaluations: expected an int >= 1, got {evaluations!r}")
-    if not (is_number(anchor) and np.isfinite(anchor) and anchor >= 0):
-        raise ValueError(f"anchor: expected a finite number >= 0, got {anchor!r}")
+    check_anchor(anchor)
     seen = np.isfinite(depths)
     active = seen[pairs[:, 0]] & seen[pairs[:, 1]]
     i, j, distance = pairs[active, 0], pairs[active, 1], distances[active]
