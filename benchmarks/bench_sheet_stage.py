@@ -55,6 +55,8 @@ def parse(setting: str) -> dict:
         out[key] = value if key in ("flow", "each") else float(value) if key in ("drop", "keep", "anchor") else (None if value == "none" else int(value))
     if out["keep"] and not out["hold"]:
         raise SystemExit(f"--settings {setting!r}: keep needs hold=1")
+    if out["anchor"] and out["each"] != "lengths":
+        raise SystemExit(f"--settings {setting!r}: anchor needs each=lengths")
     if not out["backward"] and out["drop"]:
         raise SystemExit(f"--settings {setting!r}: drop needs the flow both ways: give drop=0 with backward=0")
     return out

@@ -20,7 +20,7 @@ frame's GBR) at the truth's points:
 ``--template``: ``mdh_depths``'s template distances, each read in turn
 (``joint``, ``refined``), with each of ``--each-frame`` (``mdh_depths``'s
 ``each_frame``: ``program``, ``lengths``, ``mirror``; ``--anchor`` its
-``anchor``). ``--noise``: also at the truth's positions plus
+``anchor``, for ``lengths``). ``--noise``: also at the truth's positions plus
 independent Gaussian noise of each standard deviation given (pixels, seed
 0): noise of no spatial pattern, beside a tracker's drift.
 
@@ -88,7 +88,7 @@ def main() -> None:
     readings = [(template, each) for template in args.template for each in args.each_frame]
     names = {reading: reading[0] if args.each_frame == ["program"] else "{}, each frame {}".format(*reading) for reading in readings}
     read = lambda xy, keyframes, reading: mdh_depths(xy, focal, centre, neighbours=NEIGHBOURS, keyframes=keyframes, template=reading[0],  # noqa: E731
-                                                     each_frame=reading[1], anchor=args.anchor)
+                                                     each_frame=reading[1], anchor=args.anchor if reading[1] == "lengths" else 0.0)
     for reading in readings:
         print(f"{names[reading]}: the truth's image positions, {len(uv)} frames: {score(read(uv, len(uv), reading), uv, truth['z']):.2f} mm")
     for sigma in args.noise:

@@ -116,11 +116,13 @@ def test_mdh_fixed_distances_give_back_the_joint_solution():
         np.testing.assert_allclose(alone[0], joint[t], rtol=1e-4)
 
 
-@pytest.mark.parametrize("each_frame", ["program", "lengths", "mirror"])
-def test_mdh_is_reproducible_at_any_thread_count(monkeypatch, each_frame):
+@pytest.mark.parametrize("each_frame, every", [("program", 1), ("lengths", 2), ("mirror", 1)])
+def test_mdh_is_reproducible_at_any_thread_count(monkeypatch, each_frame, every):
     xy, _ = rolled_sheet(frames=6, side=7)
-    read = lambda: isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=6, keyframes=3, each_frame=each_frame)  # noqa: E731
+    read = lambda: isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=6, keyframes=3, every=every, each_frame=each_frame)  # noqa: E731
     first = read()
+    if each_frame == "lengths":  # every other frame solved: here every solved frame keeps its shape, so the refinement is what is read
+        assert not np.array_equal(first, isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), neighbours=6, keyframes=3, every=every))
     assert first.tobytes() == read().tobytes()
     monkeypatch.setattr(isometric.mdh.os, "cpu_count", lambda: 1)  # the frames outside the keyframes one after another
     assert first.tobytes() == read().tobytes()
@@ -522,6 +524,11 @@ def test_an_anchored_frame_minimises_strains_and_pull_together_and_stays_nearer_
             isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), each_frame="lengths", anchor=bad)
         with pytest.raises(ValueError, match="anchor"):
             isometric.isometric_depth(np.zeros((3, 32, 32), np.uint8), FOCAL, each_frame="lengths", anchor=bad)
+    for each_frame in ("program", "mirror"):  # an anchor only "lengths" would use is not silently ignored
+        with pytest.raises(ValueError, match="anchor"):
+            isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), each_frame=each_frame, anchor=1.0)
+        with pytest.raises(ValueError, match="anchor"):
+            isometric.isometric_depth(np.zeros((3, 32, 32), np.uint8), FOCAL, each_frame=each_frame, anchor=1.0)
 
 
 def test_mdh_each_frame_keeps_the_lengths_the_program_only_bounds():
@@ -601,6 +608,8 @@ def test_bad_input_names_the_argument():
         isometric.shape_kept(rays, np.ones(len(rays)), np.r_[np.nan, np.ones(len(rays) - 1)])
     with pytest.raises(ValueError, match="correlation"):
         isometric.shape_kept(rays, np.ones(len(rays)), np.ones(len(rays)), correlation=2.0)
+    with pytest.raises(ValueError, match="correlation"):
+        isometric.shape_kept(rays, np.ones(len(rays)), np.ones(len(rays)), correlation=True)
     with pytest.raises(ValueError, match="scale"):
         isometric.fuse(np.zeros((1, 8, 8)), np.zeros((1, 8, 8)), -1.0)
     with pytest.raises(ValueError, match="depth, isometric"):

@@ -247,7 +247,7 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
         raise ValueError(f"evaluations: expected an int >= 1, got {evaluations!r}")
     if each_frame not in EACH_FRAME:
         raise ValueError(f"each_frame: expected one of {EACH_FRAME}, got {each_frame!r}")
-    check_anchor(anchor)
+    check_anchor(anchor, each_frame)
     if isinstance(template, str):
         _check_template(template)
     elif pairs is None:
@@ -354,7 +354,7 @@ def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.nda
     _check_template(template)
     if each_frame not in EACH_FRAME:  # checked before tracking
         raise ValueError(f"each_frame: expected one of {EACH_FRAME}, got {each_frame!r}")
-    check_anchor(anchor)
+    check_anchor(anchor, each_frame)
     xy = track_grid(video, mask, points, window, backward, drop, hold=hold)
     depths = mdh_depths(xy, camera, neighbours=neighbours, keyframes=keyframes, far=far, reach=reach, template=template, each_frame=each_frame,
                         anchor=anchor)

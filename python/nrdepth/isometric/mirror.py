@@ -76,7 +76,7 @@ def shape_kept(rays: np.ndarray, depths: np.ndarray, other: np.ndarray, correlat
     their points' heights above their own best planes correlate at least
     ``correlation``. A frame with no relief keeps any shape."""
     rays, depths = _check_frame(rays, depths)
-    if not (isinstance(correlation, (int, float, np.number)) and -1 <= correlation <= 1):
+    if not (is_number(correlation) and -1 <= correlation <= 1):
         raise ValueError(f"correlation: expected a number in [-1, 1], got {correlation!r}")
     other = np.asarray(other, np.float64)
     if other.shape != depths.shape or not np.array_equal(np.isfinite(other), np.isfinite(depths)):
@@ -89,10 +89,14 @@ def shape_kept(rays: np.ndarray, depths: np.ndarray, other: np.ndarray, correlat
     return bool(np.dot(mine, theirs) >= correlation * np.linalg.norm(mine) * np.linalg.norm(theirs))  # zero-mean heights: a correlation
 
 
-def check_anchor(anchor: float) -> None:
-    """ValueError naming ``anchor`` unless it is a finite number ≥ 0 (:func:`keep_lengths`)."""
+def check_anchor(anchor: float, each_frame: str = "lengths") -> None:
+    """ValueError naming ``anchor`` unless it is a finite number ≥ 0
+    (:func:`keep_lengths`), and 0 unless ``each_frame`` is "lengths", the
+    one reading that uses it."""
     if not (is_number(anchor) and np.isfinite(anchor) and anchor >= 0):
         raise ValueError(f"anchor: expected a finite number >= 0, got {anchor!r}")
+    if anchor and each_frame != "lengths":
+        raise ValueError(f"anchor: only each_frame='lengths' pulls towards the program's depths; got anchor={anchor!r} with each_frame={each_frame!r}")
 
 
 def keep_lengths(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distances: np.ndarray,
