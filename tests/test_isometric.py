@@ -129,11 +129,11 @@ def test_mdh_is_reproducible_at_any_thread_count(monkeypatch, each_frame, every)
 
 
 def test_mdh_refined_is_the_same_at_one_and_two_blas_threads():
-    # The refinement's solver takes norms and dot products of long vectors (here 20,000 strains), which a
+    # The refinement's solver takes norms and dot products of long vectors (here 12,900 strains), which a
     # threaded BLAS sums in an order set by its thread count: the same tracks must give the same bytes.
     script = (f"import sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); import hashlib; "
               "from test_isometric import rolled_sheet, FOCAL; from nrdepth import isometric; "
-              "xy, _ = rolled_sheet(frames=8, side=14, start=0.5); "
+              "xy, _ = rolled_sheet(frames=8, side=12, start=0.5); "
               "print(hashlib.sha1(isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), keyframes=8, template='refined').tobytes()).hexdigest())")
     digests = {subprocess.run([sys.executable, "-c", script], env=dict(os.environ, OPENBLAS_NUM_THREADS=threads, OMP_NUM_THREADS=threads),
                               capture_output=True, text=True, check=True).stdout for threads in ("1", "2")}

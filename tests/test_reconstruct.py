@@ -266,9 +266,9 @@ def test_cli_default_output_folder_is_named_after_the_input(tmp_path, tiny_model
     (["--alignment", "coarse", "--window", "triangle"], {"alignment": "coarse", "window": "triangle"}),  # the paper's stitch
     (["--window", "triangle"], {"window": "triangle"}),
     (["--temporal-weight", "0"], {"temporal_weight": 0.0}),
-    (["--focal", "60", "--isometric-scale", "0.1", "--isometric-points", "100"], {"focal": 60.0, "isometric_scale": 0.1, "isometric_points": 100}),  # the sheet's shape from inextensibility
-    (["--focal", "60", "--isometric-template", "refined", "--isometric-drop", "0.3", "--isometric-points", "100"],
-     {"focal": 60.0, "isometric_template": "refined", "isometric_drop": 0.3, "isometric_points": 100}),
+    (["--focal", "60", "--isometric-scale", "0.1", "--isometric-points", "36"], {"focal": 60.0, "isometric_scale": 0.1, "isometric_points": 36}),  # the sheet's shape from inextensibility
+    (["--focal", "60", "--isometric-template", "refined", "--isometric-drop", "0.3", "--isometric-points", "36"],
+     {"focal": 60.0, "isometric_template": "refined", "isometric_drop": 0.3, "isometric_points": 36}),
 ])
 def test_cli_stitching_options_reach_reconstruct(tmp_path, tiny_model, flags, options):
     # The field pass's windows of 3 frames agree too well for the temporal tie to act; the sheet stage reads 16 frames or more.
