@@ -191,6 +191,36 @@ def test_the_flow_over_the_points_box_follows_as_the_whole_frames_does():
         isometric.track_grid(video, mask, margin=-1)
 
 
+
+class InPlace:
+    """An executor that runs what it is given at once, in the caller's thread."""
+
+    def __init__(self, workers):
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def submit(self, function, *args):
+        from concurrent.futures import Future
+
+        done = Future()
+        done.set_result(function(*args))
+        return done
+
+
+@pytest.mark.parametrize("flow", ["farneback", "dis"])
+def test_the_backward_flow_in_its_own_thread_gives_the_same_tracks_as_in_turn(monkeypatch, flow):
+    video = shifted_texture(frames=8)
+    mask = np.zeros(video.shape[1:], bool)
+    mask[25:75, 25:75] = True
+    threaded = isometric.track_grid(video, mask, points=36, flow=flow, drop=0.2, margin=24)
+    monkeypatch.setattr(isometric.points, "ThreadPoolExecutor", InPlace)
+    assert threaded.tobytes() == isometric.track_grid(video, mask, points=36, flow=flow, drop=0.2, margin=24).tobytes()
+
 def bent_texture(frames: int = 24, size: int = 96, amplitude: float = 6.0) -> np.ndarray:
     """A smooth random texture bent by smooth random displacements (pixels,
     at most ``amplitude``) along a loop that ends where it began: the last

@@ -13,6 +13,8 @@ integers); NaN from the frame where a point leaves the view (with
 from __future__ import annotations
 
 import itertools
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
 from typing import Iterable, Iterator, Optional, Tuple, Union
 
 import numpy as np
@@ -152,11 +154,12 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
     frames: :func:`frames_of`) by dense optical flow (``flow``) from each frame to the
     next: the mean of where the forward flow takes a point and where the
     backward flow says it came from (both real videos read better, generated
-    sheets within 0.0005 per frame: docs/reconstruction.md), or with
-    ``backward`` False the forward flow alone (half the flow's cost). A
-    point is lost for good (NaN) from the first frame after the start where
-    it lies within ``border`` pixels of the frame's edge or beyond it: the
-    flow cannot follow what leaves the view, and would hold it at the edge.
+    sheets within 0.0005 per frame: docs/reconstruction.md; the backward
+    flow runs in a second thread), or with ``backward`` False the forward
+    flow alone (half the flow's work). A point is lost for good (NaN)
+    from the first frame after the start where it lies within ``border``
+    pixels of the frame's edge or beyond it: the flow cannot follow what
+    leaves the view, and would hold it at the edge.
     With ``disagreement`` (needs ``backward``), also (n,): each point's
     distance between where the two flows take it, its mean over the steps
     it stays in view (pixels; 0 for a point lost at once). ``flow``: one of
@@ -188,7 +191,7 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
         raise ValueError(f"margin: expected pixels >= 0 or None (the whole frame), got {margin!r}")
     if not isinstance(hold, (bool, np.bool_)):
         raise ValueError(f"hold: expected a bool, got {hold!r}")
-    dense = _flow(cv2, flow, window)
+    dense, dense_back = _flow(cv2, flow, window), _flow(cv2, flow, window)  # one each: a DIS object is not shared between threads
     H, W = first.shape
     anchor = Anchor(cv2, first, start, max(H, W) if margin is None else margin) if hold else None
 
@@ -200,37 +203,41 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
     carried = start  # with hold: every point's place, held or carried on by the warp
     apart, steps = np.zeros(len(start)), np.zeros(len(start))
     previous = first
-    for frame in rest:  # two frames held at a time: a stream is read once
-        now_xy = np.full_like(start, np.nan)
-        if len(alive):
-            was = carried if hold else xy[-1][alive]
-            # The flow over the points' box and a margin, not the whole frame: its cost goes with the area.
-            x0, y0 = (0, 0) if margin is None else (max(0, int(np.floor(was[:, k].min())) - margin) for k in (0, 1))
-            x1, y1 = (W, H) if margin is None else (min(n, int(np.ceil(was[:, k].max())) + margin + 1) for k, n in ((0, W), (1, H)))
-            a, b, corner = previous[y0:y1, x0:x1], frame[y0:y1, x0:x1], np.array([x0, y0], np.float64)
-            ahead = was + at(dense(a, b), was - corner)
-            now = ahead
-            if backward:
-                field, back = dense(b, a), ahead
-                for _ in range(3):  # the point p whose backward flow lands on xy[t − 1]: p = xy[t − 1] − field(p)
-                    back = was - at(field, back - corner)
-                now = (ahead + back) / 2
-            if hold:  # every point stays alive: where it is not held it is NaN, and carried on
-                now, held, carried = anchor.hold(frame, now)
-                carried = np.where(held[:, None], now, carried)
-                stays = held & inside(now, (H, W), border)
-                now_xy[stays] = now[stays]
-                counted = stays
-            else:
-                stays = inside(now, (H, W), border)
-                alive, now = alive[stays], now[stays]
-                now_xy[alive] = now
-                counted = alive
-            if backward:
-                apart[counted] += np.linalg.norm(ahead[stays] - back[stays], axis=1)
-                steps[counted] += 1
-        xy.append(now_xy)
-        previous = frame
+    # The backward flow in a second thread while this one computes the forward flow (OpenCV releases the GIL, and
+    # one Farneback call gains nothing from a second core): the same numbers in less time on two cores.
+    with ThreadPoolExecutor(1) if backward else nullcontext() as helper:
+        for frame in rest:  # two frames held at a time: a stream is read once
+            now_xy = np.full_like(start, np.nan)
+            if len(alive):
+                was = carried if hold else xy[-1][alive]
+                # The flow over the points' box and a margin, not the whole frame: its cost goes with the area.
+                x0, y0 = (0, 0) if margin is None else (max(0, int(np.floor(was[:, k].min())) - margin) for k in (0, 1))
+                x1, y1 = (W, H) if margin is None else (min(n, int(np.ceil(was[:, k].max())) + margin + 1) for k, n in ((0, W), (1, H)))
+                a, b, corner = previous[y0:y1, x0:x1], frame[y0:y1, x0:x1], np.array([x0, y0], np.float64)
+                field_back = helper.submit(dense_back, b, a) if backward else None
+                ahead = was + at(dense(a, b), was - corner)
+                now = ahead
+                if backward:
+                    field, back = field_back.result(), ahead
+                    for _ in range(3):  # the point p whose backward flow lands on xy[t − 1]: p = xy[t − 1] − field(p)
+                        back = was - at(field, back - corner)
+                    now = (ahead + back) / 2
+                if hold:  # every point stays alive: where it is not held it is NaN, and carried on
+                    now, held, carried = anchor.hold(frame, now)
+                    carried = np.where(held[:, None], now, carried)
+                    stays = held & inside(now, (H, W), border)
+                    now_xy[stays] = now[stays]
+                    counted = stays
+                else:
+                    stays = inside(now, (H, W), border)
+                    alive, now = alive[stays], now[stays]
+                    now_xy[alive] = now
+                    counted = alive
+                if backward:
+                    apart[counted] += np.linalg.norm(ahead[stays] - back[stays], axis=1)
+                    steps[counted] += 1
+            xy.append(now_xy)
+            previous = frame
     xy = np.stack(xy)
     return (xy, apart / np.maximum(steps, 1)) if disagreement else xy
 
