@@ -17,7 +17,10 @@ n-th frame's program solved, the rest linear in time), ``points``, ``hold``
 ``backward=0``), ``keep`` (with ``hold``: only the points held in at least
 this share of their frames in view, ``isometric.point_held_shares``),
 ``each`` (``mdh_depths``' ``each_frame``: program, lengths, mirror),
-``anchor`` (with ``each=lengths``, ``mdh_depths``' ``anchor``).
+``anchor`` (with ``each=lengths``, ``mdh_depths``' ``anchor``), ``fov``
+(degrees: the camera a pinhole of this horizontal field of view with its
+principal point at the frame's centre, as a user without a calibration
+might guess it, in place of the true one).
 With ``hold``, where fewer of the point-frames in view are held than the
 stage's ``MIN_HELD``, the stage steps aside, as it does in the job.
 
@@ -47,19 +50,50 @@ def sgemm() -> float:
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
             raise SystemExit(f"--settings: unknown lever {key!r} (known: {', '.join(out)})")
-        out[key] = value if key in ("flow", "each") else float(value) if key in ("drop", "keep", "anchor") else (None if value == "none" else int(value))
+        out[key] = value if key in ("flow", "each") else float(value) if key in ("drop", "keep", "anchor", "fov") else (None if value == "none" else int(value))
     if out["keep"] and not out["hold"]:
         raise SystemExit(f"--settings {setting!r}: keep needs hold=1")
     if out["anchor"] and out["each"] != "lengths":
         raise SystemExit(f"--settings {setting!r}: anchor needs each=lengths")
+    if out["fov"] is not None and not 0 < out["fov"] < 180:
+        raise SystemExit(f"--settings {setting!r}: fov is a horizontal field of view in degrees, in (0, 180)")
     if not out["backward"] and out["drop"]:
         raise SystemExit(f"--settings {setting!r}: drop needs the flow both ways: give drop=0 with backward=0")
     return out
+
+
+def guessed_camera(fov: float, frame: tuple):
+    """A pinhole of horizontal field of view ``fov`` (degrees) over a frame of ``frame`` (H, W), its principal point at the centre."""
+    import math
+
+    from nrdepth import Camera
+
+    return Camera((frame[1] / 2) / math.tan(math.radians(fov) / 2)).at(frame)
+
+
+def shortfall(xy: np.ndarray, depths: np.ndarray, camera, distances: np.ndarray, lever: dict) -> float:
+    """How far the pairs fall short of their template distances in the
+    program's depths: the mean over the pairs in view in the solved frames
+    (the keyframes and every ``lever["every"]``-th) of
+    1 − ‖Z_i r_i − Z_j r_j‖ / D_ij (0: every pair at its length, as on an
+    inextensible sheet read through the right camera; the maximum-depth
+    program never stretches a pair). ``depths`` (T, n) and ``distances``
+    from ``mdh_depths(..., with_distances=True)`` with its default pairs."""
+    from nrdepth import isometric
+
+    T = len(xy)
+    keys = np.rint(np.linspace(0, T - 1, min(lever["keyframes"], T))).astype(int)
+    solved = np.union1d(np.union1d(keys, np.arange(0, T, lever["every"])), [T - 1])
+    pairs = isometric.neighbour_pairs(xy[0], lever["neighbours"])
+    xy, depths = xy[solved], depths[solved]
+    points = camera.rays(xy) * depths[..., None]
+    lengths = np.linalg.norm(points[:, pairs[:, 0]] - points[:, pairs[:, 1]], axis=2)
+    return float(np.nanmean(1 - lengths / distances))
 
 
 def keep_held(xy: np.ndarray, shape: tuple, lever: dict) -> np.ndarray:
@@ -134,7 +168,8 @@ def main() -> None:
             continue
         xy = keep_held(xy, frames.shape[1:], lever)
         tracked = time.perf_counter()
-        depths = isometric.mdh_depths(xy, camera, keyframes=lever["keyframes"], neighbours=lever["neighbours"], every=lever["every"],
+        through = camera if lever["fov"] is None else guessed_camera(lever["fov"], frames.shape[1:])
+        depths = isometric.mdh_depths(xy, through, keyframes=lever["keyframes"], neighbours=lever["neighbours"], every=lever["every"],
                                        each_frame=lever["each"], anchor=lever["anchor"])
         solved = time.perf_counter()
         dense = densify(xy - np.array([rx, ry]), depths, network.shape)

@@ -9,8 +9,15 @@ the stage's defaults otherwise (``reconstruct(focal=...)``'s points, drop
 and scale): per-frame MAE-SN of each, and its seconds for the points and
 the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 ``benchmarks/bench_sheet_stage.py`` (``margin``, ``flow``, ``keyframes``,
-``neighbours``, ``points``, ``hold``, ``backward``, ``drop``, ``keep``, ``each``, ``anchor``); the first is the reference, each
-other is paired against it. ``--scales``: each also fused at each scale. ``--truth``: the first setting's programs also read the sheet's true
+``neighbours``, ``points``, ``hold``, ``backward``, ``drop``, ``keep``, ``each``, ``anchor``, ``fov``: a guessed
+pinhole in place of the true camera); the first is the reference, each
+other is paired against it. Each setting's ``shortfall`` is recorded too:
+how far its program's pairs fall short of their template distances
+(``bench_sheet_stage.shortfall``; with ``each=program``), a candidate
+for the gate that says whether the pairs' lengths hold. With ``--set
+sheet_probability=0`` the videos are not sheets but the generator's
+coloured-noise surfaces (``--set camera_fov=0,0``: seen orthographically,
+where only ``fov`` settings can run). ``--scales``: each also fused at each scale. ``--truth``: the first setting's programs also read the sheet's true
 tracks (the mesh's vertices nearest the points' grid, where a tracker
 could still hold them: ``isometric_generated.true_tracks``), named
 ``truth``: what the tracker costs. ``--families``: the sheets' texture
@@ -50,7 +57,7 @@ from nrdepth.scores.metrics import dense_baselines, mae_sn
 
 sys.path.insert(0, str(Path(__file__).parent))
 sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
-from bench_sheet_stage import keep_held, parse  # noqa: E402
+from bench_sheet_stage import guessed_camera, keep_held, parse, shortfall  # noqa: E402
 from isometric_generated import LIGHTS, SEED, camera, in_view, long_sheets, setting, true_tracks  # noqa: E402
 
 
@@ -106,7 +113,7 @@ def main() -> None:
                 rows.append({"light": light, "clip": args.start + k, **margin_shift(video, levers[0], args.margin_check)})
                 print(f"{light} {args.start + k}: the box moves the tracks by a median {rows[-1]['margin shift median px']:.4f} px, at most {rows[-1]['margin shift max px']:.3f}", flush=True)
                 continue
-            focal, centre = camera(params, config.size)
+            true_camera = nrdepth.Camera(*camera(params, config.size)) if params.get("pinhole") is not None else None
             network = nrdepth.reconstruct(video).astype(np.float64)
             on = np.isfinite(truth)  # NaN off the sheet over a backdrop
             region = None if on.all() else on[0]
@@ -131,9 +138,13 @@ def main() -> None:
                 try:
                     if held < args.min_held:
                         raise ValueError(f"{held:.2f} of the point-frames held")
+                    through = true_camera if lever["fov"] is None else guessed_camera(lever["fov"], video.shape[1:])
+                    if through is None:
+                        raise SystemExit(f"--settings {name!r}: the video is seen orthographically: only a guessed camera (fov=) reads it")
                     # One every: solved as the stage solves it; several: read off the every-frame solution
-                    depths = isometric.mdh_depths(xy, focal, centre, keyframes=lever["keyframes"], neighbours=lever["neighbours"],
-                                                  every=everies[0] if len(everies) == 1 else 1, each_frame=lever["each"], anchor=lever["anchor"])
+                    depths, distances = isometric.mdh_depths(xy, through, keyframes=lever["keyframes"], neighbours=lever["neighbours"],
+                                                             every=everies[0] if len(everies) == 1 else 1, each_frame=lever["each"],
+                                                             anchor=lever["anchor"], with_distances=True)
                 except ValueError as error:  # the stage steps aside: the network's depth
                     print(f"  {name}: steps aside ({error})", flush=True)
                     for n in everies:
@@ -142,6 +153,10 @@ def main() -> None:
                     row[f"{name} points s"], row[f"{name} programs s"] = tracked - start, 0.0
                     continue
                 solved = time.perf_counter()
+                if lever["each"] == "program":
+                    row[f"{name} shortfall"] = shortfall(xy, depths, through, distances, dict(lever, every=everies[0] if len(everies) == 1 else 1))
+                if true_camera is not None:
+                    row[f"{name} focal ratio"] = float(through.focal[0] / true_camera.focal[0])
                 same = (key, lever["keep"], lever["keyframes"], lever["neighbours"])
                 programs[same + (lever["each"],)] = depths
                 if lever["each"] == "lengths" and same + ("program",) in programs:

@@ -191,7 +191,6 @@ def test_the_flow_over_the_points_box_follows_as_the_whole_frames_does():
         isometric.track_grid(video, mask, margin=-1)
 
 
-
 class InPlace:
     """An executor that runs what it is given at once, in the caller's thread."""
 
@@ -220,6 +219,7 @@ def test_the_backward_flow_in_its_own_thread_gives_the_same_tracks_as_in_turn(mo
     threaded = isometric.track_grid(video, mask, points=36, flow=flow, drop=0.2, margin=24)
     monkeypatch.setattr(isometric.points, "ThreadPoolExecutor", InPlace)
     assert threaded.tobytes() == isometric.track_grid(video, mask, points=36, flow=flow, drop=0.2, margin=24).tobytes()
+
 
 def bent_texture(frames: int = 24, size: int = 96, amplitude: float = 6.0) -> np.ndarray:
     """A smooth random texture bent by smooth random displacements (pixels,
