@@ -135,8 +135,11 @@ def test_mdh_refined_is_the_same_at_one_and_two_blas_threads():
               "from test_isometric import rolled_sheet, FOCAL; from nrdepth import isometric; "
               "xy, _ = rolled_sheet(frames=8, side=12, start=0.5); "
               "print(hashlib.sha1(isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), keyframes=8, template='refined').tobytes()).hexdigest())")
-    digests = {subprocess.run([sys.executable, "-c", script], env=dict(os.environ, OPENBLAS_NUM_THREADS=threads, OMP_NUM_THREADS=threads),
-                              capture_output=True, text=True, check=True).stdout for threads in ("1", "2")}
+    runs = [subprocess.Popen([sys.executable, "-c", script], env=dict(os.environ, OPENBLAS_NUM_THREADS=threads, OMP_NUM_THREADS=threads),
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for threads in ("1", "2")]  # side by side
+    outputs = [run.communicate(timeout=600) for run in runs]
+    assert all(run.returncode == 0 for run in runs), [err[-2000:] for _, err in outputs]
+    digests = {out for out, _ in outputs}
     assert len(digests) == 1, digests
 
 
