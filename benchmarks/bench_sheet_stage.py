@@ -85,10 +85,9 @@ def shortfall(xy: np.ndarray, depths: np.ndarray, camera, distances: np.ndarray,
     program never stretches a pair). ``depths`` (T, n) and ``distances``
     from ``mdh_depths(..., with_distances=True)`` with its default pairs."""
     from nrdepth import isometric
+    from nrdepth.isometric.mdh import keyframe_indices, solved_frames
 
-    T = len(xy)
-    keys = np.rint(np.linspace(0, T - 1, min(lever["keyframes"], T))).astype(int)
-    solved = np.union1d(np.union1d(keys, np.arange(0, T, lever["every"])), [T - 1])
+    solved = solved_frames(len(xy), keyframe_indices(len(xy), lever["keyframes"]), lever["every"])
     pairs = isometric.neighbour_pairs(xy[0], lever["neighbours"])
     xy, depths = xy[solved], depths[solved]
     points = camera.rays(xy) * depths[..., None]

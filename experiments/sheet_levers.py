@@ -50,7 +50,7 @@ import nrdepth
 from nrdepth import generate_clips, isometric
 from nrdepth.baselines.tracks import densify
 from nrdepth.isometric import held_share
-from nrdepth.isometric.mdh import _between
+from nrdepth.isometric.mdh import _between, keyframe_indices, solved_frames
 from nrdepth.reconstruct.options import ISOMETRIC_SCALE
 from nrdepth.scores.generated import SHEET_FAMILIES
 from nrdepth.scores.metrics import dense_baselines, mae_sn
@@ -166,8 +166,7 @@ def main() -> None:
                 for n in everies:
                     kept = depths.copy()
                     if n > 1 and len(everies) > 1:
-                        keys = np.unique(np.rint(np.linspace(0, len(xy) - 1, min(lever["keyframes"], len(xy)))).astype(int))
-                        anchors = np.union1d(np.union1d(keys, np.arange(0, len(xy), n)), [len(xy) - 1])
+                        anchors = solved_frames(len(xy), keyframe_indices(len(xy), lever["keyframes"]), n)
                         _between(kept, anchors, np.isfinite(xy).all(axis=2))
                     dense = densify(xy, kept, video.shape)
                     for scale in scales:

@@ -269,7 +269,7 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
         if distances.shape != (len(pairs),) or not np.all(np.isfinite(distances) & (distances > 0)):
             raise ValueError(f"template: expected one of {TEMPLATES} or the {len(pairs)} pairs' distances, positive, got shape {distances.shape}")
     elif template in ("joint", "refined"):
-        keys = np.unique(np.rint(np.linspace(0, T - 1, min(keyframes, T))).astype(int))
+        keys = keyframe_indices(T, keyframes)
         depths[keys], distances = _socp(rays[keys], pairs, None, seen[keys])
         if template == "refined":
             depths[keys], distances = _refine(rays[keys], pairs, depths[keys], distances, evaluations)
@@ -279,8 +279,7 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
         if not np.all(distances > 0):
             raise ValueError("xy: two paired points share a position in the first frame")
         distances *= len(pairs) / distances.sum()  # the joint program's units: Σ D = the number of pairs
-    anchors = np.union1d(keys, np.arange(0, T, every)) if every > 1 else np.arange(T)
-    anchors = np.union1d(anchors, [T - 1])
+    anchors = solved_frames(T, keys, every)
     rest = np.setdiff1d(anchors, keys)
     # With the distances fixed the frames are independent: one small program each (ten times faster than
     # several frames in one), in threads (Clarabel releases the GIL; each frame's answer is the same in any thread).
@@ -314,6 +313,16 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
     if len(anchors) < T:
         _between(depths, anchors, seen)
     return (depths, distances) if with_distances else depths
+
+
+def keyframe_indices(T: int, keyframes: int) -> np.ndarray:
+    """The ``keyframes`` frames of ``T`` that :func:`mdh_depths`' joint program solves together, spread evenly, first and last among them."""
+    return np.unique(np.rint(np.linspace(0, T - 1, min(keyframes, T))).astype(int))
+
+
+def solved_frames(T: int, keys: np.ndarray, every: int) -> np.ndarray:
+    """The frames of ``T`` whose depths :func:`mdh_depths` solves: the keyframes ``keys``, every ``every``-th frame and the last."""
+    return np.union1d(np.union1d(keys, np.arange(0, T, every)), [T - 1])
 
 
 def _between(depths: np.ndarray, anchors: np.ndarray, seen: np.ndarray) -> None:
