@@ -31,8 +31,6 @@ figure depends on them.
     python experiments/isometric_real.py --drop 0,0.1,0.2,0.3 [--template refined]
     python experiments/isometric_real.py --grid --points 200,400,800 --neighbours 8,12,20
     python experiments/isometric_real.py --grid --focal-factors 0.5,0.7,1.4,2
-
-Needs ``pip install 'nrdepth[isometric]'``.
 """
 
 from __future__ import annotations

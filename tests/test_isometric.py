@@ -13,14 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-pytest.importorskip("cv2")
-pytest.importorskip("clarabel")
-
-import nrdepth  # noqa: E402
-from nrdepth import isometric  # noqa: E402
+import nrdepth
+from nrdepth import isometric
 from nrdepth.isometric import least_disagreeing
-from nrdepth.isometric.mdh import _refine, _socp  # noqa: E402
-from nrdepth.baselines.tracks import densify  # noqa: E402
+from nrdepth.isometric.mdh import _refine, _socp
+from nrdepth.baselines.tracks import densify
 
 FOCAL = 500.0
 

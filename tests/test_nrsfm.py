@@ -169,7 +169,6 @@ def moving_texture_video(frames: int = 6, size: int = 96):
 
 
 def test_tracked_corners_follow_a_known_motion_and_lost_points_are_dropped():
-    pytest.importorskip("cv2")
     from nrdepth.baselines.tracks import track_video
 
     video, truth = moving_texture_video()

@@ -11,15 +11,12 @@ import numpy as np
 import pytest
 import torch
 
-pytest.importorskip("cv2")
-pytest.importorskip("clarabel")
-
-import nrdepth  # noqa: E402
-import nrdepth.model  # noqa: E402
-from nrdepth.model import save_model  # noqa: E402
-from nrdepth import GeneratorConfig, generate_clips  # noqa: E402
-from nrdepth.reconstruct import SheetFallback, reconstruct_file  # noqa: E402
-from nrdepth.reconstruct.sheet import MIN_FRAMES, MIN_MOTION  # noqa: E402
+import nrdepth
+import nrdepth.model
+from nrdepth.model import save_model
+from nrdepth import GeneratorConfig, generate_clips
+from nrdepth.reconstruct import SheetFallback, reconstruct_file
+from nrdepth.reconstruct.sheet import MIN_FRAMES, MIN_MOTION
 
 OPTIONS = {"max_side": 32, "focal": 60.0, "isometric_points": 36}
 

@@ -15,8 +15,7 @@ dense depth from sparse points: what the paper's comparison with CSF2 needs.
 - :func:`track_video`: tracks of a real video, as NRSfM users make them:
   Shi–Tomasi corners in the first frame followed frame to frame by OpenCV's
   pyramidal Lucas–Kanade, keeping only points that every step tracks and
-  that a backward step brings back to within ``max_error`` pixels (needs
-  the optional OpenCV dependency: ``pip install 'nrdepth[tracking]'``).
+  that a backward step brings back to within ``max_error`` pixels.
 """
 
 from __future__ import annotations
@@ -142,10 +141,8 @@ def track_video(
     its new position back lands more than ``max_error`` pixels from where it
     was (the forward–backward check): NRSfM needs every point in every frame.
     """
-    try:
-        import cv2
-    except ImportError as error:  # an optional dependency: say how to get it
-        raise ImportError("track_video needs OpenCV: pip install 'nrdepth[tracking]' (opencv-python-headless)") from error
+    import cv2  # imported here: `import nrdepth` stays light
+
     frames = np.asarray(frames)
     if frames.ndim != 3 or frames.dtype != np.uint8 or frames.shape[0] < 2:
         raise ValueError(f"frames: expected a (T, H, W) uint8 grayscale video with T >= 2, got {frames.dtype} {frames.shape}")

@@ -45,13 +45,13 @@ Frames and units: pixel coordinates (column x, row y, pixel centres at
 integers); depth is distance along the optical axis, growing away from the
 camera, in units of the mean template distance between neighbouring points
 (the scale is free: a video fixes none). Needs a perspective camera of known
-intrinsics, and the optional dependencies: ``pip install 'nrdepth[isometric]'``.
+intrinsics.
 """
 
 from .fuse import fuse
 from .mirror import SHAPE_KEPT, keep_lengths, mirror_depths, mirror_or_not, shape_kept
 from .mdh import EACH_FRAME, TEMPLATES, TooFewPoints, isometric_depth, mdh_depths, neighbour_pairs
-from .points import BORDER, DROP, FLOWS, frames_of, held_share, inside, least_disagreeing, point_held_shares, require_isometric, start_grid, track_grid, track_points
+from .points import BORDER, DROP, FLOWS, frames_of, held_share, inside, least_disagreeing, point_held_shares, start_grid, track_grid, track_points
 
 __all__ = ["track_grid", "start_grid", "track_points", "least_disagreeing", "inside", "held_share", "point_held_shares", "neighbour_pairs", "mdh_depths", "isometric_depth", "fuse", "mirror_depths", "keep_lengths", "mirror_or_not", "shape_kept", "SHAPE_KEPT",
-           "require_isometric", "frames_of", "TooFewPoints", "TEMPLATES", "EACH_FRAME", "DROP", "BORDER", "FLOWS"]
+           "frames_of", "TooFewPoints", "TEMPLATES", "EACH_FRAME", "DROP", "BORDER", "FLOWS"]

@@ -22,7 +22,7 @@ import numpy as np
 from ..checks import option_error
 from .hold import HOLD_WINDOW, Anchor
 
-__all__ = ["track_grid", "start_grid", "track_points", "least_disagreeing", "inside", "held_share", "point_held_shares", "require_isometric", "check_video", "frames_of", "DROP", "BORDER", "FLOWS"]
+__all__ = ["track_grid", "start_grid", "track_points", "least_disagreeing", "inside", "held_share", "point_held_shares", "check_video", "frames_of", "DROP", "BORDER", "FLOWS"]
 
 DROP = 0.2
 """:func:`isometric_depth`'s and ``reconstruct(focal=...)``'s share of the
@@ -37,16 +37,6 @@ BORDER = 0.0
 point closer than this to the frame's edge, or beyond it, is lost for
 good. 0: a point is lost where it leaves the frame (8 lost more points
 and read generated sheets worse: docs/reconstruction.md)."""
-
-
-def require_isometric():
-    """OpenCV, after checking that both optional dependencies are there."""
-    try:
-        import clarabel  # noqa: F401
-        import cv2
-    except ImportError as error:  # optional dependencies: say how to get them
-        raise ImportError("nrdepth.isometric needs OpenCV and Clarabel: pip install 'nrdepth[isometric]'") from error
-    return cv2
 
 
 def check_video(video: np.ndarray) -> np.ndarray:
@@ -172,9 +162,9 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
     frame, not dragged, and may be found again later (NaN also where it
     is outside the frame). ``disagreement`` then averages over the frames
     where a point is held."""
+    import cv2  # imported here: `import nrdepth` stays light
     from scipy.ndimage import map_coordinates
 
-    cv2 = require_isometric()
     first, rest = frames_of(video)
     start = np.asarray(start, np.float64)
     if start.ndim != 2 or start.shape[1] != 2 or not np.isfinite(start).all():

@@ -21,7 +21,7 @@ import numpy as np
 from ..baselines.tracks import densify
 from ..camera import Camera
 from ..checks import option_error
-from ..isometric import TooFewPoints, fuse, held_share, mdh_depths, point_held_shares, require_isometric, start_grid, track_grid
+from ..isometric import TooFewPoints, fuse, held_share, mdh_depths, point_held_shares, start_grid, track_grid
 from .frames import CHUNK, as_uint8
 from .options import ReconstructOptions
 
@@ -110,9 +110,7 @@ class SheetDecision:
 def sheet_region(options: ReconstructOptions, frame: Tuple[int, int]) -> np.ndarray:
     """Where the points go in the first selected frame, bool (H, W) of the
     video's ``frame``: ``options.sheet`` (a box or a bool array), else
-    ``options.roi``, else the whole frame, with room for the points. Checks
-    the optional dependencies first, before any work."""
-    require_isometric()
+    ``options.roi``, else the whole frame, with room for the points."""
     options.camera.at(frame)  # a focal length no pinhole has is refused here, before any work
     H, W = frame
     sheet = options.sheet
