@@ -173,6 +173,22 @@ def shifted_texture(frames: int = 5, size: int = 160, window: int = 100, blank: 
     return np.stack([texture[20 - t : 20 + window - t, 20 - 2 * t : 20 + window - 2 * t] for t in range(frames)])
 
 
+def test_a_truth_point_off_its_own_look_is_found_and_the_rest_look_like_themselves():
+    """``bench_tracks.truth_looks``: a tracker's distance from a truth point that no longer looks like itself is the truth's error."""
+    sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
+    from bench_tracks import truth_looks
+
+    video = shifted_texture(frames=5)  # the content moves +2 x, +1 y a frame
+    x, y = np.meshgrid(np.arange(25.0, 80, 9), np.arange(25.0, 80, 9))
+    uv = np.stack([np.stack([x.ravel() + 2 * t, y.ravel() + t], axis=1) for t in range(5)])
+    off = uv.copy()
+    off[3, 17] += (5.0, -4.0)  # one truth point a few pixels off the texture's point
+    looks, off_looks = truth_looks(video, uv), truth_looks(video, off)
+    assert looks.min() > 0.95 and np.array_equal(looks[0], np.ones(len(uv[0])))
+    assert off_looks[3, 17] < 0.5
+    assert np.delete(off_looks[3], 17).min() > 0.9  # its neighbours still look like themselves: only it is set aside
+
+
 def test_the_flow_over_the_points_box_follows_as_the_whole_frames_does():
     video = shifted_texture()
     mask = np.zeros(video.shape[1:], bool)
