@@ -322,6 +322,31 @@ def test_points_on_blank_paper_are_rarely_held_and_points_on_print_always():
             point_held_shares(bad, video.shape[1:])
 
 
+def test_points_placed_by_texture_go_on_the_print_with_their_windows_on_the_mask_and_follow_it():
+    from nrdepth.isometric import start_texture
+
+    video = shifted_texture(frames=5, window=140, blank=60)  # the left 60 columns blank paper, the rest print, moving together
+    mask = np.zeros(video.shape[1:], bool)
+    mask[10:130, 10:130] = True
+    start = start_texture(video[0], mask, points=49)
+    grid = isometric.start_grid(mask, video.shape[1:], points=49)
+    assert (grid[:, 0] < 60).sum() >= 10  # the grid puts points on the blank paper...
+    assert 20 <= len(start) <= 49 and (start[:, 0] > 60).all()  # ...texture only on the print
+    assert (start >= 10 + 10).all() and (start <= 129 - 10).all()  # each 21-pixel window on the mask
+    spacing = np.sqrt(mask.sum() / 49)
+    distances = np.linalg.norm(start[:, None] - start[None], axis=2) + np.eye(len(start)) * 1e9
+    assert distances.min() >= 0.7 * spacing - 1e-6
+    xy = isometric.track_grid(video, mask, points=49, place="texture")
+    np.testing.assert_array_equal(xy[0], start)
+    np.testing.assert_allclose(xy[-1] - xy[0], np.broadcast_to([8.0, 4.0], xy[0].shape), atol=0.15)
+    with pytest.raises(ValueError, match="mask: expected texture for at least 4 points"):
+        start_texture(np.full((64, 64), 128, np.uint8))
+    with pytest.raises(ValueError, match="place: expected one of"):
+        isometric.track_grid(video, mask, place="corners")
+    with pytest.raises(ValueError, match="first: expected a \\(H, W\\) uint8"):
+        start_texture(video)
+
+
 def test_a_stream_of_frames_is_followed_as_the_array_is():
     video = shifted_texture(frames=6)
     mask = np.zeros(video.shape[1:], bool)

@@ -22,7 +22,7 @@ import numpy as np
 from ..checks import option_error
 from .hold import HOLD_WINDOW, Anchor
 
-__all__ = ["track_grid", "start_grid", "track_points", "least_disagreeing", "inside", "held_share", "point_held_shares", "check_video", "frames_of", "DROP", "BORDER", "FLOWS"]
+__all__ = ["track_grid", "start_grid", "start_texture", "PLACES", "track_points", "least_disagreeing", "inside", "held_share", "point_held_shares", "check_video", "frames_of", "DROP", "BORDER", "FLOWS"]
 
 DROP = 0.2
 """:func:`isometric_depth`'s and ``reconstruct(focal=...)``'s share of the
@@ -84,12 +84,19 @@ def _check_mask(mask: Optional[np.ndarray], shape: Tuple[int, int]) -> np.ndarra
     return mask
 
 
+PLACES = ("grid", "texture")
+""":func:`track_grid`'s ways of placing its points in the first frame:
+a square grid (:func:`start_grid`), or where the first frame has texture
+to follow (:func:`start_texture`)."""
+
+
 def track_grid(video: Union[np.ndarray, Iterable[np.ndarray]], mask: Optional[np.ndarray] = None, points: int = 400, window: int = 21,
                backward: bool = True, drop: float = 0.0, border: float = BORDER, flow: str = "farneback",
-               margin: Optional[int] = None, hold: bool = False) -> np.ndarray:
-    """Tracks (T, n, 2) (column, row) of about ``points`` points on a square
-    grid over ``mask`` (H, W) of the first frame (default: the whole frame)
-    at least ``border`` pixels inside the frame's edge, moved through
+               margin: Optional[int] = None, hold: bool = False, place: str = "grid") -> np.ndarray:
+    """Tracks (T, n, 2) (column, row) of about ``points`` points over
+    ``mask`` (H, W) of the first frame (default: the whole frame), placed
+    by ``place`` (:data:`PLACES`: on a square grid, or where the first
+    frame has texture), at least ``border`` pixels inside the frame's edge, moved through
     ``video`` ((T, H, W) uint8, or a stream of frames: :func:`frames_of`) by :func:`track_points` (``window``,
     ``backward``, ``border``, ``flow``, ``margin``, ``hold``). ``drop``: the share of the points left out,
     those whose forward and backward flows disagree most over the video
@@ -100,7 +107,9 @@ def track_grid(video: Union[np.ndarray, Iterable[np.ndarray]], mask: Optional[np
     video = itertools.chain([first], rest)
     if drop > 0 and not backward:
         raise ValueError("drop: the points to leave out are found by the flow both ways: expected backward=True, or drop=0")
-    grid = start_grid(mask, first.shape, points, drop, border)
+    if place not in PLACES:
+        raise ValueError(f"place: expected one of {PLACES}, got {place!r}")
+    grid = start_grid(mask, first.shape, points, drop, border) if place == "grid" else start_texture(first, mask, points, window, drop, border)
     if drop == 0:
         return track_points(video, grid, window, backward, border=border, flow=flow, margin=margin, hold=hold)
     xy, disagreement = track_points(video, grid, window, backward, disagreement=True, border=border, flow=flow, margin=margin, hold=hold)
@@ -126,6 +135,41 @@ def start_grid(mask: Optional[np.ndarray], frame: Tuple[int, int], points: int =
     if kept < 4:
         raise option_error("mask", f"expected room for at least 4 points at {points} points over its area (drop {drop:g}), got {kept}")
     return grid
+
+
+def start_texture(first: np.ndarray, mask: Optional[np.ndarray] = None, points: int = 400, window: int = 21, drop: float = 0.0,
+                  border: float = BORDER) -> np.ndarray:
+    """:func:`track_grid`'s starting points (n, 2) (column, row) where the
+    first frame ``first`` (H, W) uint8 has texture to follow: up to
+    ``points`` of OpenCV's Shi–Tomasi corners whose ``window``-pixel
+    window (the trackers') lies on ``mask`` (default: the whole frame),
+    strongest first, each scored over that window, at least 0.7 of :func:`start_grid`'s
+    spacing from the others, none where the strongest's score falls below
+    1 %: blank paper gets none, where the flow would drag them. Refused as
+    :func:`start_grid` refuses, by the name ``mask``, with room for fewer
+    than 4."""
+    import cv2  # imported here: `import nrdepth` stays light
+
+    first = np.asarray(first)
+    if first.ndim != 2 or first.dtype != np.uint8:
+        raise ValueError(f"first: expected a (H, W) uint8 grayscale frame, got {first.dtype} {first.shape}")
+    mask = _check_mask(mask, first.shape)
+    if not (isinstance(points, (int, np.integer)) and points >= 4):
+        raise ValueError(f"points: expected an int >= 4, got {points!r}")
+    if not (isinstance(drop, (int, float, np.floating)) and 0 <= drop < 1):
+        raise ValueError(f"drop: expected a share of the points in [0, 1), got {drop!r}")
+    spacing = max(1.0, float(np.sqrt(mask.sum() / points)))
+    rows, cols = np.mgrid[0 : first.shape[0], 0 : first.shape[1]]
+    room = mask & inside(np.column_stack([cols.ravel(), rows.ravel()]).astype(np.float64), first.shape, border).reshape(first.shape)
+    # Each point's whole window on the mask: the sheet's outline is the strongest corner there is, and its window half backdrop.
+    room = cv2.erode(room.astype(np.uint8), np.ones((window, window), np.uint8), borderType=cv2.BORDER_CONSTANT, borderValue=1)
+    corners = cv2.goodFeaturesToTrack(first, maxCorners=int(points), qualityLevel=0.01, minDistance=0.7 * spacing, mask=room,
+                                      blockSize=int(window))
+    start = np.zeros((0, 2)) if corners is None else corners.reshape(-1, 2).astype(np.float64)
+    kept = len(start) - int(round(drop * len(start)))
+    if kept < 4:
+        raise option_error("mask", f"expected texture for at least 4 points over its area (drop {drop:g}), found {kept}")
+    return start
 
 
 def least_disagreeing(disagreement: np.ndarray, drop: float) -> np.ndarray:
