@@ -70,7 +70,7 @@ def phisft_crop() -> tuple:
 
 
 def phisft_isometric(shape: tuple, points: int, neighbours: int, far: int, reach: int, window: int, backward: bool, template: str, drop: float, hold: bool = False,
-                     each_frame: str = "program", anchor: float = 0.0) -> np.ndarray:
+                     each_frame: str = "program", anchor: float = 0.0, place: str = "grid") -> np.ndarray:
     """The cloth's isometric depth on the binned crop, of ``shape`` (T, H, W)."""
     from scipy.ndimage import binary_erosion
 
@@ -81,7 +81,7 @@ def phisft_isometric(shape: tuple, points: int, neighbours: int, far: int, reach
     cloth = binary_erosion(full[0] > 10, iterations=8)
     inside = np.zeros_like(cloth)
     inside[4 * top : 4 * bottom, 4 * left : 4 * right] = True
-    xy = isometric.track_grid(full, cloth & inside, points, window, backward, drop, hold=hold)
+    xy = isometric.track_grid(full, cloth & inside, points, window, backward, drop, hold=hold, place=place)
     depths = isometric.mdh_depths(xy, FOCAL, CENTRE, neighbours=neighbours, far=far, reach=reach, template=template, each_frame=each_frame,
                                     anchor=anchor)
     binned = (xy + 0.5) / 4 - 0.5 - np.array([left, top])  # full-frame pixels to the binned crop's
@@ -112,11 +112,11 @@ def read_all(args) -> list:
             paper = isometric.isometric_depth(frames, focal, centre, mask=print_area, points=args.points[0], neighbours=args.neighbours[0],
                                               far=args.far, reach=args.reach, window=args.window,
                                               backward=not args.forward, template=args.template, drop=drop, hold=args.hold,
-                                              each_frame=args.each_frame, anchor=args.anchor)
+                                              each_frame=args.each_frame, anchor=args.anchor, place=args.place)
             print(f"kinect_paper: isometric depth in {time.perf_counter() - start:.0f} s")
             start = time.perf_counter()
             cloth = phisft_isometric(video.shape, args.points[0], args.neighbours[0], args.far, args.reach, args.window, not args.forward, args.template, drop,
-                                     hold=args.hold, each_frame=args.each_frame, anchor=args.anchor)
+                                     hold=args.hold, each_frame=args.each_frame, anchor=args.anchor, place=args.place)
             print(f"phisft_R1: isometric depth in {time.perf_counter() - start:.0f} s")
         reading = "network" if scale is None else ("isometric" if scale == 0 else f"fused at {scale:g}") + (f", drop {drop:g}" if len(args.drop) > 1 else "")
         row = {"reading": reading, "drop": "" if drop is None else drop, "scale": "" if scale is None else scale}
@@ -195,6 +195,7 @@ def main() -> None:
     parser.add_argument("--window", type=int, default=21, help="the flow's window in pixels (isometric.track_grid)")
     parser.add_argument("--forward", action="store_true", help="the forward flow alone, not both ways (isometric.track_grid)")
     parser.add_argument("--hold", action="store_true", help="each point found again by its look in the first frame (isometric.track_grid's hold)")
+    parser.add_argument("--place", default="grid", choices=isometric.PLACES, help="where the points go in the first frame (isometric.track_grid's place)")
     parser.add_argument("--template", default="joint", choices=isometric.TEMPLATES,
                         help="mdh_depths's template distances: over keyframes, refined by least squares, or the first frame as a flat sheet facing the camera")
     parser.add_argument("--each-frame", default=ISOMETRIC_EACH_FRAME, choices=isometric.EACH_FRAME, help="mdh_depths's each_frame (default: the stage's)")
