@@ -116,6 +116,15 @@ def track_grid(video: Union[np.ndarray, Iterable[np.ndarray]], mask: Optional[np
     return xy[:, least_disagreeing(disagreement, drop)]
 
 
+def _spacing(mask: np.ndarray, points: int, drop: float) -> float:
+    """The spacing (pixels) of a square grid of about ``points`` over ``mask``, after checking ``points`` and ``drop``."""
+    if not (isinstance(points, (int, np.integer)) and points >= 4):
+        raise ValueError(f"points: expected an int >= 4, got {points!r}")
+    if not (isinstance(drop, (int, float, np.floating)) and 0 <= drop < 1):
+        raise ValueError(f"drop: expected a share of the points in [0, 1), got {drop!r}")
+    return max(1.0, float(np.sqrt(mask.sum() / points)))
+
+
 def start_grid(mask: Optional[np.ndarray], frame: Tuple[int, int], points: int = 400, drop: float = 0.0, border: float = BORDER) -> np.ndarray:
     """:func:`track_grid`'s starting points (n, 2) (column, row): a square
     grid of about ``points`` over ``mask`` (H, W) = ``frame`` (default: the
@@ -123,11 +132,7 @@ def start_grid(mask: Optional[np.ndarray], frame: Tuple[int, int], points: int =
     room for fewer than 4 once the share ``drop`` is left out is refused
     (by the name ``mask``), before any tracking."""
     mask = _check_mask(mask, tuple(frame))
-    if not (isinstance(points, (int, np.integer)) and points >= 4):
-        raise ValueError(f"points: expected an int >= 4, got {points!r}")
-    if not (isinstance(drop, (int, float, np.floating)) and 0 <= drop < 1):
-        raise ValueError(f"drop: expected a share of the points in [0, 1), got {drop!r}")
-    spacing = max(1.0, float(np.sqrt(mask.sum() / points)))
+    spacing = _spacing(mask, points, drop)
     rows, cols = np.mgrid[spacing / 2 : frame[0] : spacing, spacing / 2 : frame[1] : spacing]
     grid = np.column_stack([cols.ravel(), rows.ravel()])
     grid = grid[mask[rows.astype(int).ravel(), cols.astype(int).ravel()] & inside(grid, tuple(frame), border)]
@@ -154,11 +159,7 @@ def start_texture(first: np.ndarray, mask: Optional[np.ndarray] = None, points: 
     if first.ndim != 2 or first.dtype != np.uint8:
         raise ValueError(f"first: expected a (H, W) uint8 grayscale frame, got {first.dtype} {first.shape}")
     mask = _check_mask(mask, first.shape)
-    if not (isinstance(points, (int, np.integer)) and points >= 4):
-        raise ValueError(f"points: expected an int >= 4, got {points!r}")
-    if not (isinstance(drop, (int, float, np.floating)) and 0 <= drop < 1):
-        raise ValueError(f"drop: expected a share of the points in [0, 1), got {drop!r}")
-    spacing = max(1.0, float(np.sqrt(mask.sum() / points)))
+    spacing = _spacing(mask, points, drop)
     rows, cols = np.mgrid[0 : first.shape[0], 0 : first.shape[1]]
     room = mask & inside(np.column_stack([cols.ravel(), rows.ravel()]).astype(np.float64), first.shape, border).reshape(first.shape)
     # Each point's whole window on the mask: the sheet's outline is the strongest corner there is, and its window half backdrop.
