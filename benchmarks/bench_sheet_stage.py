@@ -21,7 +21,9 @@ this share of their frames in view, ``isometric.point_held_shares``),
 (degrees: the camera a pinhole of this horizontal field of view with its
 principal point at the frame's centre, as a user without a calibration
 might guess it, in place of the true one), ``place`` (``track_grid``'s:
-grid, or texture: where the first frame has texture to follow).
+grid, or texture: where the first frame has texture to follow), ``inset``
+(pixels: the points' region shrunk by this much first, so that no
+point's window crosses its outline; :func:`inset_region`).
 With ``hold``, where fewer of the point-frames in view are held than the
 stage's ``MIN_HELD``, the stage steps aside, as it does in the job.
 
@@ -51,7 +53,7 @@ def sgemm() -> float:
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid"}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
@@ -66,6 +68,13 @@ def parse(setting: str) -> dict:
     if not out["backward"] and out["drop"]:
         raise SystemExit(f"--settings {setting!r}: drop needs the flow both ways: give drop=0 with backward=0")
     return out
+
+
+def inset_region(region, inset: int):
+    """``region`` (bool (H, W), or None: the whole frame, left whole) shrunk by ``inset`` pixels (a square's erosion)."""
+    from scipy.ndimage import binary_erosion
+
+    return region if region is None or not inset else binary_erosion(region, np.ones((2 * inset + 1,) * 2, bool))
 
 
 def guessed_camera(fov: float, frame: tuple):
@@ -159,7 +168,7 @@ def main() -> None:
     for setting in args.settings.split(","):
         lever = parse(setting)
         start = time.perf_counter()
-        xy = isometric.track_grid(frames, box, points=lever["points"], drop=lever["drop"], flow=lever["flow"], margin=lever["margin"],
+        xy = isometric.track_grid(frames, inset_region(box, lever["inset"]), points=lever["points"], drop=lever["drop"], flow=lever["flow"], margin=lever["margin"],
                                   hold=bool(lever["hold"]), backward=bool(lever["backward"]), place=lever["place"])
         held = isometric.held_share(xy, frames.shape[1:]) if lever["hold"] else 1.0
         if held < MIN_HELD:  # the stage's gate, before keep: it steps aside, the sheet reads as the network

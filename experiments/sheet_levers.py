@@ -11,7 +11,7 @@ the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 ``benchmarks/bench_sheet_stage.py`` (``margin``, ``flow``, ``keyframes``,
 ``neighbours``, ``points``, ``hold``, ``backward``, ``drop``, ``keep``, ``each``, ``anchor``, ``fov``: a guessed
 pinhole in place of the true camera, ``place``: the points where the first
-frame has texture); the first is the reference, each
+frame has texture, ``inset``: the sheet's region shrunk first); the first is the reference, each
 other is paired against it. Each setting's ``shortfall`` is recorded too:
 how far its program's pairs fall short of their template distances
 (``bench_sheet_stage.shortfall``; with ``each=program``), a candidate
@@ -58,7 +58,7 @@ from nrdepth.scores.metrics import dense_baselines, mae_sn
 
 sys.path.insert(0, str(Path(__file__).parent))
 sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
-from bench_sheet_stage import guessed_camera, keep_held, parse, shortfall  # noqa: E402
+from bench_sheet_stage import guessed_camera, inset_region, keep_held, parse, shortfall  # noqa: E402
 from isometric_generated import LIGHTS, SEED, camera, in_view, long_sheets, setting, true_tracks  # noqa: E402
 
 
@@ -124,13 +124,13 @@ def main() -> None:
             tracks, programs = {}, {}
             for name, lever in zip([s or "default" for s in settings], levers):
                 start = time.perf_counter()
-                key = (lever["flow"], lever["margin"], lever["points"], lever["hold"], lever["backward"], lever["drop"], lever["place"])  # keep, each: after
+                key = (lever["flow"], lever["margin"], lever["points"], lever["hold"], lever["backward"], lever["drop"], lever["place"], lever["inset"])  # keep, each: after the tracks
                 if lever.get("truth"):
                     truth_xy, _ = true_tracks(clips.vertices[k], params, config.size, points=lever["points"])
                     tracks[key + ("truth",)] = np.where(in_view(truth_xy, config.size)[..., None], truth_xy, np.nan)
                     key += ("truth",)
                 elif key not in tracks:
-                    tracks[key] = isometric.track_grid(video, region, points=lever["points"], drop=lever["drop"], flow=lever["flow"], margin=lever["margin"],
+                    tracks[key] = isometric.track_grid(video, inset_region(region, lever["inset"]), points=lever["points"], drop=lever["drop"], flow=lever["flow"], margin=lever["margin"],
                                                        hold=bool(lever["hold"]), backward=bool(lever["backward"]), place=lever["place"])
                 held = held_share(tracks[key], video.shape[1:]) if lever["hold"] else 1.0  # before keep, as the stage gates
                 xy = keep_held(tracks[key], video.shape[1:], lever)
