@@ -51,6 +51,9 @@ ISOMETRIC_HOLD = False
 their look in the first frame (:func:`nrdepth.isometric.track_points`'
 ``hold``). Off: on 32 generated long sheets it read no better than the
 chained flow by the rule fixed beforehand (+0.0002 ± 0.0033 per frame),
+on 32 relief-free paper-like sheets just short of its rule (−0.0078 ±
+0.0059, mean + SE not below −0.002), and over ``kinect_paper``'s
+whole-sheet box it steps aside (0.53 of the point-frames held),
 though on ``kinect_paper``'s true points the tracks' 95th percentile falls
 from 1.86 to 0.66 px (docs/campaign.md, "Tracks held to the first frame")."""
 
