@@ -345,6 +345,8 @@ def test_points_placed_by_texture_go_on_the_print_with_their_windows_on_the_mask
         isometric.track_grid(video, mask, place="corners")
     with pytest.raises(ValueError, match="first: expected a \\(H, W\\) uint8"):
         start_texture(video)
+    with pytest.raises(ValueError, match="window: expected an int >= 3"):
+        start_texture(video[0], mask, window=0)
 
 
 def test_a_stream_of_frames_is_followed_as_the_array_is():

@@ -13,6 +13,7 @@ integers); NaN from the frame where a point leaves the view (with
 from __future__ import annotations
 
 import itertools
+import math
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
 from typing import Iterable, Iterator, Optional, Tuple, Union
@@ -160,10 +161,14 @@ def start_texture(first: np.ndarray, mask: Optional[np.ndarray] = None, points: 
         raise ValueError(f"first: expected a (H, W) uint8 grayscale frame, got {first.dtype} {first.shape}")
     mask = _check_mask(mask, first.shape)
     spacing = _spacing(mask, points, drop)
-    rows, cols = np.mgrid[0 : first.shape[0], 0 : first.shape[1]]
-    room = mask & inside(np.column_stack([cols.ravel(), rows.ravel()]).astype(np.float64), first.shape, border).reshape(first.shape)
-    # Each point's whole window on the mask: the sheet's outline is the strongest corner there is, and its window half backdrop.
-    room = cv2.erode(room.astype(np.uint8), np.ones((window, window), np.uint8), borderType=cv2.BORDER_CONSTANT, borderValue=1)
+    if not (isinstance(window, (int, np.integer)) and window >= 3):
+        raise ValueError(f"window: expected an int >= 3 (pixels), got {window!r}")
+    # The pixels at least border inside the frame (as inside() counts them) and on the mask...
+    (h, w), b = first.shape, math.ceil(border)
+    room = np.zeros(first.shape, np.uint8)
+    room[b : h - b, b : w - b] = mask[b : h - b, b : w - b]
+    # ...with the whole window on the mask: the sheet's outline is the strongest corner there is, and its window half backdrop.
+    room = cv2.erode(room, np.ones((window, window), np.uint8), borderType=cv2.BORDER_CONSTANT, borderValue=1)
     corners = cv2.goodFeaturesToTrack(first, maxCorners=int(points), qualityLevel=0.01, minDistance=0.7 * spacing, mask=room,
                                       blockSize=int(window))
     start = np.zeros((0, 2)) if corners is None else corners.reshape(-1, 2).astype(np.float64)
