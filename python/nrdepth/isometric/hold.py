@@ -6,7 +6,10 @@ prediction). A smooth warp of the sheet is fitted to the predictions: the
 affine moving-least-squares deformation (Schaefer et al. 2006, Gaussian
 weights of :data:`SPREAD` times the points' spacing), which maps a place
 of the first frame to its place in the current one and is linear in the
-predictions, so its matrix is built once. The current frame is pulled
+predictions of the points held in the frame before (all of them at
+first: a point not found again has only the flow's guess, which drifts
+and, on blank paper, bends the warp), so its matrix is built again only
+when they change. The current frame is pulled
 back through it into the first frame's geometry; there each point's
 first-frame neighbourhood is found again by pyramidal Lucas–Kanade
 (OpenCV), on frames whose local mean and contrast are taken out, since a
@@ -15,7 +18,10 @@ forward through the warp, is the point's position. A point is *held*
 where Lucas–Kanade converges, comes back to where it started (within
 :data:`HOLD_FB` px) and finds a window that correlates with the first
 frame's (:data:`HOLD_NCC`); elsewhere it is NaN in that frame, and the
-warp carries it on, so it may be held again later.
+warp carries it on, so it may be held again later. With ``fill``
+(:meth:`Anchor.fill`), such a point is placed instead where the warp
+fitted to that frame's held points alone takes it: the sheet as the
+tracker's prior, for points on blank paper that no look can find.
 
 Frames and units: pixel coordinates (column x, row y, pixel centres at
 integers), as :mod:`nrdepth.isometric` counts them.
@@ -108,20 +114,27 @@ class Anchor:
         self.corner = np.array([x0, y0], np.float64)
         nodes_y, nodes_x = np.mgrid[y0 : y1 + STEP : STEP, x0 : x1 + STEP : STEP].astype(np.float64)
         self.nodes_shape = nodes_x.shape
-        hull = cv2.contourArea(cv2.convexHull(self.start.astype(np.float32))) if len(self.start) >= 3 else 0.0
-        sigma = SPREAD * max(np.sqrt(hull / len(self.start)), 1.0)
-        self.to_nodes = _mls(np.column_stack([nodes_x.ravel(), nodes_y.ravel()]), self.start, sigma)
-        self.to_points = _mls(self.start, self.start, sigma)
         self.look = np.ascontiguousarray(_normalised(cv2, first)[y0:y1, x0:x1])
+        hull = cv2.contourArea(cv2.convexHull(self.start.astype(np.float32))) if len(self.start) >= 3 else 0.0
+        self.sigma = SPREAD * max(np.sqrt(hull / len(self.start)), 1.0)
+        self.nodes = np.column_stack([nodes_x.ravel(), nodes_y.ravel()])
+        self.fitted = None
+        self._fit(np.ones(len(self.start), bool))
         shift = (STEP - 1) / 2  # cv2.resize puts node k at pixel k·STEP + (STEP − 1)/2
         rows, cols = np.mgrid[0 : y1 - y0, 0 : x1 - x0].astype(np.float32)
         self.upsample = (cols + shift, rows + shift)
         self.lk = dict(winSize=(HOLD_WINDOW, HOLD_WINDOW), maxLevel=HOLD_LEVELS,
                        criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01), flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
 
+    def _fit(self, fitted: np.ndarray) -> None:
+        """The warp's matrices over the points ``fitted`` (n,) bool (at least 3)."""
+        if self.fitted is None or not np.array_equal(fitted, self.fitted):
+            self.fitted, anchors = fitted.copy(), self.start[fitted]
+            self.to_nodes, self.to_points = _mls(self.nodes, anchors, self.sigma), _mls(self.start, anchors, self.sigma)
+
     def _warp(self, predicted: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """The warp's maps over the first frame's box: where each of its pixels is in the current frame."""
-        cv2, at_nodes = self.cv2, self.to_nodes @ predicted
+        cv2, at_nodes = self.cv2, self.to_nodes @ predicted[self.fitted]
         maps = []
         for c in (0, 1):
             coarse = at_nodes[:, c].reshape(self.nodes_shape).astype(np.float32)
@@ -138,7 +151,7 @@ class Anchor:
         from scipy.ndimage import map_coordinates
 
         cv2 = self.cv2
-        smooth = self.to_points @ predicted
+        smooth = self.to_points @ predicted[self.fitted]
         predicted = np.where((np.linalg.norm(smooth - predicted, axis=1) > OUTLIER)[:, None], smooth, predicted)
         map_x, map_y = self._warp(predicted)
         # Only the part of the frame the warp reads is normalised: its box grown by the two blurs' reach (OpenCV's
@@ -161,4 +174,15 @@ class Anchor:
                 & (found[:, 0] >= 0) & (found[:, 1] >= 0) & (found[:, 0] <= w - 1) & (found[:, 1] <= h - 1))
         held &= _correlation(self.look, origin.reshape(-1, 2), pulled, found) >= HOLD_NCC
         position = np.stack([map_coordinates(m, [found[:, 1], found[:, 0]], order=1, mode="nearest") for m in (map_x, map_y)], axis=1).astype(np.float64)
+        self._fit(held if held.sum() >= 3 else np.ones(len(held), bool))
         return position, held, predicted
+
+    def fill(self, position: np.ndarray, held: np.ndarray) -> np.ndarray:
+        """(n, 2): ``position`` where ``held``, elsewhere where the warp
+        fitted to the held points alone takes the point from the first
+        frame; NaN everywhere where fewer than 3 are held (an affine map
+        needs 3)."""
+        if held.sum() < 3:
+            return np.where(held[:, None], position, np.nan)
+        warped = _mls(self.start, self.start[held], self.sigma) @ position[held]
+        return np.where(held[:, None], position, warped)
