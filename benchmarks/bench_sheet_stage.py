@@ -12,10 +12,7 @@ A setting is ``key=value`` pairs joined by ``:``: ``margin`` (the flow over
 the points' box and this many pixels, or ``none``: the whole frame),
 ``flow`` (farneback, dis), ``keyframes``, ``neighbours``, ``every`` (only every
 n-th frame's program solved, the rest linear in time), ``points``, ``hold``
-(1: each point found again by its look in the first frame), ``fill``
-(with ``hold``, 1: a point not found again placed by the warp of those
-that were, ``track_points``' ``fill``; the held share is then counted
-before filling, and ``keep`` does not apply), ``backward``
+(1: each point found again by its look in the first frame), ``backward``
 (0: the forward flow alone), ``drop`` (the share of points left out; 0 with
 ``backward=0``), ``keep`` (with ``hold``: only the points held in at least
 this share of their frames in view, ``isometric.point_held_shares``),
@@ -56,7 +53,7 @@ def sgemm() -> float:
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "fill": 0}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
@@ -64,8 +61,6 @@ def parse(setting: str) -> dict:
         out[key] = value if key in ("flow", "each", "place") else float(value) if key in ("drop", "keep", "anchor", "fov") else (None if value == "none" else int(value))
     if out["keep"] and not out["hold"]:
         raise SystemExit(f"--settings {setting!r}: keep needs hold=1")
-    if out["fill"] and (not out["hold"] or out["keep"]):
-        raise SystemExit(f"--settings {setting!r}: fill needs hold=1, and keeps every point (no keep)")
     if out["anchor"] and out["each"] != "lengths":
         raise SystemExit(f"--settings {setting!r}: anchor needs each=lengths")
     if out["fov"] is not None and not 0 < out["fov"] < 180:
@@ -115,15 +110,6 @@ def keep_held(xy: np.ndarray, shape: tuple, lever: dict) -> np.ndarray:
     from nrdepth import isometric
 
     return xy[:, isometric.point_held_shares(xy, shape) >= lever["keep"]] if lever["keep"] else xy
-
-
-def held_of(video: np.ndarray, region, lever: dict) -> float:
-    """The held share of ``lever``'s points followed without ``fill`` (filled, every point in view is finite)."""
-    from nrdepth import isometric
-
-    xy = isometric.track_grid(video, inset_region(region, lever["inset"]), points=lever["points"], drop=lever["drop"], flow=lever["flow"],
-                              margin=lever["margin"], hold=True, backward=bool(lever["backward"]), place=lever["place"])
-    return isometric.held_share(xy, video.shape[1:])
 
 
 def box_check(frames: np.ndarray, box: np.ndarray) -> None:
@@ -183,8 +169,8 @@ def main() -> None:
         lever = parse(setting)
         start = time.perf_counter()
         xy = isometric.track_grid(frames, inset_region(box, lever["inset"]), points=lever["points"], drop=lever["drop"], flow=lever["flow"], margin=lever["margin"],
-                                  hold=bool(lever["hold"]), backward=bool(lever["backward"]), place=lever["place"], fill=bool(lever["fill"]))
-        held = held_of(frames, box, lever) if lever["fill"] else isometric.held_share(xy, frames.shape[1:]) if lever["hold"] else 1.0
+                                  hold=bool(lever["hold"]), backward=bool(lever["backward"]), place=lever["place"])
+        held = isometric.held_share(xy, frames.shape[1:]) if lever["hold"] else 1.0
         if held < MIN_HELD:  # the stage's gate, before keep: it steps aside, the sheet reads as the network
             print(f"{setting:40s} points {time.perf_counter() - start:5.1f} s: steps aside ({held:.2f} of the point-frames held); "
                   f"the network's {kinect_score(network, truth):.2f} mm", flush=True)

@@ -26,7 +26,7 @@ tracker, on three kinds of truth:
 Each line: median, 95th percentile and largest distance, the share of
 point-frames lost (NaN), and the seconds; for the sheets, the videos'
 95th percentiles' median. A tracker is ``key=value`` pairs joined by ``:``
-(``track_points``' ``hold``, ``fill``, ``backward``, ``flow``, ``margin``; an empty one
+(``track_points``' ``hold``, ``backward``, ``flow``, ``margin``; an empty one
 is its defaults).
 
     python benchmarks/bench_tracks.py [--trackers ",margin=48:hold=1"] [--videos 16] [--start 96] [--skip generated] [--lights below] [--set FIELD=V]
@@ -50,14 +50,14 @@ def parse(tracker: str) -> dict:
     out = {}
     for item in filter(None, tracker.split(":")):
         key, _, value = item.partition("=")
-        if key in ("hold", "backward", "fill"):
+        if key in ("hold", "backward"):
             out[key] = bool(int(value))
         elif key == "flow":
             out[key] = value
         elif key == "margin":
             out[key] = None if value == "none" else int(value)
         else:
-            raise SystemExit(f"--trackers: unknown key {key!r} (hold, fill, backward, flow, margin)")
+            raise SystemExit(f"--trackers: unknown key {key!r} (hold, backward, flow, margin)")
     return out
 
 

@@ -9,7 +9,7 @@ the stage's defaults otherwise (``reconstruct(focal=...)``'s points, drop
 and scale): per-frame MAE-SN of each, and its seconds for the points and
 the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 ``benchmarks/bench_sheet_stage.py`` (``margin``, ``flow``, ``keyframes``,
-``neighbours``, ``points``, ``hold``, ``fill``, ``backward``, ``drop``, ``keep``, ``each``, ``anchor``, ``fov``: a guessed
+``neighbours``, ``points``, ``hold``, ``backward``, ``drop``, ``keep``, ``each``, ``anchor``, ``fov``: a guessed
 pinhole in place of the true camera, ``place``: the points where the first
 frame has texture, ``inset``: the sheet's region shrunk first); the first is the reference, each
 other is paired against it. Each setting's ``shortfall`` is recorded too:
@@ -58,7 +58,7 @@ from nrdepth.scores.metrics import dense_baselines, mae_sn
 
 sys.path.insert(0, str(Path(__file__).parent))
 sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
-from bench_sheet_stage import guessed_camera, held_of, inset_region, keep_held, parse, shortfall  # noqa: E402
+from bench_sheet_stage import guessed_camera, inset_region, keep_held, parse, shortfall  # noqa: E402
 from isometric_generated import LIGHTS, SEED, camera, in_view, long_sheets, setting, true_tracks  # noqa: E402
 
 
@@ -95,7 +95,7 @@ def main() -> None:
     every_label = lambda name, n: name if n == 1 else (f"{name}:every={n}" if name != "default" else f"every={n}")  # noqa: E731
     label = lambda name, n, scale=scales[0]: every_label(name, n) + ("" if scale == scales[0] else f":scale={scale:g}")  # noqa: E731
     if args.truth:  # the reference's programs on the true tracks
-        settings, levers = settings + ["truth"], levers + [dict(levers[0], truth=True, hold=0, keep=0.0, fill=0)]
+        settings, levers = settings + ["truth"], levers + [dict(levers[0], truth=True, hold=0, keep=0.0)]
     names = [label(s or "default", n, scale) for s in settings for n in everies for scale in scales]
     rows = []
     if args.csv is not None and args.csv.exists():  # a stopped run's rows: kept, their videos skipped
@@ -124,16 +124,15 @@ def main() -> None:
             tracks, programs = {}, {}
             for name, lever in zip([s or "default" for s in settings], levers):
                 start = time.perf_counter()
-                key = (lever["flow"], lever["margin"], lever["points"], lever["hold"], lever["backward"], lever["drop"], lever["place"], lever["inset"], lever["fill"])  # keep, each: after the tracks
+                key = (lever["flow"], lever["margin"], lever["points"], lever["hold"], lever["backward"], lever["drop"], lever["place"], lever["inset"])  # keep, each: after the tracks
                 if lever.get("truth"):
                     truth_xy, _ = true_tracks(clips.vertices[k], params, config.size, points=lever["points"])
                     tracks[key + ("truth",)] = np.where(in_view(truth_xy, config.size)[..., None], truth_xy, np.nan)
                     key += ("truth",)
                 elif key not in tracks:
                     tracks[key] = isometric.track_grid(video, inset_region(region, lever["inset"]), points=lever["points"], drop=lever["drop"], flow=lever["flow"], margin=lever["margin"],
-                                                       hold=bool(lever["hold"]), backward=bool(lever["backward"]), place=lever["place"], fill=bool(lever["fill"]))
-                held = (held_of(video, region, lever) if lever["fill"] else held_share(tracks[key], video.shape[1:]) if lever["hold"]
-                        else 1.0)  # before keep, as the stage gates
+                                                       hold=bool(lever["hold"]), backward=bool(lever["backward"]), place=lever["place"])
+                held = held_share(tracks[key], video.shape[1:]) if lever["hold"] else 1.0  # before keep, as the stage gates
                 xy = keep_held(tracks[key], video.shape[1:], lever)
                 tracked = time.perf_counter()
                 row[f"{name} held"] = held

@@ -335,24 +335,6 @@ def test_held_points_beside_blank_paper_are_not_pulled_by_its_flow():
     assert np.linalg.norm(held[:, beside] - truth[:, beside], axis=2)[found].max() < 0.5
 
 
-def test_points_on_blank_paper_filled_follow_the_print_around_them_and_the_held_ones_stay():
-    video = shifted_texture(frames=9, window=140, blank=60)  # the left 60 columns blank paper, moving with the print
-    start = isometric.start_grid(None, video.shape[1:], points=49)
-    truth = start + np.arange(9)[:, None, None] * np.array([2.0, 1.0])
-    in_frame = isometric.inside(truth.reshape(-1, 2), video.shape[1:], 0).reshape(truth.shape[:2])
-    held = isometric.track_points(video, start, hold=True)
-    filled = isometric.track_points(video, start, hold=True, fill=True)
-    blank = start[:, 0] < 60 - 12  # windows clear of the print
-    assert blank.sum() >= 4 and np.isnan(held[1:, blank]).mean() > 0.8  # no look to find them by
-    found = np.isfinite(held)
-    np.testing.assert_array_equal(filled[found], held[found])  # a point found again is where it was found
-    assert np.isfinite(filled[in_frame]).all() and np.isnan(filled[~in_frame]).all()
-    error = np.linalg.norm(filled - truth, axis=2)[in_frame]
-    assert np.median(error) < 0.2 and error.max() < 1.5  # the blank ones where the print around them says, up to 60 px from it (6 px with the warp fitted to every point)
-    with pytest.raises(ValueError, match="fill: .*hold=True"):
-        isometric.track_points(video, start, fill=True)
-
-
 def test_points_placed_by_texture_go_on_the_print_with_their_windows_on_the_mask_and_follow_it():
     from nrdepth.isometric import start_texture
 

@@ -18,10 +18,7 @@ forward through the warp, is the point's position. A point is *held*
 where Lucas–Kanade converges, comes back to where it started (within
 :data:`HOLD_FB` px) and finds a window that correlates with the first
 frame's (:data:`HOLD_NCC`); elsewhere it is NaN in that frame, and the
-warp carries it on, so it may be held again later. With ``fill``
-(:meth:`Anchor.fill`), such a point is placed instead where the warp
-fitted to that frame's held points alone takes it: the sheet as the
-tracker's prior, for points on blank paper that no look can find.
+warp carries it on, so it may be held again later.
 
 Frames and units: pixel coordinates (column x, row y, pixel centres at
 integers), as :mod:`nrdepth.isometric` counts them.
@@ -177,12 +174,3 @@ class Anchor:
         self._fit(held if held.sum() >= 3 else np.ones(len(held), bool))
         return position, held, predicted
 
-    def fill(self, position: np.ndarray, held: np.ndarray) -> np.ndarray:
-        """(n, 2): ``position`` where ``held``, elsewhere where the warp
-        fitted to the held points alone takes the point from the first
-        frame; NaN everywhere where fewer than 3 are held (an affine map
-        needs 3)."""
-        if held.sum() < 3:
-            return np.where(held[:, None], position, np.nan)
-        warped = _mls(self.start, self.start[held], self.sigma) @ position[held]
-        return np.where(held[:, None], position, warped)

@@ -93,13 +93,13 @@ to follow (:func:`start_texture`)."""
 
 def track_grid(video: Union[np.ndarray, Iterable[np.ndarray]], mask: Optional[np.ndarray] = None, points: int = 400, window: int = 21,
                backward: bool = True, drop: float = 0.0, border: float = BORDER, flow: str = "farneback",
-               margin: Optional[int] = None, hold: bool = False, place: str = "grid", fill: bool = False) -> np.ndarray:
+               margin: Optional[int] = None, hold: bool = False, place: str = "grid") -> np.ndarray:
     """Tracks (T, n, 2) (column, row) of about ``points`` points over
     ``mask`` (H, W) of the first frame (default: the whole frame), placed
     by ``place`` (:data:`PLACES`: on a square grid, or where the first
     frame has texture), at least ``border`` pixels inside the frame's edge, moved through
     ``video`` ((T, H, W) uint8, or a stream of frames: :func:`frames_of`) by :func:`track_points` (``window``,
-    ``backward``, ``border``, ``flow``, ``margin``, ``hold``, ``fill``). ``drop``: the share of the points left out,
+    ``backward``, ``border``, ``flow``, ``margin``, ``hold``). ``drop``: the share of the points left out,
     those whose forward and backward flows disagree most over the video
     (:func:`track_points`' ``disagreement``; needs ``backward``): points
     at a boundary of the motion, where the flow bleeds from one side to
@@ -112,8 +112,8 @@ def track_grid(video: Union[np.ndarray, Iterable[np.ndarray]], mask: Optional[np
         raise ValueError(f"place: expected one of {PLACES}, got {place!r}")
     grid = start_grid(mask, first.shape, points, drop, border) if place == "grid" else start_texture(first, mask, points, window, drop, border)
     if drop == 0:
-        return track_points(video, grid, window, backward, border=border, flow=flow, margin=margin, hold=hold, fill=fill)
-    xy, disagreement = track_points(video, grid, window, backward, disagreement=True, border=border, flow=flow, margin=margin, hold=hold, fill=fill)
+        return track_points(video, grid, window, backward, border=border, flow=flow, margin=margin, hold=hold)
+    xy, disagreement = track_points(video, grid, window, backward, disagreement=True, border=border, flow=flow, margin=margin, hold=hold)
     return xy[:, least_disagreeing(disagreement, drop)]
 
 
@@ -188,7 +188,7 @@ def least_disagreeing(disagreement: np.ndarray, drop: float) -> np.ndarray:
 
 def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarray, window: int = 21, backward: bool = True,
                  disagreement: bool = False, border: float = BORDER, flow: str = "farneback", margin: Optional[int] = None,
-                 hold: bool = False, fill: bool = False):
+                 hold: bool = False):
     """Tracks (T, n, 2) (column, row) of the points ``start`` (n, 2) of the
     first frame, moved through ``video`` ((T, H, W) uint8, or a stream of
     frames: :func:`frames_of`) by dense optical flow (``flow``) from each frame to the
@@ -211,11 +211,7 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
     flow's drift does not add up; a point not found again is NaN in that
     frame, not dragged, and may be found again later (NaN also where it
     is outside the frame). ``disagreement`` then averages over the frames
-    where a point is held. ``fill`` (needs ``hold``): a point not found
-    again is placed where the warp fitted to that frame's held points
-    takes it (:meth:`~nrdepth.isometric.hold.Anchor.fill`), not NaN: points
-    on blank paper follow the sheet around them (NaN outside the frame,
-    and in a frame where fewer than 3 are held)."""
+    where a point is held."""
     import cv2  # imported here: `import nrdepth` stays light
     from scipy.ndimage import map_coordinates
 
@@ -235,10 +231,6 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
         raise ValueError(f"margin: expected pixels >= 0 or None (the whole frame), got {margin!r}")
     if not isinstance(hold, (bool, np.bool_)):
         raise ValueError(f"hold: expected a bool, got {hold!r}")
-    if not isinstance(fill, (bool, np.bool_)):
-        raise ValueError(f"fill: expected a bool, got {fill!r}")
-    if fill and not hold:
-        raise ValueError("fill: the points not found again are placed by the held points' warp: expected hold=True, or fill=False")
     dense, dense_back = _flow(cv2, flow, window), _flow(cv2, flow, window)  # one each: a DIS object is not shared between threads
     H, W = first.shape
     anchor = Anchor(cv2, first, start, max(H, W) if margin is None else margin) if hold else None
@@ -273,9 +265,6 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
                 if hold:  # every point stays alive: where it is not held it is NaN, and carried on
                     now, held, carried = anchor.hold(frame, now)
                     carried = np.where(held[:, None], now, carried)
-                    if fill:
-                        now = anchor.fill(now, held)
-                        held = np.isfinite(now).all(axis=1)
                     stays = held & inside(now, (H, W), border)
                     now_xy[stays] = now[stays]
                     counted = stays
