@@ -49,13 +49,14 @@ ISOMETRIC_DROP = DROP
 ISOMETRIC_HOLD = False
 """With a camera's focal length, whether the sheet's points are held to
 their look in the first frame (:func:`nrdepth.isometric.track_points`'
-``hold``). Off: on 32 generated long sheets it read no better than the
-chained flow by the rule fixed beforehand (+0.0002 ± 0.0033 per frame),
-on 32 relief-free paper-like sheets just short of its rule (−0.0078 ±
-0.0059, mean + SE not below −0.002), and over ``kinect_paper``'s
-whole-sheet box it steps aside (0.53 of the point-frames held),
-though on ``kinect_paper``'s true points the tracks' 95th percentile falls
-from 1.86 to 0.66 px (docs/campaign.md, "Tracks held to the first frame")."""
+``hold``). Off: with the warp fitted to the points held, it passed its
+rule on 32 fresh relief-free paper-like sheets (−0.0170 ± 0.0040 per
+frame against the chained flow), but over ``kinect_paper``'s whole-sheet
+box, half background, it steps aside (0.57 of the point-frames held)
+and reads the sheet 11 % worse than the flow's tracks, which the rule's
+checks forbid; on ``kinect_paper``'s true points the tracks' 95th
+percentile falls from 1.86 to 0.65 px (docs/campaign.md, "Held points
+on a warp fitted to the points held")."""
 
 ISOMETRIC_EACH_FRAME = "lengths"
 """With a camera's focal length, what each solved frame's depths are
