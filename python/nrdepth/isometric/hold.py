@@ -173,4 +173,3 @@ class Anchor:
         position = np.stack([map_coordinates(m, [found[:, 1], found[:, 0]], order=1, mode="nearest") for m in (map_x, map_y)], axis=1).astype(np.float64)
         self._fit(held if held.sum() >= 3 else np.ones(len(held), bool))
         return position, held, predicted
-
