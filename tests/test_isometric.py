@@ -324,7 +324,7 @@ def test_points_on_blank_paper_are_rarely_held_and_points_on_print_always():
 
 def test_held_points_beside_blank_paper_are_not_pulled_by_its_flow():
     """The warp that pulls each frame back is fitted to the points held in the frame before: the flow's guesses on blank paper, where
-    no point is found again, would bend it, and the points held beside it would be found through a bent warp (0.7–1.3 px off)."""
+    no point is found again, would bend it, and the points held beside it would be found through a bent warp (up to 1.2 px off)."""
     video = shifted_texture(frames=9, window=140, blank=60)  # the left 60 columns blank paper, moving with the print
     start = isometric.start_grid(None, video.shape[1:], points=49)
     truth = start + np.arange(9)[:, None, None] * np.array([2.0, 1.0])
