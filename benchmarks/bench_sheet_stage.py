@@ -23,9 +23,7 @@ principal point at the frame's centre, as a user without a calibration
 might guess it, in place of the true one), ``place`` (``track_grid``'s:
 grid, or texture: where the first frame has texture to follow), ``inset``
 (pixels: the points' region shrunk by this much first, so that no
-point's window crosses its outline; :func:`inset_region`), ``still``
-(pixels, ``track_grid``'s: the points that never move this far left out,
-a still background in the box; ``isometric.STILL`` is the stage's),
+point's window crosses its outline; :func:`inset_region`),
 ``whole`` (``experiments/sheet_levers.py`` only: the points over the
 whole frame, not the sheet's true region).
 With ``hold``, where fewer of the point-frames in view are held than the
@@ -57,12 +55,12 @@ def sgemm() -> float:
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "still": None, "whole": 0}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
             raise SystemExit(f"--settings: unknown lever {key!r} (known: {', '.join(out)})")
-        out[key] = value if key in ("flow", "each", "place") else float(value) if key in ("drop", "keep", "anchor", "fov", "still") else (None if value == "none" else int(value))
+        out[key] = value if key in ("flow", "each", "place") else float(value) if key in ("drop", "keep", "anchor", "fov") else (None if value == "none" else int(value))
     if out["keep"] and not out["hold"]:
         raise SystemExit(f"--settings {setting!r}: keep needs hold=1")
     if out["anchor"] and out["each"] != "lengths":
@@ -173,7 +171,7 @@ def main() -> None:
         lever = parse(setting)
         start = time.perf_counter()
         xy = isometric.track_grid(frames, inset_region(box, lever["inset"]), points=lever["points"], drop=lever["drop"], flow=lever["flow"], margin=lever["margin"],
-                                  hold=bool(lever["hold"]), backward=bool(lever["backward"]), place=lever["place"], still=lever["still"])
+                                  hold=bool(lever["hold"]), backward=bool(lever["backward"]), place=lever["place"])
         held = isometric.held_share(xy, frames.shape[1:]) if lever["hold"] else 1.0
         if held < MIN_HELD:  # the stage's gate, before keep: it steps aside, the sheet reads as the network
             print(f"{setting:40s} points {time.perf_counter() - start:5.1f} s: steps aside ({held:.2f} of the point-frames held); "

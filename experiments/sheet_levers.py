@@ -12,8 +12,7 @@ the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 ``neighbours``, ``points``, ``hold``, ``backward``, ``drop``, ``keep``, ``each``, ``anchor``, ``fov``: a guessed
 pinhole in place of the true camera, ``place``: the points where the first
 frame has texture, ``inset``: the sheet's region shrunk first, ``whole``: the points over
-the whole frame, backdrop and all, not over the sheet, ``still``: with
-them, those that never move this many pixels left out); the first is the reference, each
+the whole frame, backdrop and all, not over the sheet); the first is the reference, each
 other is paired against it. Each setting's ``shortfall`` is recorded too:
 how far its program's pairs fall short of their template distances
 (``bench_sheet_stage.shortfall``; with ``each=program``), a candidate
@@ -127,25 +126,21 @@ def main() -> None:
             for name, lever in zip([s or "default" for s in settings], levers):
                 start = time.perf_counter()
                 key = (lever["flow"], lever["margin"], lever["points"], lever["hold"], lever["backward"], lever["drop"], lever["place"], lever["inset"],
-                       lever["still"], lever["whole"])  # keep, each: after the tracks
+                       lever["whole"])  # keep, each: after the tracks
                 if lever.get("truth"):
                     truth_xy, _ = true_tracks(clips.vertices[k], params, config.size, points=lever["points"])
                     tracks[key + ("truth",)] = np.where(in_view(truth_xy, config.size)[..., None], truth_xy, np.nan)
                     key += ("truth",)
                 elif key not in tracks:
-                    try:
-                        tracks[key] = isometric.track_grid(video, None if lever["whole"] else inset_region(region, lever["inset"]), points=lever["points"],
-                                                           drop=lever["drop"], flow=lever["flow"], margin=lever["margin"], hold=bool(lever["hold"]),
-                                                           backward=bool(lever["backward"]), place=lever["place"], still=lever["still"])
-                    except ValueError as error:  # nothing in the frame moves: no points, and the stage steps aside
-                        print(f"  {name}: {error}", flush=True)
-                        tracks[key] = np.zeros((len(video), 0, 2))
+                    tracks[key] = isometric.track_grid(video, None if lever["whole"] else inset_region(region, lever["inset"]), points=lever["points"],
+                                                       drop=lever["drop"], flow=lever["flow"], margin=lever["margin"], hold=bool(lever["hold"]),
+                                                       backward=bool(lever["backward"]), place=lever["place"])
                 held = held_share(tracks[key], video.shape[1:]) if lever["hold"] else 1.0  # before keep, as the stage gates
                 xy = keep_held(tracks[key], video.shape[1:], lever)
                 tracked = time.perf_counter()
                 row[f"{name} held"] = held
-                start_px = np.rint(xy[0]).astype(int) if xy.shape[1] else np.zeros((0, 2), int)
-                row[f"{name} points"], row[f"{name} on sheet"] = xy.shape[1], float(np.mean(on[0][start_px[:, 1], start_px[:, 0]])) if len(start_px) else 0.0
+                first_px = np.rint(xy[0]).astype(int)  # how many points are read, and the share of them that start on the sheet
+                row[f"{name} points"], row[f"{name} on sheet"] = xy.shape[1], float(np.mean(on[0][first_px[:, 1], first_px[:, 0]]))
                 try:
                     if held < args.min_held:
                         raise ValueError(f"{held:.2f} of the point-frames held")

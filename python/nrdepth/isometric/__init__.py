@@ -14,9 +14,10 @@ away through perspective. Three steps:
   over the video is left out: points where the motion breaks (near a
   border), which the flow drags. With ``hold``, each step of the flow is
   checked against the first frame: every point is found again by its look
-  there, through a smooth warp of the sheet fitted to all the points
-  (:mod:`~nrdepth.isometric.hold`), so that the flow's drift does not add
-  up, and a point not found again is NaN in that frame, not dragged.
+  there, through a smooth warp of the sheet fitted to the points held in
+  the frame before (:mod:`~nrdepth.isometric.hold`), so that the flow's
+  drift does not add up, and a point not found again is NaN in that
+  frame, not dragged.
 - :func:`mdh_depths`: the depth of every point in every frame by the
   maximum-depth heuristic of inextensible NRSfM (Chhatkuli, Pizarro,
   Collins and Bartoli, TPAMI 2018): maximise the sum of the depths subject
@@ -51,7 +52,7 @@ intrinsics.
 from .fuse import fuse
 from .mirror import SHAPE_KEPT, keep_lengths, mirror_depths, mirror_or_not, shape_kept
 from .mdh import EACH_FRAME, TEMPLATES, TooFewPoints, isometric_depth, mdh_depths, neighbour_pairs
-from .points import BORDER, DROP, FLOWS, frames_of, held_share, inside, least_disagreeing, moving, PLACES, STILL, point_held_shares, start_grid, start_texture, track_grid, track_points
+from .points import BORDER, DROP, FLOWS, frames_of, held_share, inside, least_disagreeing, PLACES, point_held_shares, start_grid, start_texture, track_grid, track_points
 
-__all__ = ["track_grid", "start_grid", "start_texture", "PLACES", "track_points", "least_disagreeing", "moving", "STILL", "inside", "held_share", "point_held_shares", "neighbour_pairs", "mdh_depths", "isometric_depth", "fuse", "mirror_depths", "keep_lengths", "mirror_or_not", "shape_kept", "SHAPE_KEPT",
+__all__ = ["track_grid", "start_grid", "start_texture", "PLACES", "track_points", "least_disagreeing", "inside", "held_share", "point_held_shares", "neighbour_pairs", "mdh_depths", "isometric_depth", "fuse", "mirror_depths", "keep_lengths", "mirror_or_not", "shape_kept", "SHAPE_KEPT",
            "frames_of", "TooFewPoints", "TEMPLATES", "EACH_FRAME", "DROP", "BORDER", "FLOWS"]

@@ -23,7 +23,7 @@ import numpy as np
 from ..checks import option_error
 from .hold import HOLD_WINDOW, Anchor
 
-__all__ = ["track_grid", "start_grid", "start_texture", "PLACES", "track_points", "least_disagreeing", "moving", "inside", "held_share", "point_held_shares", "check_video", "frames_of", "DROP", "BORDER", "STILL", "FLOWS"]
+__all__ = ["track_grid", "start_grid", "start_texture", "PLACES", "track_points", "least_disagreeing", "inside", "held_share", "point_held_shares", "check_video", "frames_of", "DROP", "BORDER", "FLOWS"]
 
 DROP = 0.2
 """:func:`isometric_depth`'s and ``reconstruct(focal=...)``'s share of the
@@ -38,15 +38,6 @@ BORDER = 0.0
 point closer than this to the frame's edge, or beyond it, is lost for
 good. 0: a point is lost where it leaves the frame (8 lost more points
 and read generated sheets worse: docs/reconstruction.md)."""
-
-
-STILL = 1.0
-""":func:`track_grid`'s ``still`` where the sheet is to be found in its
-region (``reconstruct(focal=...)`` without ``sheet``): pixels a point must
-move from where it starts, in some frame, to count as on the sheet
-(:func:`moving`). A still background's points stay within a few tenths
-of a pixel (held, or by the flow), twice the sheet stage's
-``MIN_MOTION``."""
 
 
 def check_video(video: np.ndarray) -> np.ndarray:
@@ -102,7 +93,7 @@ to follow (:func:`start_texture`)."""
 
 def track_grid(video: Union[np.ndarray, Iterable[np.ndarray]], mask: Optional[np.ndarray] = None, points: int = 400, window: int = 21,
                backward: bool = True, drop: float = 0.0, border: float = BORDER, flow: str = "farneback",
-               margin: Optional[int] = None, hold: bool = False, place: str = "grid", still: Optional[float] = None) -> np.ndarray:
+               margin: Optional[int] = None, hold: bool = False, place: str = "grid") -> np.ndarray:
     """Tracks (T, n, 2) (column, row) of about ``points`` points over
     ``mask`` (H, W) of the first frame (default: the whole frame), placed
     by ``place`` (:data:`PLACES`: on a square grid, or where the first
@@ -112,52 +103,18 @@ def track_grid(video: Union[np.ndarray, Iterable[np.ndarray]], mask: Optional[np
     those whose forward and backward flows disagree most over the video
     (:func:`track_points`' ``disagreement``; needs ``backward``): points
     at a boundary of the motion, where the flow bleeds from one side to
-    the other, whose tracks would read as stretch (docs/reconstruction.md).
-    ``still``: the points that never move this many pixels from where
-    they start, and those within 1.5 grid spacings of one (:func:`moving`:
-    a still background in ``mask``, and the sheet's outline beside it), are
-    left out first, and ``drop`` is a share of those left (None: none left
-    out)."""
+    the other, whose tracks would read as stretch (docs/reconstruction.md)."""
     first, rest = frames_of(video)
     video = itertools.chain([first], rest)
     if drop > 0 and not backward:
         raise ValueError("drop: the points to leave out are found by the flow both ways: expected backward=True, or drop=0")
     if place not in PLACES:
         raise ValueError(f"place: expected one of {PLACES}, got {place!r}")
-    if still is not None and not (isinstance(still, (int, float, np.integer, np.floating)) and still > 0):
-        raise ValueError(f"still: expected pixels > 0, or None (no point left out for standing still), got {still!r}")
     grid = start_grid(mask, first.shape, points, drop, border) if place == "grid" else start_texture(first, mask, points, window, drop, border)
-    tracked = track_points(video, grid, window, backward, disagreement=backward, border=border, flow=flow, margin=margin, hold=hold)
-    xy, disagreement = tracked if backward else (tracked, None)
-    if still is not None:
-        on = moving(xy, still, beside=1.5 * _spacing(_check_mask(mask, first.shape), points, drop))
-        if on.sum() - int(round(drop * on.sum())) < 4:
-            raise option_error("mask", f"expected at least 4 points that move {still:g} px from where they start (drop {drop:g}), "
-                                       f"got {on.sum()} of {len(on)}: nothing in the region moves")
-        xy, disagreement = xy[:, on], disagreement[on] if backward else None
-    return xy[:, least_disagreeing(disagreement, drop)] if drop > 0 else xy
-
-
-def moving(xy: np.ndarray, still: float = STILL, beside: float = 0.0) -> np.ndarray:
-    """Which tracks (T, n, 2) move farther than ``still`` pixels from
-    where they start in some frame where they are tracked, and have no
-    point that does not within ``beside`` pixels in the first frame (n,)
-    bool: a sheet handled before a still background moves, the
-    background does not, and a point beside the background is on the
-    sheet's outline, where its window holds both and the flow drags the
-    background's points with the sheet. A point never tracked after its
-    start does not move."""
-    from scipy.spatial import cKDTree
-
-    xy = np.asarray(xy, np.float64)
-    if xy.ndim != 3 or xy.shape[2] != 2 or len(xy) == 0 or not np.isfinite(xy[0]).all():
-        raise ValueError(f"xy: expected tracks (T, n, 2) with T >= 1, finite in the first frame, got shape {xy.shape}")
-    away = np.linalg.norm(xy - xy[:1], axis=2)
-    moves = np.fmax.reduce(away, axis=0, initial=0.0) > still
-    if beside > 0 and (~moves).any():
-        near_still = cKDTree(xy[0, ~moves]).query(xy[0], distance_upper_bound=beside)[0] <= beside
-        moves &= ~near_still
-    return moves
+    if drop == 0:
+        return track_points(video, grid, window, backward, border=border, flow=flow, margin=margin, hold=hold)
+    xy, disagreement = track_points(video, grid, window, backward, disagreement=True, border=border, flow=flow, margin=margin, hold=hold)
+    return xy[:, least_disagreeing(disagreement, drop)]
 
 
 def _spacing(mask: np.ndarray, points: int, drop: float) -> float:
