@@ -156,6 +156,7 @@ CLI_CASES = [
     ("cli-coarse-weight", ["reconstruct", "input.npy", "-o", "o", "--alignment", "joint", "--coarse-weight", "0", "--model", "{model}"], "--coarse-weight: expected"),
     ("cli-temporal-weight", ["reconstruct", "input.npy", "-o", "o", "--temporal-weight", "-1", "--model", "{model}"], "--temporal-weight: expected"),
     ("cli-focal-tiny", ["reconstruct", "input.npy", "-o", "o", "--focal", "0.001", "--model", "{model}"], "--focal: f_x = 0.001 px sees 180.0°"),
+    ("cli-focal-huge", ["reconstruct", "input.npy", "-o", "o", "--focal", "1e9", "--model", "{model}"], "--focal: f_x = 1e+09 px sees 1.8e-06° across the frame's 32 pixels; the sheet's shape needs perspective"),
     ("cli-sheet-tiny", ["reconstruct", "input.npy", "-o", "o", "--focal", "50", "--sheet", "0,0,1,1", "--model", "{model}"], "--sheet: expected room for at least 4 points"),
     ("cli-out-under-a-file", ["reconstruct", "input.npy", "-o", "notes/mine.txt/new", "--model", "{model}"], "--out: cannot make notes/mine.txt/new: "),
     ("cli-model-missing", ["reconstruct", "input.npy", "-o", "o", "--model", "/missing.safetensors"], "--model: /missing.safetensors not found"),

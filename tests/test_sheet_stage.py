@@ -117,3 +117,21 @@ def test_the_stage_solves_each_frame_as_asked(monkeypatch, model, bending):
     depths = {each: nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS, isometric_each_frame=each) for each in ("program", "lengths")}
     assert asked == ["program", "lengths"]
     assert np.abs(depths["lengths"] - depths["program"]).max() > 1e-3  # the frames' lengths kept change the shape
+
+
+def test_a_cone_program_without_an_answer_sends_the_stage_aside_with_its_status(monkeypatch, model, bending):
+    import importlib
+
+    from nrdepth.isometric import NotSolved
+
+    stage = importlib.import_module("nrdepth.reconstruct.sheet")
+
+    def unsolved(*args, **kwargs):
+        raise NotSolved("InsufficientProgress")  # what Clarabel said to a focal length of 10⁹ px, before such a focal was refused
+
+    monkeypatch.setattr(stage, "mdh_depths", unsolved)
+    with pytest.warns(SheetFallback, match=r"sheet: the network's depth alone \(the sheet's cone program found no answer \(InsufficientProgress\)"):
+        depth = nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS)
+    np.testing.assert_array_equal(depth, network_alone(bending, model))
+    with pytest.raises(ValueError, match=r"focal: f_x = 1e\+09 px sees .*° across the frame's 64 pixels; the sheet's shape needs perspective"):
+        nrdepth.reconstruct(bending, model, device="cpu", **{**OPTIONS, "focal": 1e9})

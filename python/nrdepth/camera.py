@@ -17,10 +17,14 @@ import numpy as np
 
 from .checks import is_number, option_error
 
-__all__ = ["Camera", "WIDEST"]
+__all__ = ["Camera", "WIDEST", "NARROWEST"]
 
 WIDEST = 170.0
 """Degrees: the widest view across a frame a pinhole camera is taken to have (wider is a fisheye, or a mistaken focal length)."""
+
+NARROWEST = 1.0
+"""Degrees: the narrowest view across a frame a camera is taken to have: narrower, its rays are all but parallel, there is no
+perspective to read a sheet's shape by (the cone program may find no answer, or a wrong one), and the focal length is a mistake."""
 
 
 def _pair(value: Any, name: str, what: str, positive: bool) -> Tuple[float, float]:
@@ -71,13 +75,18 @@ class Camera:
     def at(self, frame: Tuple[int, int]) -> "Camera":
         """This camera with its principal point fixed for frames of ``frame``
         (H, W) pixels; refused if it would see more than :data:`WIDEST` across
-        them (no pinhole does: a focal length that small is a mistake)."""
+        them (no pinhole does: a focal length that small is a mistake), or
+        less than :data:`NARROWEST` (no perspective to read)."""
         h, w = frame
         for side, f, axis in ((w, self.focal[0], "f_x"), (h, self.focal[1], "f_y")):
             seen = 2 * math.degrees(math.atan(side / 2 / f))
             if seen > WIDEST:
                 raise option_error("focal", f"{axis} = {f:g} px sees {seen:.1f}° across the frame's {side} pixels; a pinhole camera sees under "
                                    f"{WIDEST:g}° (a focal length above {side / 2 / math.tan(math.radians(WIDEST / 2)):.1f} px)")
+            if seen < NARROWEST:
+                raise option_error("focal", f"{axis} = {f:g} px sees {seen:.2g}° across the frame's {side} pixels; the sheet's shape needs "
+                                   f"perspective: a view of at least {NARROWEST:g}° (a focal length below "
+                                   f"{side / 2 / math.tan(math.radians(NARROWEST / 2)):.0f} px)")
         return Camera(self.focal, self.principal_point(frame))
 
     def rays(self, xy: np.ndarray, frame: Optional[Tuple[int, int]] = None) -> np.ndarray:

@@ -32,6 +32,17 @@ class TooFewPoints(ValueError):
         super().__init__(f"xy: expected at least 3 points in view and tied to a pair in every frame, got fewer in frames {frames[:5]}")
 
 
+class NotSolved(RuntimeError):
+    """:func:`mdh_depths`' cone program ended without an answer, with
+    Clarabel's ``status`` (e.g. ``InsufficientProgress``): rays nearly
+    parallel (a focal length far too long: no perspective to read), or
+    tracks no inextensible sheet fits."""
+
+    def __init__(self, status: str):
+        self.status = status
+        super().__init__(f"the MDH cone program was not solved: {status}")
+
+
 def neighbour_pairs(xy: np.ndarray, neighbours: int = 20, far: int = 0, reach: int = 0) -> np.ndarray:
     """The pairs (E, 2), i < j, sorted, of each point (n, 2) with its
     ``neighbours`` nearest, and with ``far`` more spread evenly in rank over
@@ -114,7 +125,7 @@ def _socp(rays: np.ndarray, pairs: np.ndarray, distances: Optional[np.ndarray],
     solution = clarabel.DefaultSolver(sparse.csc_matrix((variables, variables)), q, A, b,
                                       [clarabel.NonnegativeConeT(offset)] + [clarabel.SecondOrderConeT(4)] * cones, settings).solve()
     if str(solution.status) not in ("Solved", "AlmostSolved"):
-        raise RuntimeError(f"the MDH cone program was not solved: {solution.status}")
+        raise NotSolved(str(solution.status))
     x = np.asarray(solution.x)
     out = np.full((M, n), np.nan)
     out[seen] = x[:depths]

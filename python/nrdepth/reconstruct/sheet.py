@@ -21,7 +21,7 @@ import numpy as np
 from ..baselines.tracks import densify
 from ..camera import Camera
 from ..checks import option_error
-from ..isometric import TooFewPoints, fuse, held_share, mdh_depths, point_held_shares, start_grid, track_grid
+from ..isometric import NotSolved, TooFewPoints, fuse, held_share, mdh_depths, point_held_shares, start_grid, track_grid
 from .frames import CHUNK, as_uint8
 from .options import ReconstructOptions
 
@@ -145,7 +145,8 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
     shape nothing to read (fewer than :data:`MIN_FRAMES` frames, a region
     with less texture than :data:`MIN_TEXTURE`, points that move less than
     :data:`MIN_MOTION`, held points found again in fewer point-frames than
-    :data:`MIN_HELD`, or a frame with too few of them for its program):
+    :data:`MIN_HELD`, a frame with too few of them for its program, or a
+    program with no answer, as through a focal length far too long):
     then ``raw`` is left alone. Held, only the points found again in
     :data:`KEEP_HELD` of their frames are read. Returns what it did."""
     camera = camera.at(region.shape)
@@ -175,6 +176,8 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
         depths = mdh_depths(xy, camera, template=options.isometric_template, each_frame=options.isometric_each_frame, **cheaper)
     except TooFewPoints as error:
         return SheetDecision(False, f"too few points held in frames {error.frames[:5]}", **record)
+    except NotSolved as error:  # e.g. a focal length far too long: rays nearly parallel, no perspective to read the shape by
+        return SheetDecision(False, f"the sheet's cone program found no answer ({error.status}): is the focal length right?", **record)
     x, y, w_region, h_region = options.roi or (0, 0, region.shape[1], region.shape[0])
     h, w = work
     # Into the region's working frame: area-averaged resizes keep pixel centres' relative places.
