@@ -27,7 +27,8 @@ families. ``--set``: any other ``GeneratorConfig`` field of the sheets
 (e.g. the paper-like sheets' ``backdrop_probability=1``; over a backdrop
 the points go over the sheet in the first frame, where its truth is, as
 ``reconstruct(sheet=mask)`` puts them, and every figure is over the
-sheet's pixels). ``--every``: each setting also with only every
+sheet's pixels; ``--moving-backdrop``: the backdrop replaced by moving,
+deforming coloured-noise surfaces, as a shirt moves behind a held sheet). ``--every``: each setting also with only every
 n-th frame's program solved, the rest linear in time (``mdh_depths``'s
 ``every``; read off the setting's own every-frame depths, which it
 solves alike in those frames, so it costs nothing more here). The rule that reads this is in
@@ -49,7 +50,7 @@ from pathlib import Path
 import numpy as np
 
 import nrdepth
-from nrdepth import generate_clips, isometric
+from nrdepth import GeneratorConfig, generate_clips, isometric
 from nrdepth.baselines.tracks import densify
 from nrdepth.isometric import held_share
 from nrdepth.isometric.mdh import _between, keyframe_indices, solved_frames
@@ -83,6 +84,10 @@ def main() -> None:
     parser.add_argument("--truth", action="store_true", help="also the first setting's programs on the sheet's true tracks (named truth)")
     parser.add_argument("--set", action="append", default=[], metavar="FIELD=V[,V]", type=setting,
                         help="a GeneratorConfig field of the sheets, one value or lo,hi (e.g. backdrop_probability=1), repeatable")
+    parser.add_argument("--moving-backdrop", action="store_true",
+                        help="over a backdrop: every pixel off the sheet (NaN depth) replaced by a clip of the generator's own coloured-noise "
+                             "surfaces, which move and deform (seed SEED + 1, the same index), as a person's shirt and hands move behind a "
+                             "held sheet; the sheet's anti-aliased edge keeps the still backdrop's share")
     parser.add_argument("--lights", default="below,above", help="the sheets lit from below, above, or both (each its own --videos)")
     parser.add_argument("--csv", type=Path, default=None, help="each video's row, written as it is read; a CSV already there is resumed "
                         "(its rows kept, its videos not read again)")
@@ -108,6 +113,8 @@ def main() -> None:
             continue
         config = long_sheets(args.frames, args.phases, args.families.split(","), light, args.set)
         clips = generate_clips(args.videos, seed=SEED, config=config, start=args.start, vertices=args.truth)
+        behind = generate_clips(args.videos, seed=SEED + 1, config=GeneratorConfig(frames=args.frames, size=config.size), start=args.start).video \
+            if args.moving_backdrop else None
         for k, (video, truth, params) in enumerate(zip(clips.video, clips.depth, clips.params)):
             if (light, args.start + k) in done:
                 continue
@@ -116,8 +123,10 @@ def main() -> None:
                 print(f"{light} {args.start + k}: the box moves the tracks by a median {rows[-1]['margin shift median px']:.4f} px, at most {rows[-1]['margin shift max px']:.3f}", flush=True)
                 continue
             true_camera = nrdepth.Camera(*camera(params, config.size)) if params.get("pinhole") is not None else None
-            network = nrdepth.reconstruct(video).astype(np.float64)
             on = np.isfinite(truth)  # NaN off the sheet over a backdrop
+            if behind is not None:
+                video = np.where(on, video, behind[k])
+            network = nrdepth.reconstruct(video).astype(np.float64)
             region = None if on.all() else on[0]
             row = {"light": light, "clip": args.start + k, "network per frame": mae_sn(network, truth, mask=on)}
             base = dense_baselines(truth, on)
