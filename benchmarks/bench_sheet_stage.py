@@ -25,7 +25,9 @@ grid, or texture: where the first frame has texture to follow), ``inset``
 (pixels: the points' region shrunk by this much first, so that no
 point's window crosses its outline; :func:`inset_region`),
 ``whole`` (``experiments/sheet_levers.py`` only: the points over the
-whole frame, not the sheet's true region).
+whole frame, not the sheet's true region), ``piece`` (``sheet_levers.py``
+only: of the points read, the one piece that moves most,
+``experiments/kinect_box_parts.moving_piece``).
 With ``hold``, where fewer of the point-frames in view are held than the
 stage's ``MIN_HELD``, the stage steps aside, as it does in the job.
 
@@ -55,7 +57,7 @@ def sgemm() -> float:
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:

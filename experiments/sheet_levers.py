@@ -12,7 +12,8 @@ the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 ``neighbours``, ``points``, ``hold``, ``backward``, ``drop``, ``keep``, ``each``, ``anchor``, ``fov``: a guessed
 pinhole in place of the true camera, ``place``: the points where the first
 frame has texture, ``inset``: the sheet's region shrunk first, ``whole``: the points over
-the whole frame, backdrop and all, not over the sheet); the first is the reference, each
+the whole frame, backdrop and all, not over the sheet, ``piece``: of the points read, the one
+piece that moves most, as ``experiments/kinect_box_parts.py`` finds the paper); the first is the reference, each
 other is paired against it. Each setting's ``shortfall`` is recorded too:
 how far its program's pairs fall short of their template distances
 (``bench_sheet_stage.shortfall``; with ``each=program``), a candidate
@@ -62,6 +63,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
 from bench_sheet_stage import guessed_camera, inset_region, keep_held, parse, shortfall  # noqa: E402
 from isometric_generated import LIGHTS, SEED, camera, in_view, long_sheets, setting, true_tracks  # noqa: E402
+from kinect_box_parts import moving_piece  # noqa: E402
 
 
 def main() -> None:
@@ -146,6 +148,9 @@ def main() -> None:
                                                        backward=bool(lever["backward"]), place=lever["place"])
                 held = held_share(tracks[key], video.shape[1:]) if lever["hold"] else 1.0  # before keep, as the stage gates
                 xy = keep_held(tracks[key], video.shape[1:], lever)
+                if lever["piece"]:  # of the points read, the one piece that moves most (kinect_box_parts)
+                    area = video.shape[1] * video.shape[2] if lever["whole"] or region is None else region.sum()
+                    xy = xy[:, moving_piece(xy, np.ones(xy.shape[1], bool), float(np.sqrt(area / lever["points"])))]
                 tracked = time.perf_counter()
                 row[f"{name} held"] = held
                 first_px = np.rint(xy[0]).astype(int)  # how many points are read, and the share of them that start on the sheet
