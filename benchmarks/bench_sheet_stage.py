@@ -140,6 +140,9 @@ def main() -> None:
                         help="the points over the print (KINECT_INNER) or the whole sheet's box (KINECT_ROI)")
     parser.add_argument("--no-box-check", action="store_true", help="skip following every point with and without the box first")
     args = parser.parse_args()
+    for setting in args.settings.split(","):  # before the network's minutes
+        if any(parse(setting)[key] for key in ("whole", "piece")):  # read by sheet_levers alone: here they would change nothing, silently
+            raise SystemExit(f"--settings {setting!r}: whole and piece are experiments/sheet_levers.py's levers; the box here is --box")
 
     import cv2
     import torch
