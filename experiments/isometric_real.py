@@ -18,7 +18,8 @@ shape-blind references.
 ``--scales``: :func:`nrdepth.isometric.fuse`'s length scale, as a fraction
 of the region's shorter side (0: the isometric depth alone); ``--relief``
 its relief scale, ``--template`` :func:`nrdepth.isometric.mdh_depths`'s
-template distances, ``--each-frame`` its ``each_frame``, ``--far``/``--reach`` the far pairs of
+template distances, ``--each-frame`` its ``each_frame``, ``--keyframes`` and ``--every`` its
+``keyframes`` and ``every``, ``--far``/``--reach`` the far pairs of
 :func:`nrdepth.isometric.neighbour_pairs`, ``--window`` and ``--forward``
 :func:`nrdepth.isometric.track_grid`'s flow, ``--hold`` its points held to
 the first frame, ``--drop`` the shares of its points
@@ -70,7 +71,7 @@ def phisft_crop() -> tuple:
 
 
 def phisft_isometric(shape: tuple, points: int, neighbours: int, far: int, reach: int, window: int, backward: bool, template: str, drop: float, hold: bool = False,
-                     each_frame: str = "program", anchor: float = 0.0, place: str = "grid") -> np.ndarray:
+                     each_frame: str = "program", anchor: float = 0.0, place: str = "grid", keyframes: int = 24, every: int = 1) -> np.ndarray:
     """The cloth's isometric depth on the binned crop, of ``shape`` (T, H, W)."""
     from scipy.ndimage import binary_erosion
 
@@ -83,7 +84,7 @@ def phisft_isometric(shape: tuple, points: int, neighbours: int, far: int, reach
     inside[4 * top : 4 * bottom, 4 * left : 4 * right] = True
     xy = isometric.track_grid(full, cloth & inside, points, window, backward, drop, hold=hold, place=place)
     depths = isometric.mdh_depths(xy, FOCAL, CENTRE, neighbours=neighbours, far=far, reach=reach, template=template, each_frame=each_frame,
-                                    anchor=anchor)
+                                    anchor=anchor, keyframes=keyframes, every=every)
     binned = (xy + 0.5) / 4 - 0.5 - np.array([left, top])  # full-frame pixels to the binned crop's
     return densify(binned, depths, shape)
 
@@ -112,11 +113,11 @@ def read_all(args) -> list:
             paper = isometric.isometric_depth(frames, focal, centre, mask=print_area, points=args.points[0], neighbours=args.neighbours[0],
                                               far=args.far, reach=args.reach, window=args.window,
                                               backward=not args.forward, template=args.template, drop=drop, hold=args.hold,
-                                              each_frame=args.each_frame, anchor=args.anchor, place=args.place)
+                                              each_frame=args.each_frame, anchor=args.anchor, place=args.place, keyframes=args.keyframes, every=args.every)
             print(f"kinect_paper: isometric depth in {time.perf_counter() - start:.0f} s")
             start = time.perf_counter()
             cloth = phisft_isometric(video.shape, args.points[0], args.neighbours[0], args.far, args.reach, args.window, not args.forward, args.template, drop,
-                                     hold=args.hold, each_frame=args.each_frame, anchor=args.anchor, place=args.place)
+                                     hold=args.hold, each_frame=args.each_frame, anchor=args.anchor, place=args.place, keyframes=args.keyframes, every=args.every)
             print(f"phisft_R1: isometric depth in {time.perf_counter() - start:.0f} s")
         reading = "network" if scale is None else ("isometric" if scale == 0 else f"fused at {scale:g}") + (f", drop {drop:g}" if len(args.drop) > 1 else "")
         row = {"reading": reading, "drop": "" if drop is None else drop, "scale": "" if scale is None else scale}
@@ -203,6 +204,8 @@ def main() -> None:
     parser.add_argument("--drop", type=numbers(float), default=[0.0],
                         help="shares of the points whose flows both ways disagree most, left out (isometric.track_grid), each read in turn (the first is used with "
                         "--grid; default 0, every point: reconstruct(focal=...) leaves out isometric.DROP)")
+    parser.add_argument("--keyframes", type=int, default=24, help="mdh_depths's keyframes in the joint program (the stage's: 12)")
+    parser.add_argument("--every", type=int, default=1, help="mdh_depths's every: only every n-th frame's program solved (the stage's: 4)")
     parser.add_argument("--far", type=int, default=0, help="far pairs of each point (isometric.neighbour_pairs)")
     parser.add_argument("--reach", type=int, default=0, help="the far pairs' largest rank")
     parser.add_argument("--scales", type=numbers(float), default=[0, 0.05, 0.1, 0.2, 0.3, 0.5])

@@ -25,21 +25,23 @@ from ..isometric import NotSolved, TooFewPoints, fuse, held_share, mdh_depths, p
 from .frames import CHUNK, as_uint8
 from .options import ReconstructOptions
 
-__all__ = ["sheet_region", "sheet_depth", "SheetDecision", "FLOW_MARGIN", "KEYFRAMES", "EVERY", "MIN_FRAMES", "MIN_TEXTURE", "MIN_MOTION", "MIN_HELD", "KEEP_HELD"]
+__all__ = ["sheet_region", "sheet_depth", "SheetDecision", "FLOW_MARGIN", "KEYFRAMES", "EVERY", "NEIGHBOURS", "MIN_FRAMES", "MIN_TEXTURE", "MIN_MOTION", "MIN_HELD", "KEEP_HELD"]
 
 FLOW_MARGIN = 48
 """The sheet's points are followed by the flow over their box and this
 many pixels, not over the whole frame (the same tracks for a fraction of
 the cost: docs/campaign.md, "The sheet stage's cost")."""
 
-KEYFRAMES, EVERY = 12, 4
-"""The sheet's joint cone program runs over this many keyframes, and only
+KEYFRAMES, EVERY, NEIGHBOURS = 8, 4, 8
+"""The sheet's joint cone program runs over this many keyframes, only
 every :data:`EVERY`-th other frame's program is solved (the frames
-between linear in time): of the settings that read 32 generated long
-sheets as 24 keyframes and every frame did, the cheapest on kinect_paper
-(a rule fixed before they were read: docs/campaign.md, "The sheet
-stage's cost"). With the default template, "joint", the one the rule
-read; the others keep 24 keyframes and every frame."""
+between linear in time), and each point is tied to its
+:data:`NEIGHBOURS` nearest: of the settings that read generated long
+sheets as the stage did before, the cheapest on kinect_paper (two rules
+fixed before they were read: docs/campaign.md, "The sheet stage's cost"
+and "Fewer pairs and keyframes in the joint program"). With the default
+template, "joint", the one the rules read; the others keep 24
+keyframes, every frame and 20 neighbours."""
 
 MIN_FRAMES = 16
 """Fewer selected frames than this and the sheet stage leaves the network's
@@ -171,7 +173,7 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
         record.update(points=xy.shape[1])
     if not motion >= MIN_MOTION:
         return SheetDecision(False, f"the video does not move (the points {motion:.2f} px at most from where they start, < {MIN_MOTION:g})", **record)
-    cheaper = {"keyframes": KEYFRAMES, "every": EVERY} if options.isometric_template == "joint" else {}  # what the rule read
+    cheaper = {"keyframes": KEYFRAMES, "every": EVERY, "neighbours": NEIGHBOURS} if options.isometric_template == "joint" else {}  # what the rules read
     try:
         depths = mdh_depths(xy, camera, template=options.isometric_template, each_frame=options.isometric_each_frame, **cheaper)
     except TooFewPoints as error:
