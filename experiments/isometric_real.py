@@ -204,8 +204,8 @@ def main() -> None:
     parser.add_argument("--drop", type=numbers(float), default=[0.0],
                         help="shares of the points whose flows both ways disagree most, left out (isometric.track_grid), each read in turn (the first is used with "
                         "--grid; default 0, every point: reconstruct(focal=...) leaves out isometric.DROP)")
-    parser.add_argument("--keyframes", type=int, default=24, help="mdh_depths's keyframes in the joint program (the stage's: 12)")
-    parser.add_argument("--every", type=int, default=1, help="mdh_depths's every: only every n-th frame's program solved (the stage's: 4)")
+    parser.add_argument("--keyframes", type=int, default=24, help="mdh_depths's keyframes in the joint program (the stage's: reconstruct.sheet.KEYFRAMES)")
+    parser.add_argument("--every", type=int, default=1, help="mdh_depths's every: only every n-th frame's program solved (the stage's: reconstruct.sheet.EVERY)")
     parser.add_argument("--far", type=int, default=0, help="far pairs of each point (isometric.neighbour_pairs)")
     parser.add_argument("--reach", type=int, default=0, help="the far pairs' largest rank")
     parser.add_argument("--scales", type=numbers(float), default=[0, 0.05, 0.1, 0.2, 0.3, 0.5])

@@ -113,9 +113,14 @@ def test_the_stage_solves_each_frame_as_asked(monkeypatch, model, bending):
     stage = importlib.import_module("nrdepth.reconstruct.sheet")  # nrdepth.reconstruct is also the function
 
     asked, solve = [], stage.mdh_depths
-    monkeypatch.setattr(stage, "mdh_depths", lambda *args, **kwargs: asked.append(kwargs["each_frame"]) or solve(*args, **kwargs))
+    def asking(*args, **kwargs):
+        asked.append((kwargs["each_frame"], kwargs.get("keyframes"), kwargs.get("every"), kwargs.get("neighbours")))
+        return solve(*args, **kwargs)
+
+    monkeypatch.setattr(stage, "mdh_depths", asking)
     depths = {each: nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS, isometric_each_frame=each) for each in ("program", "lengths")}
-    assert asked == ["program", "lengths"]
+    cheaper = (stage.KEYFRAMES, stage.EVERY, stage.NEIGHBOURS)  # the joint template's program, as the cost rules chose it
+    assert asked == [("program", *cheaper), ("lengths", *cheaper)]
     assert np.abs(depths["lengths"] - depths["program"]).max() > 1e-3  # the frames' lengths kept change the shape
 
 
