@@ -375,6 +375,8 @@ def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.nda
     if each_frame not in EACH_FRAME:  # checked before tracking
         raise ValueError(f"each_frame: expected one of {EACH_FRAME}, got {each_frame!r}")
     check_anchor(anchor, each_frame)
+    if not (isinstance(every, (int, np.integer)) and every >= 1):  # checked before tracking
+        raise ValueError(f"every: expected an int >= 1 (1: every frame solved), got {every!r}")
     xy = track_grid(video, mask, points, window, backward, drop, hold=hold, place=place)
     depths = mdh_depths(xy, camera, neighbours=neighbours, keyframes=keyframes, far=far, reach=reach, template=template, each_frame=each_frame,
                         anchor=anchor, every=every)
