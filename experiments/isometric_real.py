@@ -23,7 +23,9 @@ template distances, ``--each-frame`` its ``each_frame``, ``--keyframes`` and ``-
 :func:`nrdepth.isometric.neighbour_pairs`, ``--window`` and ``--forward``
 :func:`nrdepth.isometric.track_grid`'s flow, ``--hold`` its points held to
 the first frame, ``--drop`` the shares of its points
-left out where the flow both ways disagrees most, each read in turn. ``--grid``
+left out where the flow both ways disagrees most, each read in turn;
+``--guessed``: both videos through the pinhole a user without a
+calibration gets (``nrdepth.Camera.guessed``), not their true cameras. ``--grid``
 reads the paper again at each number of points and neighbours given, and
 with a focal length off by each factor given (no network): how much the
 figure depends on them.
@@ -71,8 +73,9 @@ def phisft_crop() -> tuple:
 
 
 def phisft_isometric(shape: tuple, points: int, neighbours: int, far: int, reach: int, window: int, backward: bool, template: str, drop: float, hold: bool = False,
-                     each_frame: str = "program", anchor: float = 0.0, place: str = "grid", keyframes: int = 24, every: int = 1) -> np.ndarray:
-    """The cloth's isometric depth on the binned crop, of ``shape`` (T, H, W)."""
+                     each_frame: str = "program", anchor: float = 0.0, place: str = "grid", keyframes: int = 24, every: int = 1,
+                     guessed: bool = False) -> np.ndarray:
+    """The cloth's isometric depth on the binned crop, of ``shape`` (T, H, W), through the true camera or, ``guessed``, ``Camera.guessed``'s."""
     from scipy.ndimage import binary_erosion
 
     from nrdepth.baselines.tracks import densify
@@ -83,7 +86,8 @@ def phisft_isometric(shape: tuple, points: int, neighbours: int, far: int, reach
     inside = np.zeros_like(cloth)
     inside[4 * top : 4 * bottom, 4 * left : 4 * right] = True
     xy = isometric.track_grid(full, cloth & inside, points, window, backward, drop, hold=hold, place=place)
-    depths = isometric.mdh_depths(xy, FOCAL, CENTRE, neighbours=neighbours, far=far, reach=reach, template=template, each_frame=each_frame,
+    camera = nrdepth.Camera.guessed(full.shape[1:]) if guessed else nrdepth.Camera(FOCAL, CENTRE)
+    depths = isometric.mdh_depths(xy, camera, neighbours=neighbours, far=far, reach=reach, template=template, each_frame=each_frame,
                                     anchor=anchor, keyframes=keyframes, every=every)
     binned = (xy + 0.5) / 4 - 0.5 - np.array([left, top])  # full-frame pixels to the binned crop's
     return densify(binned, depths, shape)
@@ -100,6 +104,8 @@ def cached_network(name: str, video: np.ndarray, cache: Path) -> np.ndarray:
 def read_all(args) -> list:
     """Rows: one per reading (the network, then each ``--drop`` at each scale), each figure of both videos."""
     frames, focal, centre, print_area = kinect_inputs()
+    if args.guessed:
+        focal, centre = nrdepth.Camera.guessed(frames.shape[1:]).focal, None  # the guess's principal point: the frame's centre
     truth = kinect_truth()
     video, cloth_truth = phisft_crop()
     scored = np.isfinite(cloth_truth)
@@ -117,7 +123,8 @@ def read_all(args) -> list:
             print(f"kinect_paper: isometric depth in {time.perf_counter() - start:.0f} s")
             start = time.perf_counter()
             cloth = phisft_isometric(video.shape, args.points[0], args.neighbours[0], args.far, args.reach, args.window, not args.forward, args.template, drop,
-                                     hold=args.hold, each_frame=args.each_frame, anchor=args.anchor, place=args.place, keyframes=args.keyframes, every=args.every)
+                                     hold=args.hold, each_frame=args.each_frame, anchor=args.anchor, place=args.place, keyframes=args.keyframes, every=args.every,
+                                     guessed=args.guessed)
             print(f"phisft_R1: isometric depth in {time.perf_counter() - start:.0f} s")
         reading = "network" if scale is None else ("isometric" if scale == 0 else f"fused at {scale:g}") + (f", drop {drop:g}" if len(args.drop) > 1 else "")
         row = {"reading": reading, "drop": "" if drop is None else drop, "scale": "" if scale is None else scale}
@@ -210,6 +217,7 @@ def main() -> None:
     parser.add_argument("--reach", type=int, default=0, help="the far pairs' largest rank")
     parser.add_argument("--scales", type=numbers(float), default=[0, 0.05, 0.1, 0.2, 0.3, 0.5])
     parser.add_argument("--focal-factors", type=numbers(float), default=[1.0], help="with --grid: the focal length used, times the true one")
+    parser.add_argument("--guessed", action="store_true", help="both videos through nrdepth.Camera.guessed's pinhole, not their true cameras")
     parser.add_argument("--grid", action="store_true", help="only the paper, at each --points, --neighbours and --focal-factors")
     parser.add_argument("--cache", type=Path, default=Path("eval_isometric"), help="the network's readings are kept here")
     parser.add_argument("--csv", type=Path)

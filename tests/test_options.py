@@ -2,6 +2,7 @@
 command line share, checked once, and errors that name what the user set."""
 
 import argparse
+import math
 import dataclasses
 import inspect
 
@@ -118,13 +119,25 @@ def test_the_help_shows_every_flag_once():
     assert {"--focal", "--no-viewer", "--temporal-align", "--max-side", "--roi"} <= set(flags)
 
 
+def test_a_sheet_without_a_focal_length_is_seen_through_the_guessed_pinhole():
+    from nrdepth.camera import GUESSED_VIEW
+
+    for frame in ((480, 640), (1920, 1080)):  # landscape and portrait: the view is across the longer side
+        guessed = nrdepth.Camera.guessed(frame)
+        assert math.isclose(2 * math.degrees(math.atan(max(frame) / 2 / guessed.focal[0])), GUESSED_VIEW) and guessed.focal[0] == guessed.focal[1]
+        assert guessed.centre == ((frame[1] - 1) / 2, (frame[0] - 1) / 2)
+        assert nrdepth.ReconstructOptions(sheet=(0, 0, 8, 8)).sheet_camera(frame) == guessed
+    assert nrdepth.ReconstructOptions(sheet=(0, 0, 8, 8), centre=(10, 20)).sheet_camera((480, 640)).centre == (10.0, 20.0)
+    assert not nrdepth.ReconstructOptions().sheet_mode
+
+
 def test_a_camera_is_checked_once_and_passed_as_itself():
     K = np.array([[528.0, 0.0, 319.5], [0.0, 530.0, 239.5], [0.0, 0.0, 1.0]])
     camera = nrdepth.Camera.from_matrix(K)
     assert camera == nrdepth.Camera((528.0, 530.0), (319.5, 239.5))
     assert nrdepth.Camera(500).focal == (500.0, 500.0) and nrdepth.Camera(500).principal_point((480, 640)) == (319.5, 239.5)
     options = nrdepth.ReconstructOptions(focal=camera)
-    assert (options.focal, options.centre, options.camera) == ((528.0, 530.0), (319.5, 239.5), camera)
+    assert (options.focal, options.centre, options.sheet_camera((480, 640))) == ((528.0, 530.0), (319.5, 239.5), camera)
     # A point seen at its pixel is on its ray: x = f X / Z + c.
     X = np.array([[0.3, -0.2, 2.0]])
     xy = np.stack([528.0 * X[:, 0] / X[:, 2] + 319.5, 530.0 * X[:, 1] / X[:, 2] + 239.5], axis=-1)

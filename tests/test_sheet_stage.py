@@ -63,6 +63,22 @@ def test_a_bending_sheet_streamed_from_a_file_reads_as_in_memory_and_says_so(tmp
         assert f"sheet: {says}" in out and "SheetFallback" not in err  # one line, not a warning as well
 
 
+def test_a_sheet_given_without_a_focal_length_is_read_through_the_guessed_pinhole_and_says_so(tmp_path, model, bending):
+    box = (2, 2, 60, 60)
+    options = {key: value for key, value in OPTIONS.items() if key != "focal"}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SheetFallback)
+        guessed = nrdepth.reconstruct(bending, model, device="cpu", **options, sheet=box)
+    through = nrdepth.Camera.guessed(bending.shape[1:])
+    np.testing.assert_array_equal(guessed, nrdepth.reconstruct(bending, model, device="cpu", **options, sheet=box, focal=through.focal))
+    assert np.abs(guessed - network_alone(bending, model)).max() > 0.1  # the sheet's shape did change the depth
+    np.save(tmp_path / "clip.npy", bending)
+    reconstruct_file(tmp_path / "clip.npy", tmp_path / "out", model, device="cpu", **options, sheet=box)
+    with np.load(tmp_path / "out" / "depth.npz") as saved:
+        sheet = json.loads(str(saved["sheet"]))
+    assert sheet["used"] and sheet["guessed"] and sheet["focal"] == list(through.focal)
+
+
 @pytest.mark.parametrize("case", ["short", "grey", "still", "noise"])
 def test_a_video_with_nothing_to_read_falls_back_to_the_network_and_says_why(case, model, bending):
     video, says = {

@@ -52,7 +52,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
             bar.close()
     seconds = time.perf_counter() - start
     (t, h, w), _ = npz_header(out / "depth.npz", "depth")
-    if options.focal is not None:  # the sheet stage's decision, in one line (depth.npz keeps it as "sheet")
+    if options.sheet_mode:  # the sheet stage's decision, in one line (depth.npz keeps it as "sheet")
         with np.load(out / "depth.npz") as saved:
             print(SheetDecision(**json.loads(str(saved["sheet"]))).line())
     print(f"wrote {out}: depth of {t} frames of {w}×{h} in {seconds:.1f} s on {resolve_device(options.device)} "

@@ -8,7 +8,7 @@ One file a stage, in the order they run:
 - :mod:`.pipeline`: the video read at the working resolution, with its coarse pass (:mod:`.coarse`);
 - :mod:`.fine`: the fine pass, one network pass over the video in tiles (or the paper's patches);
 - :mod:`.stitching`: its windows aligned and overlap-added by the streaming stitcher (:mod:`.stitch`);
-- :mod:`.sheet`: with a camera's focal length, the sheet's shape from inextensibility;
+- :mod:`.sheet`: with a camera's focal length or a sheet given, the sheet's shape from inextensibility;
 - :mod:`.export`: the depth's units and the video's resolution back;
 - :mod:`.api`: :func:`reconstruct` and :func:`reconstruct_file`, which chain them;
 - :mod:`.batch`: :func:`reconstruct_many`, many videos side by side, here or on a Ray cluster.

@@ -3,7 +3,7 @@ depth out) and :func:`reconstruct_file` (a file to a folder, streamed).
 Each checks everything it can before any work, then chains the stages:
 :class:`~.pipeline.Pipeline` (reading, statistic, coarse pass),
 :func:`~.stitching.stitched` (fine pass and stitch), the sheet stage
-(:mod:`.sheet`, with a focal length) and :mod:`.export` (units, resolution).
+(:mod:`.sheet`, with a focal length or a sheet) and :mod:`.export` (units, resolution).
 """
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ def _said(decision: SheetDecision) -> SheetDecision:
 
 
 class SheetFallback(UserWarning):
-    """With ``focal``, the sheet stage left the network's depth alone (the
+    """With ``focal`` or ``sheet``, the sheet stage left the network's depth alone (the
     warning says why: :class:`~nrdepth.reconstruct.sheet.SheetDecision`)."""
 
 
@@ -80,8 +80,8 @@ def reconstruct(video: np.ndarray, model: Model = None, options: Optional[Recons
     (``max_side``), the coarse pass (each whole frame through the network
     at the patch size, :mod:`~nrdepth.reconstruct.coarse`), the fine pass
     (:mod:`~nrdepth.reconstruct.fine`), its 16×64×64 windows aligned and
-    overlap-added (:mod:`~nrdepth.reconstruct.stitch`), with ``focal`` the
-    sheet's shape from inextensibility (:mod:`~nrdepth.reconstruct.sheet`),
+    overlap-added (:mod:`~nrdepth.reconstruct.stitch`), with ``focal`` or
+    ``sheet`` the sheet's shape from inextensibility (:mod:`~nrdepth.reconstruct.sheet`),
     then the depth's units and the video's resolution back.
 
     Depth is defined up to one GBR per frame (one for the video with
@@ -95,7 +95,7 @@ def reconstruct(video: np.ndarray, model: Model = None, options: Optional[Recons
     orthographic camera a surface and its mirror image under mirrored
     lights make the same video, so a video lit from below reads inverted,
     and ``flip=True`` (or ``-depth``) is the other reading. With
-    ``focal``, a long video that bends a sheet many ways gets its shape
+    ``focal`` or ``sheet``, a long video that bends a sheet many ways gets its shape
     and the relief's sign from the sheet instead (docs/reconstruction.md).
     To stream a long video from a file to a folder, see
     :func:`reconstruct_file`."""
@@ -105,14 +105,14 @@ def reconstruct(video: np.ndarray, model: Model = None, options: Optional[Recons
     if file_only:
         raise option_error(file_only[0], "says what reconstruct_file writes; reconstruct returns the depth")
     mask = video_mask(options.mask, gray.shape, options.frames, options.roi)
-    region = None if options.focal is None else sheet_region(options, gray.shape[1:3])
+    region = None if not options.sheet_mode else sheet_region(options, gray.shape[1:3])
     video = select(gray, options.frames, options.roi)
     device, net = _network(model, options)
     chunks = lambda: (video[a : a + CHUNK] for a in range(0, len(video), CHUNK))  # noqa: E731
     pipeline = Pipeline(video.shape[1:], chunks, net, device, options, mask)
     raw = np.concatenate(list(stitched(pipeline, progress)))
     if region is not None:
-        _said(sheet_depth(raw, pipeline.work, options, options.camera, region, iter(select(gray, options.frames, None))))
+        _said(sheet_depth(raw, pipeline.work, options, options.sheet_camera(gray.shape[1:3]), region, iter(select(gray, options.frames, None))))
     offset, scale = units_of(pipeline, raw, options.temporal, options.units)
     return final(pipeline, raw, 0, len(raw), offset, -scale if options.flip else scale)
 
@@ -132,7 +132,7 @@ def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.
     statistic and coarse pass, fine pass, writing), the stitched depth
     waits on disk in the output's temporary folder at the working
     resolution, and memory does not grow with the video's length, except
-    by the coarse pass's 20 kB a frame and, with ``focal``, the sheet's
+    by the coarse pass's 20 kB a frame and, in sheet mode, the sheet's
     points' 6 kB a frame (and with ``temporal``, which aligns the whole
     video in memory, or ``fine="patches"``, which holds it). ``mask``
     may also be a file: one image (for every frame) or a video, image
@@ -146,7 +146,7 @@ def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.
     out = check_output_folder(out, options.overwrite, inputs=(input,))
     source = open_video(input, "input", options.frames, options.roi)
     mask = file_mask(options.mask, source, options.frames, options.roi)
-    region = None if options.focal is None else sheet_region(options, source.raw_size)
+    region = None if not options.sheet_mode else sheet_region(options, source.raw_size)
     pipeline = Pipeline(source.frame_size, lambda: source.chunks(CHUNK), net, device, options, mask)
     t = pipeline.shape[0]
     ply_relief = options.ply_relief
@@ -159,7 +159,7 @@ def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.
             raw.append(chunk)
         if region is not None:
             whole = (frame for chunk in open_video(input, "input", options.frames, None).chunks(CHUNK) for frame in chunk)  # streamed
-            writer.set_metadata("sheet", _said(sheet_depth(raw, pipeline.work, options, options.camera, region, whole)).as_dict())
+            writer.set_metadata("sheet", _said(sheet_depth(raw, pipeline.work, options, options.sheet_camera(source.raw_size), region, whole)).as_dict())
         offset, scale = units_of(pipeline, raw, options.temporal, options.units)
         scale = -scale if options.flip else scale
         # The ranges from the working resolution (bilinear resizing makes no new extremes), a chunk at a time.

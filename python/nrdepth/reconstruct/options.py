@@ -22,7 +22,7 @@ from typing import Any, Dict, Optional, Tuple, Union
 
 import numpy as np
 
-from ..camera import Camera
+from ..camera import GUESSED_VIEW, Camera
 from ..checks import is_number, option_error
 from ..isometric import DROP, EACH_FRAME, TEMPLATES
 from .fine import check_tile
@@ -168,30 +168,33 @@ class ReconstructOptions:
         "(or a nrdepth.Camera, whose principal point comes with it). The "
         "shape above isometric_scale then comes from inextensibility (points followed by optical flow over the sheet; nrdepth.isometric), "
         "the relief below it from the network, and on a long video that bends the sheet many ways the relief's sign too (a short clip reads "
-        "as a dome). Holds the selected frames in memory; minutes for a few hundred frames", type=_parse_numbers("F or FX,FY in pixels", (1, 2)), metavar="F[,FY]")
-    centre: Optional[Tuple[float, float]] = _option(None, "with focal: the principal point in the video's frames (default: their centre)",
+        f"as a dome). Without it, a sheet given (sheet) is seen through a pinhole guessed to see {GUESSED_VIEW:g}° across the frame's longer "
+        "side (nrdepth.Camera.guessed). The sheet stage holds two frames at a time and costs about 20 s for 200 frames of 640×480 "
+        "on two threads", type=_parse_numbers("F or FX,FY in pixels", (1, 2)), metavar="F[,FY]")
+    centre: Optional[Tuple[float, float]] = _option(None, "with focal or sheet: the principal point in the video's frames (default: their centre)",
                                                     type=_parse_numbers("CX,CY in pixels", (2,)), metavar="CX,CY")
     sheet: Union[None, np.ndarray, Tuple[int, int, int, int]] = _option(
-        None, "with focal: where the points are spread in the first selected frame, on the sheet only (not the background or the hands): a "
-        "box X,Y,W,H in the video's pixels, or bool (H, W) (default: roi, or the whole frame)", type=_ROI, metavar="X,Y,W,H")
-    isometric_scale: float = _option(ISOMETRIC_SCALE, "with focal: the length below which the network's relief is kept, as a fraction of the "
+        None, "a sheet (paper, cloth) in the video, whose shape then comes from inextensibility as with focal (without focal, through a "
+        "guessed pinhole): where the points are spread in the first selected frame, on the sheet only (not the background or the hands): a "
+        "box X,Y,W,H in the video's pixels, or bool (H, W) (with focal, default: roi, or the whole frame)", type=_ROI, metavar="X,Y,W,H")
+    isometric_scale: float = _option(ISOMETRIC_SCALE, "with focal or sheet: the length below which the network's relief is kept, as a fraction of the "
                                      "frame's shorter side (0: the isometric depth alone)", type=float)
-    isometric_template: str = _option(TEMPLATES[0], "with focal: the pairs' template distances (nrdepth.isometric.mdh_depths): joint, refined "
+    isometric_template: str = _option(TEMPLATES[0], "with focal or sheet: the pairs' template distances (nrdepth.isometric.mdh_depths): joint, refined "
                                       "(each pair held to its distance in every keyframe; for a long video of a sheet bent many ways, with "
                                       "isometric_drop 0.3 and isometric_scale 0.2), first (the first frame a flat sheet facing the camera)",
                                       choices=TEMPLATES)
-    isometric_each_frame: str = _option(ISOMETRIC_EACH_FRAME, "with focal: each frame's depths (nrdepth.isometric.mdh_depths' each_frame): program "
+    isometric_each_frame: str = _option(ISOMETRIC_EACH_FRAME, "with focal or sheet: each frame's depths (nrdepth.isometric.mdh_depths' each_frame): program "
                                         "(the maximum-depth program's), lengths (refined so that each pair keeps its template distance: every frame, or none where one "
                                         "would change its shape), "
                                         "mirror (the same, from the program's answer or its mirror, whichever keeps the lengths better)",
                                         choices=EACH_FRAME)
-    isometric_drop: float = _option(ISOMETRIC_DROP, "with focal: the share of the points left out where the flow's two directions disagree most",
+    isometric_drop: float = _option(ISOMETRIC_DROP, "with focal or sheet: the share of the points left out where the flow's two directions disagree most",
                                     type=float)
-    isometric_hold: bool = _option(ISOMETRIC_HOLD, "with focal: each point found again after every step of the flow by its look in the "
+    isometric_hold: bool = _option(ISOMETRIC_HOLD, "with focal or sheet: each point found again after every step of the flow by its look in the "
                                    "first frame, lost (not dragged) where it is not (nrdepth.isometric.track_points' hold); the stage then "
                                    "reads only the points held in at least 0.8 of their frames, and steps aside where too few are held",
                                    action="store_true")
-    isometric_points: int = _option(400, "with focal: about how many points are followed over the sheet (a square grid)", type=int)
+    isometric_points: int = _option(400, "with focal or sheet: about how many points are followed over the sheet (a square grid)", type=int)
     # The outputs.
     flip: bool = _option(False, "negate the depth: the other convex/concave reading (the model assumes light from above; use it for a video "
                          "lit from below)", action="store_true")
@@ -208,9 +211,14 @@ class ReconstructOptions:
         _check(self)
 
     @property
-    def camera(self) -> Optional[Camera]:
-        """The sheet's camera (``focal``, ``centre``), or None without ``focal``."""
-        return None if self.focal is None else Camera(self.focal, self.centre)
+    def sheet_mode(self) -> bool:
+        """Whether the sheet stage runs: ``focal`` or ``sheet`` given."""
+        return self.focal is not None or self.sheet is not None
+
+    def sheet_camera(self, frame: Tuple[int, int]) -> Camera:
+        """The sheet's camera for the video's frames of ``frame`` (H, W): ``focal`` and
+        ``centre``, or without ``focal`` a guessed one (:meth:`~nrdepth.Camera.guessed`)."""
+        return Camera.guessed(frame, self.centre) if self.focal is None else Camera(self.focal, self.centre).at(frame)
 
     @classmethod
     def of(cls, options: Optional["ReconstructOptions"] = None, **settings: Any) -> "ReconstructOptions":
@@ -280,17 +288,17 @@ def _check(o: ReconstructOptions) -> None:
 
 
 def _check_sheet(o: ReconstructOptions) -> None:
-    if o.focal is None:
-        given = [name for name in ("centre", "sheet", "isometric_template", "isometric_each_frame", "isometric_drop", "isometric_points", "isometric_hold")
-                 if _differs(getattr(o, name), _DEFAULTS[name])]
+    if not o.sheet_mode:
+        given = [name for name in ("centre", "isometric_scale", "isometric_template", "isometric_each_frame", "isometric_drop", "isometric_points",
+                                   "isometric_hold") if _differs(getattr(o, name), _DEFAULTS[name])]
         if given:
-            raise option_error("focal", f"the isometric depth's options ({', '.join(given)}) need the camera's focal length")
+            raise option_error("focal", f"the isometric depth's options ({', '.join(given)}) need the camera's focal length or the sheet (sheet)")
         return
     if isinstance(o.focal, Camera):  # a camera as itself: its focal length, and its principal point unless centre says otherwise
         camera = o.focal
         object.__setattr__(o, "focal", camera.focal)
         object.__setattr__(o, "centre", o.centre if o.centre is not None else camera.centre)
-    Camera(o.focal, o.centre)  # raises naming focal or centre
+    Camera(1.0 if o.focal is None else o.focal, o.centre)  # raises naming focal or centre
     if not (is_number(o.isometric_scale) and np.isfinite(o.isometric_scale) and o.isometric_scale >= 0):
         raise option_error("isometric_scale", f"expected a fraction of the frame's shorter side >= 0, got {o.isometric_scale!r}")
     if o.units != "standard" or o.temporal:

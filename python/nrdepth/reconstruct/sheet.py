@@ -1,4 +1,4 @@
-"""The sheet stage: with a camera's focal length, the stitched depth's
+"""The sheet stage: with a camera's focal length or a sheet given, the stitched depth's
 shape above a length scale from the sheet's inextensibility
 (:mod:`nrdepth.isometric`), its relief below it from the network.
 
@@ -83,7 +83,8 @@ against every held point (docs/campaign.md, "Print sheets")."""
 class SheetDecision:
     """What the sheet stage did: ``used`` its shape, or left the network's
     depth alone for ``reason``; the camera's ``focal`` and ``centre``
-    (pixels), the ``frames`` read, the ``points`` read (after the drop and, held, :data:`KEEP_HELD`),
+    (pixels), ``guessed`` where no focal length was given
+    (:meth:`~nrdepth.Camera.guessed`), the ``frames`` read, the ``points`` read (after the drop and, held, :data:`KEEP_HELD`),
     the ``texture`` (gray levels, :data:`MIN_TEXTURE`), ``motion``
     (pixels, :data:`MIN_MOTION`) and the share of point-frames ``held``
     (:data:`MIN_HELD`) its checks measured (None where not reached). :meth:`line` is the job's log
@@ -94,6 +95,7 @@ class SheetDecision:
     focal: Tuple[float, float]
     centre: Tuple[float, float]
     frames: int
+    guessed: bool = False
     points: int = 0
     texture: Optional[float] = None
     motion: Optional[float] = None
@@ -106,14 +108,14 @@ class SheetDecision:
         what = "the sheet's shape from inextensibility" if self.used else "the network's depth alone"
         measured = "".join(f", {name} {value:.2f}" for name, value in (("texture", self.texture), ("motion px", self.motion), ("held", self.held))
                            if value is not None)
-        return f"sheet: {what} ({self.reason}; focal {self.focal[0]:g},{self.focal[1]:g} px, {self.frames} frames, {self.points} points{measured})"
+        return f"sheet: {what} ({self.reason}; focal {self.focal[0]:g},{self.focal[1]:g} px{' guessed' if self.guessed else ''}, {self.frames} frames, {self.points} points{measured})"
 
 
 def sheet_region(options: ReconstructOptions, frame: Tuple[int, int]) -> np.ndarray:
     """Where the points go in the first selected frame, bool (H, W) of the
     video's ``frame``: ``options.sheet`` (a box or a bool array), else
     ``options.roi``, else the whole frame, with room for the points."""
-    options.camera.at(frame)  # a focal length no pinhole has is refused here, before any work
+    options.sheet_camera(frame)  # a focal length no pinhole has is refused here, before any work
     H, W = frame
     sheet = options.sheet
     if sheet is None or (np.ndim(sheet) == 1 and len(sheet) == 4):
@@ -153,7 +155,7 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
     :data:`KEEP_HELD` of their frames are read. Returns what it did."""
     camera = camera.at(region.shape)
     T = len(raw)
-    record = dict(focal=tuple(map(float, camera.focal)), centre=tuple(map(float, camera.centre)), frames=T)
+    record = dict(focal=tuple(map(float, camera.focal)), centre=tuple(map(float, camera.centre)), frames=T, guessed=options.focal is None)
     if T < MIN_FRAMES:
         return SheetDecision(False, f"{T} frames, fewer than the {MIN_FRAMES} the sheet's shape needs", **record)
     frames = iter(frames)
