@@ -2,9 +2,9 @@
 command line share, checked once, and errors that name what the user set."""
 
 import argparse
-import math
 import dataclasses
 import inspect
+import math
 
 import numpy as np
 import pytest
