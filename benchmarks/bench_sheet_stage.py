@@ -18,9 +18,9 @@ n-th frame's program solved, the rest linear in time), ``points``, ``hold``
 this share of their frames in view, ``isometric.point_held_shares``),
 ``each`` (``mdh_depths``' ``each_frame``: program, lengths, mirror),
 ``anchor`` (with ``each=lengths``, ``mdh_depths``' ``anchor``), ``fov``
-(degrees: the camera a pinhole of this horizontal field of view with its
-principal point at the frame's centre, as a user without a calibration
-might guess it, in place of the true one), ``place`` (``track_grid``'s:
+(degrees: the camera a pinhole that sees this much across the frame's
+longer side with its principal point at the frame's centre,
+``nrdepth.Camera.guessed``, in place of the true one), ``place`` (``track_grid``'s:
 grid, or texture: where the first frame has texture to follow), ``inset``
 (pixels: the points' region shrunk by this much first, so that no
 point's window crosses its outline; :func:`inset_region`),
@@ -68,7 +68,7 @@ def parse(setting: str) -> dict:
     if out["anchor"] and out["each"] != "lengths":
         raise SystemExit(f"--settings {setting!r}: anchor needs each=lengths")
     if out["fov"] is not None and not 0 < out["fov"] < 180:
-        raise SystemExit(f"--settings {setting!r}: fov is a horizontal field of view in degrees, in (0, 180)")
+        raise SystemExit(f"--settings {setting!r}: fov is the degrees a pinhole sees across the frame's longer side, in (0, 180)")
     if not out["backward"] and out["drop"]:
         raise SystemExit(f"--settings {setting!r}: drop needs the flow both ways: give drop=0 with backward=0")
     return out
@@ -79,15 +79,6 @@ def inset_region(region, inset: int):
     from scipy.ndimage import binary_erosion
 
     return region if region is None or not inset else binary_erosion(region, np.ones((2 * inset + 1,) * 2, bool))
-
-
-def guessed_camera(fov: float, frame: tuple):
-    """A pinhole of horizontal field of view ``fov`` (degrees) over a frame of ``frame`` (H, W), its principal point at the centre."""
-    import math
-
-    from nrdepth import Camera
-
-    return Camera((frame[1] / 2) / math.tan(math.radians(fov) / 2)).at(frame)
 
 
 def shortfall(xy: np.ndarray, depths: np.ndarray, camera, distances: np.ndarray, lever: dict) -> float:
@@ -184,7 +175,7 @@ def main() -> None:
             continue
         xy = keep_held(xy, frames.shape[1:], lever)
         tracked = time.perf_counter()
-        through = camera if lever["fov"] is None else guessed_camera(lever["fov"], frames.shape[1:])
+        through = camera if lever["fov"] is None else nrdepth.Camera.guessed(frames.shape[1:], view=lever["fov"])
         depths = isometric.mdh_depths(xy, through, keyframes=lever["keyframes"], neighbours=lever["neighbours"], every=lever["every"],
                                        each_frame=lever["each"], anchor=lever["anchor"])
         solved = time.perf_counter()

@@ -61,7 +61,7 @@ from nrdepth.scores.metrics import dense_baselines, mae_sn
 
 sys.path.insert(0, str(Path(__file__).parent))
 sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
-from bench_sheet_stage import guessed_camera, inset_region, keep_held, parse, shortfall  # noqa: E402
+from bench_sheet_stage import inset_region, keep_held, parse, shortfall  # noqa: E402
 from isometric_generated import LIGHTS, SEED, camera, in_view, long_sheets, setting, true_tracks  # noqa: E402
 from kinect_box_parts import moving_piece  # noqa: E402
 
@@ -158,7 +158,7 @@ def main() -> None:
                 try:
                     if held < args.min_held:
                         raise ValueError(f"{held:.2f} of the point-frames held")
-                    through = true_camera if lever["fov"] is None else guessed_camera(lever["fov"], video.shape[1:])
+                    through = true_camera if lever["fov"] is None else nrdepth.Camera.guessed(video.shape[1:], view=lever["fov"])
                     if through is None:
                         raise SystemExit(f"--settings {name!r}: the video is seen orthographically: only a guessed camera (fov=) reads it")
                     # One every: solved as the stage solves it; several: read off the every-frame solution

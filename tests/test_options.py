@@ -129,6 +129,9 @@ def test_a_sheet_without_a_focal_length_is_seen_through_the_guessed_pinhole():
         assert nrdepth.ReconstructOptions(sheet=(0, 0, 8, 8)).sheet_camera(frame) == guessed
     assert nrdepth.ReconstructOptions(sheet=(0, 0, 8, 8), centre=(10, 20)).sheet_camera((480, 640)).centre == (10.0, 20.0)
     assert not nrdepth.ReconstructOptions().sheet_mode
+    assert np.allclose(nrdepth.Camera.guessed((256, 256), view=90).focal, 128.0)  # 90° across: the focal length half the side
+    with pytest.raises(ValueError, match="^view: expected degrees"):
+        nrdepth.Camera.guessed((480, 640), view=180)
 
 
 def test_a_camera_is_checked_once_and_passed_as_itself():

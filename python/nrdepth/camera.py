@@ -73,11 +73,14 @@ class Camera:
         return cls((K[0, 0], K[1, 1]), (K[0, 2], K[1, 2]))
 
     @classmethod
-    def guessed(cls, frame: Tuple[int, int], centre: Optional[Tuple[float, float]] = None) -> "Camera":
-        """A pinhole that sees :data:`GUESSED_VIEW` across the longer side of
-        frames of ``frame`` (H, W) pixels, its principal point ``centre`` or
-        the frame's centre: for a video whose focal length is not known."""
-        f = max(frame) / 2 / math.tan(math.radians(GUESSED_VIEW) / 2)
+    def guessed(cls, frame: Tuple[int, int], centre: Optional[Tuple[float, float]] = None, view: float = GUESSED_VIEW) -> "Camera":
+        """A pinhole that sees ``view`` degrees (default :data:`GUESSED_VIEW`)
+        across the longer side of frames of ``frame`` (H, W) pixels, its
+        principal point ``centre`` or the frame's centre: for a video whose
+        focal length is not known."""
+        if not (is_number(view) and 0 < view < 180):
+            raise ValueError(f"view: expected degrees across the frame in (0, 180), got {view!r}")
+        f = max(frame) / 2 / math.tan(math.radians(view) / 2)
         return cls(f, centre).at(frame)
 
     def principal_point(self, frame: Tuple[int, int]) -> Tuple[float, float]:
