@@ -169,8 +169,8 @@ class ReconstructOptions:
         "shape above isometric_scale then comes from inextensibility (points followed by optical flow over the sheet; nrdepth.isometric), "
         "the relief below it from the network, and on a long video that bends the sheet many ways the relief's sign too (a short clip reads "
         f"as a dome). Without it, a sheet given (sheet) is seen through a pinhole guessed to see {GUESSED_VIEW:g}° across the frame's longer "
-        "side (nrdepth.Camera.guessed). The sheet stage holds two frames at a time and costs about 20 s for 200 frames of 640×480 "
-        "on two threads", type=_parse_numbers("F or FX,FY in pixels", (1, 2)), metavar="F[,FY]")
+        "side (nrdepth.Camera.guessed). The sheet stage holds two frames at a time; on kinect_paper's 191 frames of 640×480 it "
+        "costs about 20 s on two threads (docs/reconstruction.md)", type=_parse_numbers("F or FX,FY in pixels", (1, 2)), metavar="F[,FY]")
     centre: Optional[Tuple[float, float]] = _option(None, "with focal or sheet: the principal point in the video's frames (default: their centre)",
                                                     type=_parse_numbers("CX,CY in pixels", (2,)), metavar="CX,CY")
     sheet: Union[None, np.ndarray, Tuple[int, int, int, int]] = _option(
@@ -298,7 +298,7 @@ def _check_sheet(o: ReconstructOptions) -> None:
         camera = o.focal
         object.__setattr__(o, "focal", camera.focal)
         object.__setattr__(o, "centre", o.centre if o.centre is not None else camera.centre)
-    Camera(1.0 if o.focal is None else o.focal, o.centre)  # raises naming focal or centre
+    Camera(1.0 if o.focal is None else o.focal, o.centre)  # raises naming focal or centre (a guessed focal length: the centre alone)
     if not (is_number(o.isometric_scale) and np.isfinite(o.isometric_scale) and o.isometric_scale >= 0):
         raise option_error("isometric_scale", f"expected a fraction of the frame's shorter side >= 0, got {o.isometric_scale!r}")
     if o.units != "standard" or o.temporal:
