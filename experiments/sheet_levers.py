@@ -23,7 +23,12 @@ coloured-noise surfaces (``--set camera_fov=0,0``: seen orthographically,
 where only ``fov`` settings can run). ``--scales``: each also fused at each scale. ``--truth``: the first setting's programs also read the sheet's true
 tracks (the mesh's vertices nearest the points' grid, where a tracker
 could still hold them: ``isometric_generated.true_tracks``), named
-``truth``: what the tracker costs. ``--families``: the sheets' texture
+``truth``: what the tracker costs. ``--at-truth``: each setting's programs
+also read its own points at their true image positions, NaN where its
+tracks are (named ``NAME@truth``: what its points' errors cost, apart from
+which points it reads and where it loses them), and the truth at the
+stage's grid over the sheet (``grid@truth``: every point the tracker
+starts from, in view). ``--families``: the sheets' texture
 families. ``--set``: any other ``GeneratorConfig`` field of the sheets
 (e.g. the paper-like sheets' ``backdrop_probability=1``; over a backdrop
 the points go over the sheet in the first frame, where its truth is, as
@@ -84,6 +89,8 @@ def main() -> None:
                         "the sheet reads as the network")
     parser.add_argument("--families", default=",".join(SHEET_FAMILIES), help="the sheets' texture families (comma-separated)")
     parser.add_argument("--truth", action="store_true", help="also the first setting's programs on the sheet's true tracks (named truth)")
+    parser.add_argument("--at-truth", action="store_true", help="also each setting's points at their true positions (NAME@truth) and the "
+                        "stage's grid over the sheet at its true positions (grid@truth)")
     parser.add_argument("--set", action="append", default=[], metavar="FIELD=V[,V]", type=setting,
                         help="a GeneratorConfig field of the sheets, one value or lo,hi (e.g. backdrop_probability=1), repeatable")
     parser.add_argument("--moving-backdrop", action="store_true",
@@ -102,8 +109,12 @@ def main() -> None:
     scales = [float(v) for v in args.scales.split(",")]
     every_label = lambda name, n: name if n == 1 else (f"{name}:every={n}" if name != "default" else f"every={n}")  # noqa: E731
     label = lambda name, n, scale=scales[0]: every_label(name, n) + ("" if scale == scales[0] else f":scale={scale:g}")  # noqa: E731
+    own = list(zip(settings, levers))
     if args.truth:  # the reference's programs on the true tracks
         settings, levers = settings + ["truth"], levers + [dict(levers[0], truth=True, hold=0, keep=0.0)]
+    if args.at_truth:  # each setting's own points, then the grid over the sheet, at their true positions
+        settings, levers = (settings + [f"{s or 'default'}@truth" for s, _ in own] + ["grid@truth"],
+                            levers + [dict(lever, at_truth=True) for _, lever in own] + [dict(levers[0], grid_truth=True, hold=0, keep=0.0)])
     names = [label(s or "default", n, scale) for s in settings for n in everies for scale in scales]
     rows = []
     if args.csv is not None and args.csv.exists():  # a stopped run's rows: kept, their videos skipped
@@ -114,7 +125,7 @@ def main() -> None:
         if light not in args.lights.split(","):
             continue
         config = long_sheets(args.frames, args.phases, args.families.split(","), light, args.set)
-        clips = generate_clips(args.videos, seed=SEED, config=config, start=args.start, vertices=args.truth)
+        clips = generate_clips(args.videos, seed=SEED, config=config, start=args.start, vertices=args.truth or args.at_truth)
         behind = generate_clips(args.videos, seed=SEED + 1, config=GeneratorConfig(frames=args.frames, size=config.size), start=args.start).video \
             if args.moving_backdrop else None
         for k, (video, truth, params) in enumerate(zip(clips.video, clips.depth, clips.params)):
@@ -142,12 +153,19 @@ def main() -> None:
                     truth_xy, _ = true_tracks(clips.vertices[k], params, config.size, points=lever["points"])
                     tracks[key + ("truth",)] = np.where(in_view(truth_xy, config.size)[..., None], truth_xy, np.nan)
                     key += ("truth",)
+                elif lever.get("grid_truth"):  # the stage's grid over the sheet, at the true positions
+                    grid = isometric.start_grid(region, video.shape[1:], lever["points"])
+                    truth_xy = truth_at(grid, clips.vertices[k], params, config.size)
+                    tracks[key + ("grid truth",)] = np.where(in_view(truth_xy, config.size)[..., None], truth_xy, np.nan)
+                    key += ("grid truth",)
                 elif key not in tracks:
                     tracks[key] = isometric.track_grid(video, None if lever["whole"] else inset_region(region, lever["inset"]), points=lever["points"],
                                                        drop=lever["drop"], flow=lever["flow"], margin=lever["margin"], hold=bool(lever["hold"]),
                                                        backward=bool(lever["backward"]), place=lever["place"])
                 held = held_share(tracks[key], video.shape[1:]) if lever["hold"] else 1.0  # before keep, as the stage gates
                 xy = keep_held(tracks[key], video.shape[1:], lever)
+                if lever.get("at_truth"):  # the same points, lost where they are, at their true positions
+                    xy = np.where(np.isfinite(xy), truth_at(xy[0], clips.vertices[k], params, config.size), np.nan)
                 if lever["piece"]:  # of the points read, the one piece that moves most (kinect_box_parts)
                     area = video.shape[1] * video.shape[2] if lever["whole"] or region is None else region.sum()
                     xy = xy[:, moving_piece(xy, np.ones(xy.shape[1], bool), float(np.sqrt(area / lever["points"])))]
@@ -206,6 +224,17 @@ def main() -> None:
               f"{np.median([r['margin shift median px'] for r in rows]):.4f} px (the videos' medians' median; at most {max(r['margin shift max px'] for r in rows):.3f} px)")
         return
     report(rows, names)
+
+
+def truth_at(start: np.ndarray, vertices: np.ndarray, params: dict, size: int) -> np.ndarray:
+    """The true image positions (T, n, 2) of the mesh vertices nearest the first frame's points ``start`` (n, 2)."""
+    from scipy.spatial import cKDTree
+
+    from nrdepth.engine.generate import image_points
+
+    seen = image_points(vertices.reshape(len(vertices), -1, 3), params, size)[..., :2]
+    _, nearest = cKDTree(seen[0]).query(start)
+    return seen[:, nearest]
 
 
 def margin_shift(video: np.ndarray, reference: dict, margin: int) -> dict:
