@@ -13,7 +13,8 @@ the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 pinhole in place of the true camera, ``place``: the points where the first
 frame has texture, ``inset``: the sheet's region shrunk first, ``whole``: the points over
 the whole frame, backdrop and all, not over the sheet, ``piece``: of the points read, the one
-piece that moves most, as ``experiments/kinect_box_parts.py`` finds the paper); the first is the reference, each
+piece that moves most, as ``experiments/kinect_box_parts.py`` finds the paper, ``fill``: held points' gaps
+filled by the warp of the held ones, ``isometric.carry_held``); the first is the reference, each
 other is paired against it. Each setting's ``shortfall`` is recorded too:
 how far its program's pairs fall short of their template distances
 (``bench_sheet_stage.shortfall``; with ``each=program``), a candidate
@@ -164,6 +165,8 @@ def main() -> None:
                                                        backward=bool(lever["backward"]), place=lever["place"])
                 held = held_share(tracks[key], video.shape[1:]) if lever["hold"] else 1.0  # before keep, as the stage gates
                 xy = keep_held(tracks[key], video.shape[1:], lever)
+                if lever["fill"]:  # each point not held placed by the warp of the held ones
+                    xy = isometric.carry_held(xy, video.shape[1:])
                 if lever.get("at_truth"):  # the same points, lost where they are, at their true positions
                     xy = np.where(np.isfinite(xy), truth_at(xy[0], clips.vertices[k], params, config.size), np.nan)
                 if lever["piece"]:  # of the points read, the one piece that moves most (kinect_box_parts)
@@ -171,7 +174,7 @@ def main() -> None:
                     xy = xy[:, moving_piece(xy, np.ones(xy.shape[1], bool), float(np.sqrt(area / lever["points"])))]
                 tracked = time.perf_counter()
                 row[f"{name} held"] = held
-                first_px = np.rint(xy[0]).astype(int)  # how many points are read, and the share of them that start on the sheet
+                first_px = np.clip(np.rint(xy[0]).astype(int), 0, [video.shape[2] - 1, video.shape[1] - 1])  # how many points are read, and the share of them that start on the sheet
                 row[f"{name} points"], row[f"{name} on sheet"] = xy.shape[1], float(np.mean(on[0][first_px[:, 1], first_px[:, 0]]))
                 try:
                     if held < args.min_held:
