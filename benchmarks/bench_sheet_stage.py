@@ -103,10 +103,13 @@ def shortfall(xy: np.ndarray, depths: np.ndarray, camera, distances: np.ndarray,
 
 
 def keep_held(xy: np.ndarray, shape: tuple, lever: dict) -> np.ndarray:
-    """The tracks of the points held in at least ``lever["keep"]`` of their frames in view."""
+    """The tracks of the points held in at least ``lever["keep"]`` of their
+    frames in view; with ``lever["fill"]``, their gaps filled by the warp of
+    the points held in each frame (``isometric.carry_held``)."""
     from nrdepth import isometric
 
-    return xy[:, isometric.point_held_shares(xy, shape) >= lever["keep"]] if lever["keep"] else xy
+    xy = xy[:, isometric.point_held_shares(xy, shape) >= lever["keep"]] if lever["keep"] else xy
+    return isometric.carry_held(xy, shape) if lever["fill"] else xy
 
 
 def box_check(frames: np.ndarray, box: np.ndarray) -> None:

@@ -149,7 +149,7 @@ def main() -> None:
             for name, lever in zip([s or "default" for s in settings], levers):
                 start = time.perf_counter()
                 key = (lever["flow"], lever["margin"], lever["points"], lever["hold"], lever["backward"], lever["drop"], lever["place"], lever["inset"],
-                       lever["whole"])  # keep, each: after the tracks
+                       lever["whole"])  # keep, fill, each: after the tracks
                 if lever.get("truth"):
                     truth_xy, _ = true_tracks(clips.vertices[k], params, config.size, points=lever["points"])
                     tracks[key + ("truth",)] = np.where(in_view(truth_xy, config.size)[..., None], truth_xy, np.nan)
@@ -165,8 +165,6 @@ def main() -> None:
                                                        backward=bool(lever["backward"]), place=lever["place"])
                 held = held_share(tracks[key], video.shape[1:]) if lever["hold"] else 1.0  # before keep, as the stage gates
                 xy = keep_held(tracks[key], video.shape[1:], lever)
-                if lever["fill"]:  # each point not held placed by the warp of the held ones
-                    xy = isometric.carry_held(xy, video.shape[1:])
                 if lever.get("at_truth"):  # the same points, lost where they are, at their true positions
                     xy = np.where(np.isfinite(xy), truth_at(xy[0], clips.vertices[k], params, config.size), np.nan)
                 if lever["piece"]:  # of the points read, the one piece that moves most (kinect_box_parts)
