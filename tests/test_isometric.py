@@ -335,36 +335,6 @@ def test_held_points_beside_blank_paper_are_not_pulled_by_its_flow():
     assert np.linalg.norm(held[:, beside] - truth[:, beside], axis=2)[found].max() < 0.5
 
 
-def test_held_points_gaps_are_filled_where_the_sheet_around_them_moves_and_nowhere_else():
-    video = shifted_texture(frames=9, window=140, blank=60)  # the left 60 columns blank paper, moving with the print
-    start = isometric.start_grid(None, video.shape[1:], points=49)
-    truth = start + np.arange(9)[:, None, None] * np.array([2.0, 1.0])
-    held = isometric.track_points(video, start, hold=True)
-    assert np.isnan(held[1:]).any()  # the blank paper's points are not found again
-    carried = isometric.carry_held(held, video.shape[1:])
-    found = np.isfinite(held).all(axis=2)
-    np.testing.assert_array_equal(carried[found], held[found])  # a held point stays where it was found
-    seen = isometric.inside(truth.reshape(-1, 2), video.shape[1:], 0).reshape(found.shape)
-    filled = ~found & seen
-    assert filled.any() and np.isfinite(carried[filled]).all()
-    error = np.linalg.norm(carried - truth, axis=2)[filled]  # they move as the print beside them: its warp, 60 px out at most
-    assert np.median(error) < 0.5 and error.max() < 1.5
-    # An affine motion is the warp's own: given exactly, from three points not on a line
-    rng = np.random.default_rng(1)
-    first = rng.uniform(20, 100, (30, 2))
-    first[:3, 1] = 50.0  # three points on one row
-    moved = first @ np.array([[1.05, 0.1], [-0.05, 0.95]]).T + np.array([3.0, -2.0])
-    gaps = np.stack([first, moved, moved, moved + 200])  # the last frame's warp leaves the view
-    gaps[1:, 6:] = np.nan  # six points held in each frame after the first
-    gaps[2, 3:] = np.nan  # but only the three on a row in the third: no affine warp
-    out = isometric.carry_held(gaps, (128, 128))
-    np.testing.assert_allclose(out[1], moved, atol=1e-9)
-    assert np.isnan(out[2, 3:]).all() and np.isnan(out[3, 6:]).all()
-    for bad in (first, np.full((2, 5, 2), np.nan)):
-        with pytest.raises(ValueError, match="xy: expected tracks"):
-            isometric.carry_held(bad, (128, 128))
-
-
 def test_points_placed_by_texture_go_on_the_print_with_their_windows_on_the_mask_and_follow_it():
     from nrdepth.isometric import start_texture
 

@@ -30,7 +30,7 @@ from typing import Tuple
 
 import numpy as np
 
-__all__ = ["Anchor", "carry_held", "SPREAD", "STEP", "HOLD_FB", "HOLD_NCC", "HOLD_WINDOW", "HOLD_LEVELS", "OUTLIER", "CONTRAST"]
+__all__ = ["Anchor", "SPREAD", "STEP", "HOLD_FB", "HOLD_NCC", "HOLD_WINDOW", "HOLD_LEVELS", "OUTLIER", "CONTRAST"]
 
 SPREAD = 1.5
 """The warp's Gaussian weights' width in the points' spacings: wide enough
@@ -181,34 +181,3 @@ class Anchor:
         position = np.stack([map_coordinates(m, [found[:, 1], found[:, 0]], order=1, mode="nearest") for m in (map_x, map_y)], axis=1).astype(np.float64)
         self._fit(held if held.sum() >= 3 else np.ones(len(held), bool))
         return position, held, predicted
-
-
-def carry_held(xy: np.ndarray, shape: Tuple[int, int]) -> np.ndarray:
-    """Held tracks ``xy`` (T, n, 2) with each point not held in a frame
-    (NaN) placed where the warp of that frame's held points takes its
-    first-frame position: the same affine moving least squares as
-    :class:`Anchor`'s (:data:`SPREAD`), fitted to the held points' true
-    positions rather than the flow's guesses, so a point on blank paper
-    moves as the sheet around it does and cannot drift. A frame keeps
-    its NaN where fewer than 3 points are held or they lie along a line
-    (no affine warp), and a point stays NaN where the warp puts it
-    outside a frame of ``shape`` (H, W)."""
-    xy = np.asarray(xy, np.float64)
-    if xy.ndim != 3 or xy.shape[2] != 2 or len(xy) == 0 or not np.isfinite(xy[0]).all():
-        raise ValueError(f"xy: expected tracks (T, n, 2) finite in the first frame, got shape {xy.shape}")
-    import cv2
-
-    start, out = xy[0], xy.copy()
-    hull = cv2.contourArea(cv2.convexHull(start.astype(np.float32))) if len(start) >= 3 else 0.0
-    weights = _weights(start, start, SPREAD * max(np.sqrt(hull / max(len(start), 1)), 1.0))
-    for frame in out[1:]:
-        held = np.isfinite(frame).all(axis=1)
-        if held.all() or held.sum() < 3:
-            continue
-        anchors = start[held]
-        if np.linalg.svd(anchors - anchors.mean(axis=0), compute_uv=False)[1] < 1.0:  # along a line: no affine warp
-            continue
-        placed = _mls(start[~held], anchors, weights[~held][:, held]) @ frame[held]
-        seen = (placed[:, 0] >= 0) & (placed[:, 0] <= shape[1] - 1) & (placed[:, 1] >= 0) & (placed[:, 1] <= shape[0] - 1)
-        frame[~held] = np.where(seen[:, None], placed, np.nan)
-    return out
