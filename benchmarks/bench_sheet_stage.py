@@ -57,7 +57,7 @@ def sgemm() -> float:
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "leave": 0}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
@@ -65,8 +65,6 @@ def parse(setting: str) -> dict:
         out[key] = value if key in ("flow", "each", "place") else float(value) if key in ("drop", "keep", "anchor", "fov") else (None if value == "none" else int(value))
     if out["keep"] and not out["hold"]:
         raise SystemExit(f"--settings {setting!r}: keep needs hold=1")
-    if out["leave"] and not out["hold"]:
-        raise SystemExit(f"--settings {setting!r}: leave needs hold=1 (the flow's points are lost for good where they leave)")
     if out["anchor"] and out["each"] != "lengths":
         raise SystemExit(f"--settings {setting!r}: anchor needs each=lengths")
     if out["fov"] is not None and not 0 < out["fov"] < 180:
@@ -103,24 +101,10 @@ def shortfall(xy: np.ndarray, depths: np.ndarray, camera, distances: np.ndarray,
 
 
 def keep_held(xy: np.ndarray, shape: tuple, lever: dict) -> np.ndarray:
-    """The tracks of the points held in at least ``lever["keep"]`` of their
-    frames in view; with ``lever["leave"]``, each lost for good from the
-    first frame it is gone from view as ``isometric.held_share`` counts it
-    (not held, and last held within ``HOLD_WINDOW`` px of the frame's edge),
-    as the flow's points are lost where they leave (held ones may be found
-    again when they come back)."""
+    """The tracks of the points held in at least ``lever["keep"]`` of their frames in view."""
     from nrdepth import isometric
-    from nrdepth.isometric.hold import HOLD_WINDOW
 
-    xy = xy[:, isometric.point_held_shares(xy, shape) >= lever["keep"]] if lever["keep"] else xy
-    if lever["leave"]:
-        xy, last, gone = xy.copy(), xy[0].copy(), np.zeros(xy.shape[1], bool)
-        for frame in xy[1:]:
-            found = np.isfinite(frame).all(axis=1)
-            last[found] = frame[found]
-            gone |= ~found & ~isometric.inside(last, shape, HOLD_WINDOW)
-            frame[gone] = np.nan
-    return xy
+    return xy[:, isometric.point_held_shares(xy, shape) >= lever["keep"]] if lever["keep"] else xy
 
 
 def box_check(frames: np.ndarray, box: np.ndarray) -> None:

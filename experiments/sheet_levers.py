@@ -13,8 +13,7 @@ the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 pinhole in place of the true camera, ``place``: the points where the first
 frame has texture, ``inset``: the sheet's region shrunk first, ``whole``: the points over
 the whole frame, backdrop and all, not over the sheet, ``piece``: of the points read, the one
-piece that moves most, as ``experiments/kinect_box_parts.py`` finds the paper, ``leave``: held points lost
-for good where they leave the frame); the first is the reference, each
+piece that moves most, as ``experiments/kinect_box_parts.py`` finds the paper); the first is the reference, each
 other is paired against it. Each setting's ``shortfall`` is recorded too:
 how far its program's pairs fall short of their template distances
 (``bench_sheet_stage.shortfall``; with ``each=program``), a candidate
@@ -149,7 +148,7 @@ def main() -> None:
             for name, lever in zip([s or "default" for s in settings], levers):
                 start = time.perf_counter()
                 key = (lever["flow"], lever["margin"], lever["points"], lever["hold"], lever["backward"], lever["drop"], lever["place"], lever["inset"],
-                       lever["whole"])  # keep, leave, each: after the tracks
+                       lever["whole"])  # keep, each: after the tracks
                 if lever.get("truth"):
                     truth_xy, _ = true_tracks(clips.vertices[k], params, config.size, points=lever["points"])
                     tracks[key + ("truth",)] = np.where(in_view(truth_xy, config.size)[..., None], truth_xy, np.nan)
