@@ -13,8 +13,7 @@ the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 pinhole in place of the true camera, ``place``: the points where the first
 frame has texture, ``inset``: the sheet's region shrunk first, ``whole``: the points over
 the whole frame, backdrop and all, not over the sheet, ``piece``: of the points read, the one
-piece that moves most, as ``experiments/kinect_box_parts.py`` finds the paper, ``kept``: every solved frame's lengths
-kept where at least this share of them keep their shape, none otherwise: :func:`lengths_kept`); the first is the reference, each
+piece that moves most, as ``experiments/kinect_box_parts.py`` finds the paper); the first is the reference, each
 other is paired against it. Each setting's ``shortfall`` is recorded too:
 how far its program's pairs fall short of their template distances
 (``bench_sheet_stage.shortfall``; with ``each=program``), a candidate
@@ -181,12 +180,9 @@ def main() -> None:
                     if through is None:
                         raise SystemExit(f"--settings {name!r}: the video is seen orthographically: only a guessed camera (fov=) reads it")
                     # One every: solved as the stage solves it; several: read off the every-frame solution
-                    every = everies[0] if len(everies) == 1 else 1
-                    if lever["kept"] != 1.0:
-                        depths, distances = lengths_kept(xy, through, lever, every)
-                    else:
-                        depths, distances = isometric.mdh_depths(xy, through, keyframes=lever["keyframes"], neighbours=lever["neighbours"],
-                                                                 every=every, each_frame=lever["each"], anchor=lever["anchor"], with_distances=True)
+                    depths, distances = isometric.mdh_depths(xy, through, keyframes=lever["keyframes"], neighbours=lever["neighbours"],
+                                                             every=everies[0] if len(everies) == 1 else 1, each_frame=lever["each"],
+                                                             anchor=lever["anchor"], with_distances=True)
                 except ValueError as error:  # the stage steps aside: the network's depth
                     print(f"  {name}: steps aside ({error})", flush=True)
                     for n in everies:
@@ -228,29 +224,6 @@ def main() -> None:
               f"{np.median([r['margin shift median px'] for r in rows]):.4f} px (the videos' medians' median; at most {max(r['margin shift max px'] for r in rows):.3f} px)")
         return
     report(rows, names)
-
-
-def lengths_kept(xy: np.ndarray, camera, lever: dict, every: int):
-    """``mdh_depths(each_frame="lengths")``'s depths and distances, with every
-    solved frame's lengths kept where at least ``lever["kept"]`` of them keep
-    their shape (``isometric.shape_kept``), none otherwise (``mdh_depths``
-    asks all of them)."""
-    from functools import partial
-
-    depths, distances = isometric.mdh_depths(xy, camera, keyframes=lever["keyframes"], neighbours=lever["neighbours"], every=every,
-                                             each_frame="program", with_distances=True)
-    rays = camera.rays(xy)
-    seen = np.isfinite(rays).all(axis=2)
-    rays[~seen] = 0.0
-    pairs = isometric.neighbour_pairs(xy[0], lever["neighbours"])
-    refine = partial(isometric.keep_lengths, anchor=lever["anchor"])
-    anchors = solved_frames(len(xy), keyframe_indices(len(xy), lever["keyframes"]), every)
-    refined = [refine(rays[t], pairs, depths[t], distances)[0] for t in anchors]
-    if np.mean([isometric.shape_kept(rays[t], depths[t], r) for t, r in zip(anchors, refined)]) >= lever["kept"]:
-        depths[anchors] = np.stack(refined)
-        if len(anchors) < len(xy):
-            _between(depths, anchors, seen)
-    return depths, distances
 
 
 def truth_at(start: np.ndarray, vertices: np.ndarray, params: dict, size: int) -> np.ndarray:
