@@ -87,8 +87,6 @@ def main() -> None:
     parser.add_argument("--min-held", type=float, default=0.0, help="a setting's points held (hold=1) in fewer than this share of the "
                         "point-frames in view (isometric.held_share), or too few in a frame for the programs: the stage steps aside, "
                         "the sheet reads as the network")
-    parser.add_argument("--hull", action="store_true", help="each setting also fused over its points' convex hull alone, frame by frame "
-                        "(NAME:hull; the stage's fusion otherwise fits the network to the points' depth spread, nearest, over every pixel)")
     parser.add_argument("--families", default=",".join(SHEET_FAMILIES), help="the sheets' texture families (comma-separated)")
     parser.add_argument("--truth", action="store_true", help="also the first setting's programs on the sheet's true tracks (named truth)")
     parser.add_argument("--at-truth", action="store_true", help="also each setting's points at their true positions (NAME@truth) and the "
@@ -117,7 +115,7 @@ def main() -> None:
     if args.at_truth:  # each setting's own points, then the grid over the sheet, at their true positions
         settings, levers = (settings + [f"{s or 'default'}@truth" for s, _ in own] + ["grid@truth"],
                             levers + [dict(lever, at_truth=True) for _, lever in own] + [dict(levers[0], grid_truth=True, hold=0, keep=0.0)])
-    names = [label(s or "default", n, scale) + hull for s in settings for n in everies for scale in scales for hull in ["", ":hull"][: 1 + args.hull]]
+    names = [label(s or "default", n, scale) for s in settings for n in everies for scale in scales]
     rows = []
     if args.csv is not None and args.csv.exists():  # a stopped run's rows: kept, their videos skipped
         with open(args.csv, newline="") as file:
@@ -190,8 +188,6 @@ def main() -> None:
                     for n in everies:
                         for scale in scales:
                             row[f"{label(name, n, scale)} per frame"] = row["network per frame"]
-                            if args.hull:
-                                row[f"{label(name, n, scale)}:hull per frame"] = row["network per frame"]
                     row[f"{name} points s"], row[f"{name} programs s"] = tracked - start, 0.0
                     continue
                 solved = time.perf_counter()
@@ -211,12 +207,8 @@ def main() -> None:
                         anchors = solved_frames(len(xy), keyframe_indices(len(xy), lever["keyframes"]), n)
                         _between(kept, anchors, np.isfinite(xy).all(axis=2))
                     dense = densify(xy, kept, video.shape)
-                    hull = np.isfinite(densify(xy, kept, video.shape, outside="nan")) if args.hull else None
                     for scale in scales:
                         row[f"{label(name, n, scale)} per frame"] = mae_sn(isometric.fuse(network, dense, scale * config.size), truth, mask=on)
-                        if args.hull:
-                            row[f"{label(name, n, scale)}:hull per frame"] = mae_sn(isometric.fuse(network, dense, scale * config.size, mask=hull),
-                                                                                   truth, mask=on)
                 row[f"{name} points s"], row[f"{name} programs s"] = tracked - start, solved - tracked
             if args.margin_check is not None:
                 row.update(margin_shift(video, levers[0], args.margin_check))

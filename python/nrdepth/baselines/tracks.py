@@ -96,17 +96,12 @@ def nrsfm_depth(shapes: np.ndarray, cameras: np.ndarray) -> np.ndarray:
     return np.einsum("ta,tan->tn", axis, S)
 
 
-def densify(xy: np.ndarray, values: np.ndarray, shape: tuple, outside: str = "nearest") -> np.ndarray:
+def densify(xy: np.ndarray, values: np.ndarray, shape: tuple) -> np.ndarray:
     """Dense (T, H, W) from values (T, n) at points xy (T, n, 2) (column,
-    row): linear over the points' Delaunay triangles; outside their convex
-    hull the nearest point's value (``outside="nearest"``) or NaN
-    (``"nan"``: only where the points say something). A point whose value
-    or position is NaN in a frame (out of view) takes no part in it; each
-    frame needs 3 points that do."""
+    row): linear over the points' Delaunay triangles, nearest outside their
+    convex hull. A point whose value or position is NaN in a frame (out of
+    view) takes no part in it; each frame needs 3 points that do."""
     from scipy.interpolate import griddata
-
-    if outside not in ("nearest", "nan"):
-        raise ValueError(f"outside: expected 'nearest' or 'nan', got {outside!r}")
 
     T, H, W = shape
     rows, cols = np.mgrid[0:H, 0:W]
@@ -117,7 +112,7 @@ def densify(xy: np.ndarray, values: np.ndarray, shape: tuple, outside: str = "ne
             raise ValueError(f"values: expected at least 3 points with a value in every frame, got {np.count_nonzero(seen)} in frame {t}")
         linear = griddata(xy[t, seen], values[t, seen], (cols, rows), method="linear")
         hole = np.isnan(linear)
-        if hole.any() and outside == "nearest":
+        if hole.any():
             linear[hole] = griddata(xy[t, seen], values[t, seen], (cols[hole], rows[hole]), method="nearest")
         out[t] = linear
     return out
