@@ -28,7 +28,9 @@ also read its own points at their true image positions, NaN where its
 tracks are (named ``NAME@truth``: what its points' errors cost, apart from
 which points it reads and where it loses them), and the truth at the
 stage's grid over the sheet (``grid@truth``: every point the tracker
-starts from, in view). ``--families``: the sheets' texture
+starts from, in view). ``--sparse``: every reading also scored as
+``kinect_paper``'s sparse truth scores it, at the points a held tracker
+holds, their true positions and depths (``NAME sparse``). ``--families``: the sheets' texture
 families. ``--set``: any other ``GeneratorConfig`` field of the sheets
 (e.g. the paper-like sheets' ``backdrop_probability=1``; over a backdrop
 the points go over the sheet in the first frame, where its truth is, as
@@ -62,7 +64,7 @@ from nrdepth.isometric import held_share
 from nrdepth.isometric.mdh import _between, keyframe_indices, solved_frames
 from nrdepth.reconstruct.options import ISOMETRIC_SCALE
 from nrdepth.scores.generated import SHEET_FAMILIES
-from nrdepth.scores.metrics import dense_baselines, mae_sn
+from nrdepth.scores.metrics import dense_baselines, mae_sn, sparse_baselines, sparse_mae
 
 sys.path.insert(0, str(Path(__file__).parent))
 sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
@@ -87,6 +89,10 @@ def main() -> None:
     parser.add_argument("--min-held", type=float, default=0.0, help="a setting's points held (hold=1) in fewer than this share of the "
                         "point-frames in view (isometric.held_share), or too few in a frame for the programs: the stage steps aside, "
                         "the sheet reads as the network")
+    parser.add_argument("--sparse", action="store_true", help="also every reading scored as kinect_paper's truth scores it (NAME sparse): "
+                        "at sparse points a tracker holds (the points over the sheet held to their first look, held in 0.8 of their "
+                        "frames: as the data set's points are those its tracker held), at their true positions and depths where held, "
+                        "each frame's GBR MAE (sparse_mae) in the sheet's units; beside it the network's, the plane's and the bowl's")
     parser.add_argument("--families", default=",".join(SHEET_FAMILIES), help="the sheets' texture families (comma-separated)")
     parser.add_argument("--truth", action="store_true", help="also the first setting's programs on the sheet's true tracks (named truth)")
     parser.add_argument("--at-truth", action="store_true", help="also each setting's points at their true positions (NAME@truth) and the "
@@ -125,7 +131,7 @@ def main() -> None:
         if light not in args.lights.split(","):
             continue
         config = long_sheets(args.frames, args.phases, args.families.split(","), light, args.set)
-        clips = generate_clips(args.videos, seed=SEED, config=config, start=args.start, vertices=args.truth or args.at_truth)
+        clips = generate_clips(args.videos, seed=SEED, config=config, start=args.start, vertices=args.truth or args.at_truth or args.sparse)
         behind = generate_clips(args.videos, seed=SEED + 1, config=GeneratorConfig(frames=args.frames, size=config.size), start=args.start).video \
             if args.moving_backdrop else None
         for k, (video, truth, params) in enumerate(zip(clips.video, clips.depth, clips.params)):
@@ -144,6 +150,7 @@ def main() -> None:
             row = {"light": light, "clip": args.start + k, "network per frame": mae_sn(network, truth, mask=on)}
             base = dense_baselines(truth, on)
             row["plane per frame"], row["bowl per frame"] = base["plane"], base["bowl"]
+            score = sparse_scorer(video, region, clips.vertices[k], params, config.size, row, network) if args.sparse else None
             tracks, programs = {}, {}
             for name, lever in zip([s or "default" for s in settings], levers):
                 start = time.perf_counter()
@@ -188,6 +195,8 @@ def main() -> None:
                     for n in everies:
                         for scale in scales:
                             row[f"{label(name, n, scale)} per frame"] = row["network per frame"]
+                            if score is not None:
+                                row[f"{label(name, n, scale)} sparse"] = row["network sparse"]
                     row[f"{name} points s"], row[f"{name} programs s"] = tracked - start, 0.0
                     continue
                 solved = time.perf_counter()
@@ -208,7 +217,10 @@ def main() -> None:
                         _between(kept, anchors, np.isfinite(xy).all(axis=2))
                     dense = densify(xy, kept, video.shape)
                     for scale in scales:
-                        row[f"{label(name, n, scale)} per frame"] = mae_sn(isometric.fuse(network, dense, scale * config.size), truth, mask=on)
+                        fused = isometric.fuse(network, dense, scale * config.size)
+                        row[f"{label(name, n, scale)} per frame"] = mae_sn(fused, truth, mask=on)
+                        if score is not None:
+                            row[f"{label(name, n, scale)} sparse"] = score(fused)
                 row[f"{name} points s"], row[f"{name} programs s"] = tracked - start, solved - tracked
             if args.margin_check is not None:
                 row.update(margin_shift(video, levers[0], args.margin_check))
@@ -226,15 +238,36 @@ def main() -> None:
     report(rows, names)
 
 
-def truth_at(start: np.ndarray, vertices: np.ndarray, params: dict, size: int) -> np.ndarray:
-    """The true image positions (T, n, 2) of the mesh vertices nearest the first frame's points ``start`` (n, 2)."""
+def truth_at(start: np.ndarray, vertices: np.ndarray, params: dict, size: int, depth: bool = False) -> np.ndarray:
+    """The true image positions (T, n, 2) of the mesh vertices nearest the
+    first frame's points ``start`` (n, 2); with ``depth`` their depths too (T, n, 3)."""
     from scipy.spatial import cKDTree
 
     from nrdepth.engine.generate import image_points
 
-    seen = image_points(vertices.reshape(len(vertices), -1, 3), params, size)[..., :2]
-    _, nearest = cKDTree(seen[0]).query(start)
-    return seen[:, nearest]
+    seen = image_points(vertices.reshape(len(vertices), -1, 3), params, size)
+    _, nearest = cKDTree(seen[0, :, :2]).query(start)
+    return seen[:, nearest] if depth else seen[:, nearest, :2]
+
+
+def sparse_scorer(video: np.ndarray, region, vertices: np.ndarray, params: dict, size: int, row: dict, network: np.ndarray):
+    """``--sparse``: the points over ``region`` held to their first look in
+    0.8 of their frames (the stage's held tracker), their true positions and
+    depths where held and in view; writes the network's, the plane's and the
+    bowl's sparse figures and the points' count into ``row``, and returns
+    the scorer of a depth video (NaN where a frame keeps fewer than 8)."""
+    held = isometric.track_grid(video, region, margin=48, hold=True)
+    held = held[:, isometric.point_held_shares(held, video.shape[1:]) >= 0.8]
+    true = truth_at(held[0], vertices, params, size, depth=True)
+    mask = np.isfinite(held).all(axis=2) & in_view(true[..., :2], size)
+    uv, z = np.moveaxis(true[..., :2], 2, 1), true[..., 2]
+    row["sparse points"] = float(held.shape[1])
+    usable = mask.sum(axis=1).min() >= 8 if held.shape[1] else False
+    score = (lambda depth: sparse_mae(depth, uv, z, mask)) if usable else (lambda depth: float("nan"))
+    row["network sparse"] = score(network)
+    base = sparse_baselines(uv, z, mask) if usable else {"plane": np.nan, "bowl": np.nan}
+    row["plane sparse"], row["bowl sparse"] = float(base["plane"]), float(base["bowl"])
+    return score
 
 
 def margin_shift(video: np.ndarray, reference: dict, margin: int) -> dict:
