@@ -17,7 +17,9 @@ the joint template and through the true lengths. Printed per video:
   image length at least 0.9 of what the pair would show facing the camera
   at its depth (``f · length / depth``);
 - the program's error at the points (each frame's GBR fit, as
-  ``sparse_mae``), over the fixed bowl's, through each template.
+  ``sparse_mae``), over the fixed bowl's, through each template;
+- the same, for each generated sheet, with only the points in view in
+  every frame, as the paper's are.
 
     python experiments/template_truth.py [--videos 16] [--start 864]
 """
@@ -92,6 +94,7 @@ def main() -> None:
     print(line(*rows[-1]), flush=True)
     config = long_sheets(64, 4, ["print"], "below", PAPER_LIKE)
     clips = generate_clips(args.videos, seed=SEED, config=config, start=args.start, vertices=True)
+    kept = []
     for k, (truth_depth, params) in enumerate(zip(clips.depth, clips.params)):
         grid = isometric.start_grid(np.isfinite(truth_depth[0]), truth_depth.shape[1:], 400)
         points = truth_at(grid, clips.vertices[k], params, config.size, depth=True)
@@ -102,9 +105,13 @@ def main() -> None:
         metric = np.concatenate([rays * points[..., 2:], points[..., 2:]], axis=-1)
         rows.append((str(args.start + k), read(np.where(seen[..., None], points[..., :2], np.nan), metric, seen, cam)))
         print(line(*rows[-1]), flush=True)
+        throughout = seen.all(axis=0)  # as the paper's points: none leaves the view
+        kept.append(read(points[:, throughout, :2], metric[:, throughout], seen[:, throughout], cam))
+        print(f"  {throughout.mean():.0%} of the points in view throughout, those alone: " + line("", kept[-1]).lstrip(": "), flush=True)
     generated = [r for name, r in rows[1:]]
     print(f"{len(generated)} generated sheets, means: " + ", ".join(f"{key} {np.mean([r[key] for r in generated]):.3f}" for key in generated[0])
           + f"; corr(never face-on, joint) {np.corrcoef([r['never face-on'] for r in generated], [r['joint'] for r in generated])[0, 1]:.2f}")
+    print("  the points in view throughout alone, means: " + ", ".join(f"{key} {np.mean([r[key] for r in kept]):.3f}" for key in kept[0]))
 
 
 def line(name: str, r: dict) -> str:
