@@ -27,7 +27,9 @@ point's window crosses its outline; :func:`inset_region`),
 ``whole`` (``experiments/sheet_levers.py`` only: the points over the
 whole frame, not the sheet's true region), ``piece`` (``sheet_levers.py``
 only: of the points read, the one piece that moves most,
-``experiments/kinect_box_parts.moving_piece``).
+``experiments/kinect_box_parts.moving_piece``), ``template`` (``mdh_depths``':
+joint or refined), ``throughout`` (1: only the points found in every
+frame, none that leaves the view or is lost).
 With ``hold``, where fewer of the point-frames in view are held than the
 stage's ``MIN_HELD``, the stage steps aside, as it does in the job.
 
@@ -57,14 +59,16 @@ def sgemm() -> float:
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
             raise SystemExit(f"--settings: unknown lever {key!r} (known: {', '.join(out)})")
-        out[key] = value if key in ("flow", "each", "place") else float(value) if key in ("drop", "keep", "anchor", "fov") else (None if value == "none" else int(value))
+        out[key] = value if key in ("flow", "each", "place", "template") else float(value) if key in ("drop", "keep", "anchor", "fov") else (None if value == "none" else int(value))
     if out["keep"] and not out["hold"]:
         raise SystemExit(f"--settings {setting!r}: keep needs hold=1")
+    if out["template"] not in ("joint", "refined"):
+        raise SystemExit(f"--settings {setting!r}: template is joint or refined")
     if out["anchor"] and out["each"] != "lengths":
         raise SystemExit(f"--settings {setting!r}: anchor needs each=lengths")
     if out["fov"] is not None and not 0 < out["fov"] < 180:
@@ -101,10 +105,13 @@ def shortfall(xy: np.ndarray, depths: np.ndarray, camera, distances: np.ndarray,
 
 
 def keep_held(xy: np.ndarray, shape: tuple, lever: dict) -> np.ndarray:
-    """The tracks of the points held in at least ``lever["keep"]`` of their frames in view."""
+    """The tracks of the points held in at least ``lever["keep"]`` of their
+    frames in view; with ``lever["throughout"]``, of those only the points
+    held in every frame."""
     from nrdepth import isometric
 
-    return xy[:, isometric.point_held_shares(xy, shape) >= lever["keep"]] if lever["keep"] else xy
+    xy = xy[:, isometric.point_held_shares(xy, shape) >= lever["keep"]] if lever["keep"] else xy
+    return xy[:, np.isfinite(xy).all(axis=(0, 2))] if lever["throughout"] else xy
 
 
 def box_check(frames: np.ndarray, box: np.ndarray) -> None:
@@ -177,7 +184,7 @@ def main() -> None:
         tracked = time.perf_counter()
         through = camera if lever["fov"] is None else nrdepth.Camera.guessed(frames.shape[1:], view=lever["fov"])
         depths = isometric.mdh_depths(xy, through, keyframes=lever["keyframes"], neighbours=lever["neighbours"], every=lever["every"],
-                                       each_frame=lever["each"], anchor=lever["anchor"])
+                                       each_frame=lever["each"], anchor=lever["anchor"], template=lever["template"])
         solved = time.perf_counter()
         dense = densify(xy - np.array([rx, ry]), depths, network.shape)
         scales = [ISOMETRIC_SCALE] if args.scales is None else [float(v) for v in args.scales.split(",")]

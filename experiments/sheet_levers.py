@@ -188,7 +188,7 @@ def main() -> None:
                         raise SystemExit(f"--settings {name!r}: the video is seen orthographically: only a guessed camera (fov=) reads it")
                     # One every: solved as the stage solves it; several: read off the every-frame solution
                     depths, distances = isometric.mdh_depths(xy, through, keyframes=lever["keyframes"], neighbours=lever["neighbours"],
-                                                             every=everies[0] if len(everies) == 1 else 1, each_frame=lever["each"],
+                                                             every=everies[0] if len(everies) == 1 else 1, each_frame=lever["each"], template=lever["template"],
                                                              anchor=lever["anchor"], with_distances=True)
                 except ValueError as error:  # the stage steps aside: the network's depth
                     print(f"  {name}: steps aside ({error})", flush=True)
@@ -204,7 +204,7 @@ def main() -> None:
                     row[f"{name} shortfall"] = shortfall(xy, depths, through, distances, dict(lever, every=everies[0] if len(everies) == 1 else 1))
                 if true_camera is not None:
                     row[f"{name} focal ratio"] = float(through.focal[0] / true_camera.focal[0])
-                same = (key, lever["keep"], lever["keyframes"], lever["neighbours"])
+                same = (key, lever["keep"], lever["keyframes"], lever["neighbours"], lever["template"], lever["throughout"])
                 programs[same + (lever["each"],)] = depths
                 if lever["each"] == "lengths" and same + ("program",) in programs:
                     # every solved frame refined, or none (mdh_depths): which, beside the same points' program read before
