@@ -55,9 +55,9 @@ def read(xy: np.ndarray, points: np.ndarray, seen: np.ndarray, cam: nrdepth.Came
     both = seen[:, pairs[:, 0]] & seen[:, pairs[:, 1]]
     chords = np.linalg.norm(points[:, pairs[:, 0]] - points[:, pairs[:, 1]], axis=2)
     lengths = np.nanmedian(np.where(both, chords, np.nan), axis=0)  # the true lengths (the data set's points vary by ~2 %)
-    depths, template = isometric.mdh_depths(xy, cam, pairs=pairs, keyframes=8, template=template, each_frame="lengths", with_distances=True)
+    depths, estimate = isometric.mdh_depths(xy, cam, pairs=pairs, keyframes=8, template=template, each_frame="lengths", with_distances=True)
     through_truth = isometric.mdh_depths(xy, cam, pairs=pairs, template=lengths, each_frame="lengths")
-    ratio = template / lengths
+    ratio = estimate / lengths
     ratio /= np.median(ratio)
     image = np.linalg.norm(xy[:, pairs[:, 0]] - xy[:, pairs[:, 1]], axis=2)
     facing = cam.focal[0] * lengths / (0.5 * (points[:, pairs[:, 0], 2] + points[:, pairs[:, 1], 2]))
