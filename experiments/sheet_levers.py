@@ -63,6 +63,7 @@ from nrdepth.baselines.tracks import densify
 from nrdepth.isometric import held_share
 from nrdepth.isometric.mdh import _between, keyframe_indices, solved_frames
 from nrdepth.reconstruct.options import ISOMETRIC_SCALE
+from nrdepth.reconstruct.sheet import FLOW_MARGIN, KEEP_HELD
 from nrdepth.scores.generated import SHEET_FAMILIES
 from nrdepth.scores.metrics import dense_baselines, mae_sn, sparse_baselines, sparse_mae
 
@@ -252,12 +253,12 @@ def truth_at(start: np.ndarray, vertices: np.ndarray, params: dict, size: int, d
 
 def sparse_scorer(video: np.ndarray, region, vertices: np.ndarray, params: dict, size: int, row: dict, network: np.ndarray):
     """``--sparse``: the points over ``region`` held to their first look in
-    0.8 of their frames (the stage's held tracker), their true positions and
+    the stage's share of their frames (its held tracker and ``KEEP_HELD``), their true positions and
     depths where held and in view; writes the network's, the plane's and the
     bowl's sparse figures and the points' count into ``row``, and returns
     the scorer of a depth video (NaN where a frame keeps fewer than 8)."""
-    held = isometric.track_grid(video, region, margin=48, hold=True)
-    held = held[:, isometric.point_held_shares(held, video.shape[1:]) >= 0.8]
+    held = isometric.track_grid(video, region, margin=FLOW_MARGIN, hold=True)
+    held = held[:, isometric.point_held_shares(held, video.shape[1:]) >= KEEP_HELD]
     true = truth_at(held[0], vertices, params, size, depth=True)
     mask = np.isfinite(held).all(axis=2) & in_view(true[..., :2], size)
     uv, z = np.moveaxis(true[..., :2], 2, 1), true[..., 2]
