@@ -104,6 +104,22 @@ def shortfall(xy: np.ndarray, depths: np.ndarray, camera, distances: np.ndarray,
     return float(np.nanmean(1 - lengths / distances))
 
 
+def strain(xy: np.ndarray, depths: np.ndarray, camera, distances: np.ndarray, lever: dict) -> float:
+    """How far the pairs stray from their template distances in the
+    keyframes the template was read from: the root mean square over the
+    pairs in view there of ‖Z_i r_i − Z_j r_j‖ / D_ij − 1 (0: every pair
+    at its length; after ``refined`` what is left of it is what the
+    tracks and the sheet's stretch leave). Arguments as :func:`shortfall`'s."""
+    from nrdepth import isometric
+    from nrdepth.isometric.mdh import keyframe_indices
+
+    keys = keyframe_indices(len(xy), lever["keyframes"])
+    pairs = isometric.neighbour_pairs(xy[0], lever["neighbours"])
+    points = camera.rays(xy[keys]) * depths[keys][..., None]
+    lengths = np.linalg.norm(points[:, pairs[:, 0]] - points[:, pairs[:, 1]], axis=2)
+    return float(np.sqrt(np.nanmean((lengths / distances - 1) ** 2)))
+
+
 def keep_held(xy: np.ndarray, shape: tuple, lever: dict) -> np.ndarray:
     """The tracks of the points held in at least ``lever["keep"]`` of their
     frames in view; with ``lever["throughout"]``, of those only the points

@@ -17,7 +17,9 @@ piece that moves most, as ``experiments/kinect_box_parts.py`` finds the paper); 
 other is paired against it. Each setting's ``shortfall`` is recorded too:
 how far its program's pairs fall short of their template distances
 (``bench_sheet_stage.shortfall``; with ``each=program``), a candidate
-for the gate that says whether the pairs' lengths hold. With ``--set
+for the gate that says whether the pairs' lengths hold, and its ``strain``
+(``bench_sheet_stage.strain``): how far its pairs stray from their
+lengths in the keyframes, after ``refined`` what the sheet's stretch leaves. With ``--set
 sheet_probability=0`` the videos are not sheets but the generator's
 coloured-noise surfaces (``--set camera_fov=0,0``: seen orthographically,
 where only ``fov`` settings can run). ``--scales``: each also fused at each scale. ``--truth``: the first setting's programs also read the sheet's true
@@ -69,7 +71,7 @@ from nrdepth.scores.metrics import dense_baselines, mae_sn, sparse_baselines, sp
 
 sys.path.insert(0, str(Path(__file__).parent))
 sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
-from bench_sheet_stage import inset_region, keep_held, parse, shortfall  # noqa: E402
+from bench_sheet_stage import inset_region, keep_held, parse, shortfall, strain  # noqa: E402
 from isometric_generated import LIGHTS, SEED, camera, in_view, long_sheets, setting, true_tracks  # noqa: E402
 from kinect_box_parts import moving_piece  # noqa: E402
 
@@ -203,6 +205,7 @@ def main() -> None:
                 solved = time.perf_counter()
                 if lever["each"] == "program":
                     row[f"{name} shortfall"] = shortfall(xy, depths, through, distances, dict(lever, every=everies[0] if len(everies) == 1 else 1))
+                row[f"{name} strain"] = strain(xy, depths, through, distances, lever)
                 if true_camera is not None:
                     row[f"{name} focal ratio"] = float(through.focal[0] / true_camera.focal[0])
                 same = (key, lever["keep"], lever["keyframes"], lever["neighbours"], lever["template"], lever["throughout"])
