@@ -1,0 +1,121 @@
+"""A pinhole camera's focal length from a sheet's tracked points: the one
+through which the sheet's ``refined`` template keeps its pairs' lengths
+best.
+
+Algorithm: an inextensible sheet read through the wrong camera must
+stretch to fit its tracks (too short a focal length exaggerates the
+perspective, too long flattens it), and ``refined``'s least squares
+leave that stretch as strain (:func:`~nrdepth.isometric.pair_strain`).
+For each focal length on a grid even in its logarithm, spanning
+pinholes that see :data:`VIEWS` degrees across the frame's longer side,
+the keyframes' joint cone program and its refinement are solved (what
+:func:`~nrdepth.isometric.mdh_depths` does first with
+``template="refined"``, on :data:`POINTS` of the points), and their
+strain measured; the least is refined by the parabola through it and
+its two neighbours (in the logarithm). On ``kinect_paper``'s held
+points the strain is least at the Kinect's focal length and twice as
+large at 0.7× or 1.4× it; on the cloth, which stretches, it barely
+changes (docs/campaign.md, "The focal length from the strain").
+
+Frames and units: pixel coordinates (column x, row y); focal lengths in
+pixels; the principal point at the frame's centre unless given.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import Optional, Tuple
+
+import numpy as np
+
+from ..camera import Camera
+from ..checks import is_number
+from .mdh import _refine, _socp, keyframe_indices, neighbour_pairs, pair_strain
+
+__all__ = ["estimate_focal", "FocalEstimate", "VIEWS", "STEPS", "POINTS"]
+
+VIEWS = (25.0, 120.0)
+"""Degrees across the frame's longer side: the narrowest and the widest
+pinholes :func:`estimate_focal` tries (a phone's main camera sees about
+65°, the cloth's 89°, the Kinect's 62°)."""
+STEPS = 9
+"""Focal lengths tried, even in their logarithm over :data:`VIEWS` (each
+1.29 times the next)."""
+POINTS = 150
+"""At most this many of the points read (evenly in their order): the
+strain's minimum stays where it is, at a third of the cost."""
+
+
+@dataclass(frozen=True)
+class FocalEstimate:
+    """:func:`estimate_focal`'s answer: the ``focal`` length (pixels), the
+    least ``strain`` on the grid, and the grid: its ``focals`` and their
+    ``strains``. :attr:`contrast`: how well the video determines it."""
+
+    focal: float
+    strain: float
+    focals: Tuple[float, ...]
+    strains: Tuple[float, ...]
+
+    @property
+    def contrast(self) -> float:
+        """The strain two steps either side of the least (the smaller of the
+        two, or the one there is at the grid's end) over the least: about 1
+        where the strain does not tell focal lengths apart."""
+        k = int(np.argmin(self.strains))
+        sides = [self.strains[i] for i in (k - 2, k + 2) if 0 <= i < len(self.strains)]
+        return float(min(sides) / self.strain) if self.strain > 0 else math.inf
+
+
+def estimate_focal(xy: np.ndarray, frame: Tuple[int, int], centre: Optional[Tuple[float, float]] = None, keyframes: int = 8,
+                   neighbours: int = 8, views: Tuple[float, float] = VIEWS, steps: int = STEPS, points: int = POINTS) -> FocalEstimate:
+    """The focal length (pixels) through which tracks ``xy`` (T, n, 2),
+    finite in every frame, of a sheet in frames of ``frame`` (H, W) keep
+    their pairs' lengths best (module docstring): ``keyframes`` frames
+    spread over the video, each point tied to its ``neighbours`` nearest,
+    ``steps`` focal lengths over pinholes seeing ``views`` degrees, at
+    most ``points`` points; ``centre``: the principal point (default: the
+    frame's centre). Each focal length's programs run in a thread of
+    their own; the answer is the same at any thread count."""
+    from threadpoolctl import threadpool_limits
+
+    xy = np.asarray(xy, np.float64)
+    if xy.ndim != 3 or xy.shape[2] != 2 or xy.shape[0] < 2 or xy.shape[1] < 3 or not np.isfinite(xy).all():
+        raise ValueError(f"xy: expected tracks (T, n, 2) with T >= 2 and n >= 3, finite in every frame, got shape {xy.shape}")
+    if not (len(views) == 2 and all(is_number(v) for v in views) and 0 < views[0] < views[1] < 180):
+        raise ValueError(f"views: expected (narrowest, widest) degrees across the frame, 0 < narrowest < widest < 180, got {views!r}")
+    for name, value, least in (("keyframes", keyframes, 2), ("neighbours", neighbours, 1), ("steps", steps, 3), ("points", points, 3)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
+            raise ValueError(f"{name}: expected an int >= {least}, got {value!r}")
+    if len(frame) != 2 or min(frame) < 1:
+        raise ValueError(f"frame: expected (H, W) pixels, got {frame!r}")
+    chosen = np.unique(np.rint(np.linspace(0, xy.shape[1] - 1, min(points, xy.shape[1]))).astype(int))
+    keys = keyframe_indices(len(xy), keyframes)
+    tracks = xy[keys][:, chosen]
+    pairs = neighbour_pairs(tracks[0], neighbours)
+    side = max(frame)
+    longest, shortest = (side / 2 / math.tan(math.radians(v) / 2) for v in views)
+    focals = np.exp(np.linspace(math.log(shortest), math.log(longest), steps))
+
+    def strain(focal: float) -> float:
+        camera = Camera(float(focal), centre).at(tuple(frame))
+        rays = camera.rays(tracks)
+        depths, distances = _socp(rays, pairs, None)
+        depths, distances = _refine(rays, pairs, depths, distances, 100)
+        return pair_strain(tracks, depths, camera, pairs, distances)
+
+    # One BLAS thread around the whole pool (threadpoolctl's limits are the process's): the same rounding in any thread.
+    with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(max_workers=max(1, min(steps, os.cpu_count() or 1))) as pool:
+        strains = np.array(list(pool.map(strain, focals)))
+    k = int(np.argmin(strains))
+    focal = float(focals[k])
+    if 0 < k < steps - 1:  # the parabola's vertex through the least and its neighbours, in the logarithm (even steps)
+        a, b, c = strains[k - 1 : k + 2]
+        curvature = a - 2 * b + c
+        if curvature > 0:
+            step = math.log(focals[1] / focals[0])
+            focal = float(math.exp(math.log(focals[k]) + step * 0.5 * (a - c) / curvature))
+    return FocalEstimate(focal, float(strains[k]), tuple(map(float, focals)), tuple(map(float, strains)))
