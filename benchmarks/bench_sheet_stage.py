@@ -20,7 +20,9 @@ this share of their frames in view, ``isometric.point_held_shares``),
 ``anchor`` (with ``each=lengths``, ``mdh_depths``' ``anchor``), ``fov``
 (degrees: the camera a pinhole that sees this much across the frame's
 longer side with its principal point at the frame's centre,
-``nrdepth.Camera.guessed``, in place of the true one), ``place`` (``track_grid``'s:
+``nrdepth.Camera.guessed``, in place of the true one; ``strain``: the
+focal length ``nrdepth.isometric.estimate_focal`` finds from the points
+found in every frame), ``place`` (``track_grid``'s:
 grid, or texture: where the first frame has texture to follow), ``inset``
 (pixels: the points' region shrunk by this much first, so that no
 point's window crosses its outline; :func:`inset_region`),
@@ -32,6 +34,9 @@ joint or refined), ``throughout`` (1: only the points found in every
 frame, none that leaves the view or is lost).
 With ``hold``, where fewer of the point-frames in view are held than the
 stage's ``MIN_HELD``, the stage steps aside, as it does in the job.
+``--job``: also the whole job with the sheet stage at its defaults
+(``reconstruct(roi=..., focal=..., sheet=box)``), timed, with its log
+line and its whole-sheet error.
 
     python benchmarks/bench_sheet_stage.py [--threads 2] [--settings margin=none,margin=48,margin=48:keyframes=12:every=3]
 """
@@ -64,18 +69,36 @@ def parse(setting: str) -> dict:
         key, _, value = item.partition("=")
         if key not in out:
             raise SystemExit(f"--settings: unknown lever {key!r} (known: {', '.join(out)})")
-        out[key] = value if key in ("flow", "each", "place", "template") else float(value) if key in ("drop", "keep", "anchor", "fov") else (None if value == "none" else int(value))
+        out[key] = value if key in ("flow", "each", "place", "template") or (key, value) == ("fov", "strain") else \
+            float(value) if key in ("drop", "keep", "anchor", "fov") else (None if value == "none" else int(value))
     if out["keep"] and not out["hold"]:
         raise SystemExit(f"--settings {setting!r}: keep needs hold=1")
     if out["template"] not in ("joint", "refined"):
         raise SystemExit(f"--settings {setting!r}: template is joint or refined")
     if out["anchor"] and out["each"] != "lengths":
         raise SystemExit(f"--settings {setting!r}: anchor needs each=lengths")
-    if out["fov"] is not None and not 0 < out["fov"] < 180:
-        raise SystemExit(f"--settings {setting!r}: fov is the degrees a pinhole sees across the frame's longer side, in (0, 180)")
+    if out["fov"] not in (None, "strain") and not 0 < out["fov"] < 180:
+        raise SystemExit(f"--settings {setting!r}: fov is the degrees a pinhole sees across the frame's longer side, in (0, 180), or strain")
     if not out["backward"] and out["drop"]:
         raise SystemExit(f"--settings {setting!r}: drop needs the flow both ways: give drop=0 with backward=0")
     return out
+
+
+def pinhole(fov, camera, xy: np.ndarray, frame: tuple):
+    """The camera a setting reads through: ``camera`` (the true one) where
+    ``fov`` is None, the pinhole seeing ``fov`` degrees across the
+    frame's longer side (``nrdepth.Camera.guessed``), or with ``fov``
+    "strain" the focal length its points in every frame give
+    (``nrdepth.isometric.estimate_focal``), the principal point at the
+    frame's centre."""
+    import nrdepth
+    from nrdepth import isometric
+
+    if fov is None:
+        return camera
+    if fov == "strain":
+        return nrdepth.Camera(isometric.estimate_focal(xy[:, np.isfinite(xy).all(axis=(0, 2))], frame).focal).at(frame)
+    return nrdepth.Camera.guessed(frame, view=fov)
 
 
 def inset_region(region, inset: int):
@@ -105,19 +128,13 @@ def shortfall(xy: np.ndarray, depths: np.ndarray, camera, distances: np.ndarray,
 
 
 def strain(xy: np.ndarray, depths: np.ndarray, camera, distances: np.ndarray, lever: dict) -> float:
-    """How far the pairs stray from their template distances in the
-    keyframes the template was read from: the root mean square over the
-    pairs in view there of ‖Z_i r_i − Z_j r_j‖ / D_ij − 1 (0: every pair
-    at its length; after ``refined`` what is left of it is what the
-    tracks and the sheet's stretch leave). Arguments as :func:`shortfall`'s."""
+    """:func:`nrdepth.isometric.pair_strain` in the keyframes the template
+    was read from (after ``refined``, what the tracks and the sheet's
+    stretch leave). Arguments as :func:`shortfall`'s."""
     from nrdepth import isometric
-    from nrdepth.isometric.mdh import keyframe_indices
 
-    keys = keyframe_indices(len(xy), lever["keyframes"])
-    pairs = isometric.neighbour_pairs(xy[0], lever["neighbours"])
-    points = camera.rays(xy[keys]) * depths[keys][..., None]
-    lengths = np.linalg.norm(points[:, pairs[:, 0]] - points[:, pairs[:, 1]], axis=2)
-    return float(np.sqrt(np.nanmean((lengths / distances - 1) ** 2)))
+    keys = isometric.keyframe_indices(len(xy), lever["keyframes"])
+    return isometric.pair_strain(xy[keys], depths[keys], camera, isometric.neighbour_pairs(xy[0], lever["neighbours"]), distances)
 
 
 def keep_held(xy: np.ndarray, shape: tuple, lever: dict) -> np.ndarray:
@@ -153,6 +170,7 @@ def main() -> None:
     parser.add_argument("--box", choices=("print", "sheet"), default="print",
                         help="the points over the print (KINECT_INNER) or the whole sheet's box (KINECT_ROI)")
     parser.add_argument("--no-box-check", action="store_true", help="skip following every point with and without the box first")
+    parser.add_argument("--job", action="store_true", help="also the whole job with the sheet stage at its defaults (module docstring)")
     args = parser.parse_args()
     for setting in args.settings.split(","):  # before the network's minutes
         if any(parse(setting)[key] for key in ("whole", "piece")):  # read by sheet_levers alone: here they would change nothing, silently
@@ -186,6 +204,20 @@ def main() -> None:
           f"fixed bowl {kinect_references(truth, KINECT_ROI)['bowl']:.2f} mm", flush=True)
     if not args.no_box_check:
         box_check(frames, box)
+    if args.job:
+        import importlib
+        import warnings
+
+        api = importlib.import_module("nrdepth.reconstruct.api")  # nrdepth.reconstruct is also the function
+        decisions, decide = [], api.sheet_depth
+        api.sheet_depth = lambda *a, **k: decisions.append(decide(*a, **k)) or decisions[-1]  # the stage's decision, to print
+        start = time.perf_counter()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # a fallback is printed below
+            job = nrdepth.reconstruct(frames, roi=KINECT_ROI, focal=camera, sheet=(x, y, w, h)).astype(np.float64)
+        whole = time.perf_counter() - start
+        print(f"the job with the sheet stage's defaults: {whole:.1f} s (the stage {whole - rest:.1f} s, {(whole - rest) / rest:.2f}× the rest): "
+              f"{kinect_score(job, truth):.2f} mm; {decisions[0].line()}", flush=True)
     for setting in args.settings.split(","):
         lever = parse(setting)
         start = time.perf_counter()
@@ -198,7 +230,7 @@ def main() -> None:
             continue
         xy = keep_held(xy, frames.shape[1:], lever)
         tracked = time.perf_counter()
-        through = camera if lever["fov"] is None else nrdepth.Camera.guessed(frames.shape[1:], view=lever["fov"])
+        through = pinhole(lever["fov"], camera, xy, frames.shape[1:])
         depths = isometric.mdh_depths(xy, through, keyframes=lever["keyframes"], neighbours=lever["neighbours"], every=lever["every"],
                                        each_frame=lever["each"], anchor=lever["anchor"], template=lever["template"])
         solved = time.perf_counter()

@@ -10,7 +10,7 @@ and scale): per-frame MAE-SN of each, and its seconds for the points and
 the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 ``benchmarks/bench_sheet_stage.py`` (``margin``, ``flow``, ``keyframes``,
 ``neighbours``, ``points``, ``hold``, ``backward``, ``drop``, ``keep``, ``each``, ``anchor``, ``fov``: a guessed
-pinhole in place of the true camera, ``place``: the points where the first
+pinhole in place of the true camera (``strain``: the focal length from the points' strain), ``place``: the points where the first
 frame has texture, ``inset``: the sheet's region shrunk first, ``whole``: the points over
 the whole frame, backdrop and all, not over the sheet, ``piece``: of the points read, the one
 piece that moves most, as ``experiments/kinect_box_parts.py`` finds the paper); the first is the reference, each
@@ -71,7 +71,7 @@ from nrdepth.scores.metrics import dense_baselines, mae_sn, sparse_baselines, sp
 
 sys.path.insert(0, str(Path(__file__).parent))
 sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
-from bench_sheet_stage import inset_region, keep_held, parse, shortfall, strain  # noqa: E402
+from bench_sheet_stage import inset_region, keep_held, parse, pinhole, shortfall, strain  # noqa: E402
 from isometric_generated import LIGHTS, SEED, camera, in_view, long_sheets, setting, true_tracks  # noqa: E402
 from kinect_box_parts import moving_piece  # noqa: E402
 
@@ -186,7 +186,7 @@ def main() -> None:
                 try:
                     if held < args.min_held:
                         raise ValueError(f"{held:.2f} of the point-frames held")
-                    through = true_camera if lever["fov"] is None else nrdepth.Camera.guessed(video.shape[1:], view=lever["fov"])
+                    through = pinhole(lever["fov"], true_camera, xy, video.shape[1:])
                     if through is None:
                         raise SystemExit(f"--settings {name!r}: the video is seen orthographically: only a guessed camera (fov=) reads it")
                     # One every: solved as the stage solves it; several: read off the every-frame solution

@@ -714,3 +714,49 @@ def test_bad_input_names_the_argument():
         isometric.neighbour_pairs(xy[0], 4, far=-1)
     with pytest.raises(ValueError, match="reach"):
         isometric.neighbour_pairs(xy[0], 4, far=3, reach=5)
+
+
+def test_pair_strain_agrees_with_brute_force_and_refined_reads_a_stretch_the_isometric_sheet_lacks():
+    xy, truth = rolled_sheet(start=0.5)
+    camera = nrdepth.Camera(FOCAL, (0.0, 0.0))
+    pairs = isometric.neighbour_pairs(xy[0], 8)
+    points = camera.rays(xy) * truth[..., None]
+    distances = np.linalg.norm(points[0, pairs[:, 0]] - points[0, pairs[:, 1]], axis=1)
+    turn = lambda a: np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])  # noqa: E731
+    moved = np.stack([points[0] @ turn(a) + [0.1 * a, 0, a] for a in (0, 0.3, 0.6)])  # rigidly: every chord at its length
+    assert isometric.pair_strain(FOCAL * moved[..., :2] / moved[..., 2:], moved[..., 2], camera, pairs, distances) < 1e-12
+    # Each frame's depths scaled by s: its every chord by s, its every strain s − 1; a point out of view ties no pair.
+    scaled = truth * np.linspace(0.9, 1.2, len(truth))[:, None]
+    hidden = xy.copy()
+    hidden[2, 5] = np.nan
+    strains = [np.linalg.norm(scaled[t, i] * camera.rays(hidden[t, i]) - scaled[t, j] * camera.rays(hidden[t, j])) / d - 1
+               for t in range(len(xy)) for (i, j), d in zip(pairs, distances) if np.isfinite(hidden[t, [i, j]]).all()]
+    assert isometric.pair_strain(hidden, np.where(np.isfinite(hidden[..., 0]), scaled, np.nan), camera, pairs, distances) == pytest.approx(
+        np.sqrt(np.mean(np.square(strains))), rel=1e-12)
+    # refined's keyframes keep a rolling sheet's lengths, not those of one stretched 20 % across as it rolls
+    stretch = 1 + 0.2 * np.linspace(0, 1, len(xy))[:, None, None] * np.array([1.0, 0.0, 0.0])
+    grown = points * stretch + (1 - stretch) * points.mean(axis=1, keepdims=True)
+    for sheet, expected in ((points, lambda s: s < 2e-3), (grown, lambda s: s > 1e-2)):
+        image = FOCAL * sheet[..., :2] / sheet[..., 2:]
+        depths, kept = isometric.mdh_depths(image, camera, neighbours=8, keyframes=4, template="refined", with_distances=True)
+        keys = isometric.keyframe_indices(len(image), 4)
+        assert expected(isometric.pair_strain(image[keys], depths[keys], camera, isometric.neighbour_pairs(image[0], 8), kept))
+    with pytest.raises(ValueError, match="depths"):
+        isometric.pair_strain(xy, truth[:, :3], camera, pairs, distances)
+    with pytest.raises(ValueError, match="distances"):
+        isometric.pair_strain(xy, truth, camera, pairs, distances[:3])
+
+
+def test_the_focal_length_whose_refined_template_keeps_the_lengths_best_is_the_camera_s_at_any_thread_count(monkeypatch):
+    xy, _ = rolled_sheet(start=0.2)
+    estimate = isometric.estimate_focal(xy, (300, 300), (0.0, 0.0), keyframes=4)
+    assert estimate.focal == pytest.approx(FOCAL, rel=0.03) and estimate.contrast > 3
+    assert min(estimate.strains) == estimate.strain and len(estimate.focals) == isometric.focal.STEPS
+    monkeypatch.setattr(os, "cpu_count", lambda: 1)  # one focal length after another
+    assert isometric.estimate_focal(xy, (300, 300), (0.0, 0.0), keyframes=4) == estimate
+    with pytest.raises(ValueError, match="xy"):
+        isometric.estimate_focal(np.where(np.arange(xy.shape[1])[None, :, None] == 3, np.nan, xy), (300, 300))
+    with pytest.raises(ValueError, match="views"):
+        isometric.estimate_focal(xy, (300, 300), views=(90.0, 30.0))
+    with pytest.raises(ValueError, match="steps"):
+        isometric.estimate_focal(xy, (300, 300), steps=2)

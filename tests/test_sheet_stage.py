@@ -115,7 +115,7 @@ def test_held_the_stage_reads_only_the_points_found_again_in_most_of_their_frame
     np.save(tmp_path / "banded.npy", banded)
     with warnings.catch_warnings():
         warnings.simplefilter("error", SheetFallback)
-        reconstruct_file(tmp_path / "banded.npy", tmp_path / "out", model, device="cpu", **OPTIONS, isometric_hold=True)
+        reconstruct_file(tmp_path / "banded.npy", tmp_path / "out", model, device="cpu", **OPTIONS, isometric_hold=True, isometric_template="joint")
     with np.load(tmp_path / "out" / "depth.npz") as saved:
         sheet = json.loads(str(saved["sheet"]))
     xy = track_grid(as_uint8(banded), points=OPTIONS["isometric_points"], drop=DROP, margin=FLOW_MARGIN, hold=True)
@@ -134,7 +134,8 @@ def test_the_stage_solves_each_frame_as_asked(monkeypatch, model, bending):
         return solve(*args, **kwargs)
 
     monkeypatch.setattr(stage, "mdh_depths", asking)
-    depths = {each: nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS, isometric_each_frame=each) for each in ("program", "lengths")}
+    depths = {each: nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS, isometric_each_frame=each, isometric_template="joint")
+              for each in ("program", "lengths")}
     cheaper = (stage.KEYFRAMES, stage.EVERY, stage.NEIGHBOURS)  # the joint template's program, as the cost rules chose it
     assert asked == [("program", *cheaper), ("lengths", *cheaper)]
     assert np.abs(depths["lengths"] - depths["program"]).max() > 1e-3  # the frames' lengths kept change the shape
@@ -151,8 +152,36 @@ def test_a_cone_program_without_an_answer_sends_the_stage_aside_with_its_status(
         raise NotSolved("InsufficientProgress")  # what Clarabel said to a focal length of 10⁹ px, before such a focal was refused
 
     monkeypatch.setattr(stage, "mdh_depths", unsolved)
-    with pytest.warns(SheetFallback, match=r"sheet: the network's depth alone \(the sheet's cone program found no answer \(InsufficientProgress\)"):
+    # every reading tried gives way, each saying why
+    with pytest.warns(SheetFallback, match=r"sheet: the network's depth alone \(held points through refined: the sheet's cone program found no answer "
+                      r"\(InsufficientProgress\).*; the flow's points through joint: the sheet's cone program found no answer \(InsufficientProgress\)"):
         depth = nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS)
     np.testing.assert_array_equal(depth, network_alone(bending, model))
     with pytest.raises(ValueError, match=r"focal: f_x = 1e\+09 px sees .*° across the frame's 64 pixels; the sheet's shape needs perspective"):
         nrdepth.reconstruct(bending, model, device="cpu", **{**OPTIONS, "focal": 1e9})
+
+
+def test_auto_reads_held_points_through_refined_where_their_lengths_hold_and_the_joint_template_where_not(monkeypatch, model, bending):
+    import importlib
+
+    from nrdepth.reconstruct.options import REFINED_SCALE
+
+    stage = importlib.import_module("nrdepth.reconstruct.sheet")
+    decisions, decide = [], stage.sheet_depth
+    monkeypatch.setattr(importlib.import_module("nrdepth.reconstruct.api"), "sheet_depth", lambda *a, **k: decisions.append(decide(*a, **k)) or decisions[-1])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SheetFallback)
+        auto = nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS)
+        joint = nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS, isometric_template="joint")
+    refined, _ = decisions
+    assert refined.used and refined.template == "refined" and refined.strain <= stage.MAX_STRAIN and refined.scale == REFINED_SCALE
+    assert np.abs(auto - joint).max() > 1e-3  # another reading of the sheet
+    # A sheet whose pairs keep no length: the joint template, as if asked for, and the log says why
+    monkeypatch.setattr(stage, "MAX_STRAIN", 0.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SheetFallback)
+        stretched = nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS)
+    fallback = decisions[-1]
+    assert fallback.used and fallback.template == "joint" and fallback.strain == refined.strain and fallback.held is None
+    assert "not held points through refined: their pairs do not keep their lengths" in fallback.line()
+    np.testing.assert_array_equal(stretched, joint)

@@ -33,7 +33,7 @@ import numpy as np
 
 from ..camera import Camera
 from ..checks import is_number
-from .mdh import _refine, _socp, keyframe_indices, neighbour_pairs, pair_strain
+from .mdh import keyframe_indices, neighbour_pairs, pair_strain, solve_template
 
 __all__ = ["estimate_focal", "FocalEstimate", "VIEWS", "STEPS", "POINTS"]
 
@@ -103,8 +103,7 @@ def estimate_focal(xy: np.ndarray, frame: Tuple[int, int], centre: Optional[Tupl
     def strain(focal: float) -> float:
         camera = Camera(float(focal), centre).at(tuple(frame))
         rays = camera.rays(tracks)
-        depths, distances = _socp(rays, pairs, None)
-        depths, distances = _refine(rays, pairs, depths, distances, 100)
+        depths, distances = solve_template(rays, pairs, refined=True)
         return pair_strain(tracks, depths, camera, pairs, distances)
 
     # One BLAS thread around the whole pool (threadpoolctl's limits are the process's): the same rounding in any thread.

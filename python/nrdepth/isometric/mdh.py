@@ -20,7 +20,7 @@ from ..camera import Camera
 from .mirror import check_anchor, keep_lengths, mirror_or_not, shape_kept
 from .points import DROP, check_video, track_grid
 
-__all__ = ["neighbour_pairs", "mdh_depths", "isometric_depth", "TooFewPoints", "TEMPLATES", "EACH_FRAME"]
+__all__ = ["neighbour_pairs", "mdh_depths", "pair_strain", "keyframe_indices", "solve_template", "isometric_depth", "TooFewPoints", "TEMPLATES", "EACH_FRAME"]
 
 
 class TooFewPoints(ValueError):
@@ -281,9 +281,7 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
             raise ValueError(f"template: expected one of {TEMPLATES} or the {len(pairs)} pairs' distances, positive, got shape {distances.shape}")
     elif template in ("joint", "refined"):
         keys = keyframe_indices(T, keyframes)
-        depths[keys], distances = _socp(rays[keys], pairs, None, seen[keys])
-        if template == "refined":
-            depths[keys], distances = _refine(rays[keys], pairs, depths[keys], distances, evaluations)
+        depths[keys], distances = solve_template(rays[keys], pairs, seen[keys], refined=template == "refined", evaluations=evaluations)
     else:
         keys = np.zeros(0, int)
         distances = np.linalg.norm(rays[0, pairs[:, 0]] - rays[0, pairs[:, 1]], axis=1)
@@ -324,6 +322,39 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
     if len(anchors) < T:
         _between(depths, anchors, seen)
     return (depths, distances) if with_distances else depths
+
+
+def solve_template(rays: np.ndarray, pairs: np.ndarray, seen: Optional[np.ndarray] = None, refined: bool = False,
+                   evaluations: int = 100) -> Tuple[np.ndarray, np.ndarray]:
+    """The depths (M, n) of frames solved together, their points' ``rays``
+    (M, n, 3) (``seen`` (M, n): in view, default all; NaN where not), and
+    the template distances (E,) of ``pairs`` (E, 2) that the joint cone
+    program gives them; ``refined``: then each pair held to its distance
+    in every frame (least squares, at most ``evaluations`` evaluations):
+    :func:`mdh_depths`' keyframes, ``template`` "joint" or "refined"."""
+    depths, distances = _socp(rays, pairs, None, seen)
+    return _refine(rays, pairs, depths, distances, evaluations) if refined else (depths, distances)
+
+
+def pair_strain(xy: np.ndarray, depths: np.ndarray, camera: Camera, pairs: np.ndarray, distances: np.ndarray) -> float:
+    """How far ``pairs`` (E, 2) stray from their template ``distances``
+    (E,) in the frames of ``xy`` (M, n, 2) with ``depths`` (M, n) (NaN:
+    out of view): the root mean square over the pairs in view of
+    ``‖Z_i r_i − Z_j r_j‖ / D_ij − 1`` through ``camera``. 0: every pair
+    at its length. In the keyframes ``template="refined"`` fitted, what
+    is left is what the tracks' errors and the sheet's own stretch leave:
+    a cloth more than a print (docs/campaign.md)."""
+    xy, depths, pairs, distances = np.asarray(xy, np.float64), np.asarray(depths, np.float64), np.asarray(pairs), np.asarray(distances, np.float64)
+    if xy.ndim != 3 or xy.shape[2] != 2 or depths.shape != xy.shape[:2]:
+        raise ValueError(f"xy, depths: expected tracks (M, n, 2) and their depths (M, n), got shapes {xy.shape} and {depths.shape}")
+    if pairs.ndim != 2 or pairs.shape[1] != 2 or distances.shape != (len(pairs),):
+        raise ValueError(f"pairs, distances: expected (E, 2) pairs and their (E,) distances, got shapes {pairs.shape} and {distances.shape}")
+    points = camera.rays(xy) * depths[..., None]
+    strains = np.linalg.norm(points[:, pairs[:, 0]] - points[:, pairs[:, 1]], axis=2) / distances - 1
+    strains = strains[np.isfinite(strains)]
+    if not strains.size:
+        raise ValueError("xy: expected a pair with both points in view in some frame")
+    return float(np.sqrt(np.mean(strains**2)))
 
 
 def keyframe_indices(T: int, keyframes: int) -> np.ndarray:

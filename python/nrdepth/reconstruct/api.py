@@ -112,7 +112,7 @@ def reconstruct(video: np.ndarray, model: Model = None, options: Optional[Recons
     pipeline = Pipeline(video.shape[1:], chunks, net, device, options, mask)
     raw = np.concatenate(list(stitched(pipeline, progress)))
     if region is not None:
-        _said(sheet_depth(raw, pipeline.work, options, options.sheet_camera(gray.shape[1:3]), region, iter(select(gray, options.frames, None))))
+        _said(sheet_depth(raw, pipeline.work, options, options.sheet_camera(gray.shape[1:3]), region, lambda: iter(select(gray, options.frames, None))))
     offset, scale = units_of(pipeline, raw, options.temporal, options.units)
     return final(pipeline, raw, 0, len(raw), offset, -scale if options.flip else scale)
 
@@ -158,7 +158,7 @@ def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.
         for chunk in stitched(pipeline, progress):
             raw.append(chunk)
         if region is not None:
-            whole = (frame for chunk in open_video(input, "input", options.frames, None).chunks(CHUNK) for frame in chunk)  # streamed
+            whole = lambda: (frame for chunk in open_video(input, "input", options.frames, None).chunks(CHUNK) for frame in chunk)  # noqa: E731 (streamed)
             writer.set_metadata("sheet", _said(sheet_depth(raw, pipeline.work, options, options.sheet_camera(source.raw_size), region, whole)).as_dict())
         offset, scale = units_of(pipeline, raw, options.temporal, options.units)
         scale = -scale if options.flip else scale

@@ -28,7 +28,7 @@ from ..isometric import DROP, EACH_FRAME, TEMPLATES
 from .fine import check_tile
 from .stitch import ALIGNMENTS, COARSE_WEIGHT, TEMPORAL_WEIGHT, WINDOWS, check_stitching
 
-__all__ = ["ReconstructOptions", "MAX_SIDE", "FINE_PASSES", "ISOMETRIC_SCALE", "ISOMETRIC_DROP", "ISOMETRIC_HOLD", "ISOMETRIC_EACH_FRAME", "UNITS", "add_flags", "options_from_flags"]
+__all__ = ["ReconstructOptions", "MAX_SIDE", "FINE_PASSES", "ISOMETRIC_SCALE", "REFINED_SCALE", "STAGE_TEMPLATES", "ISOMETRIC_DROP", "ISOMETRIC_HOLD", "ISOMETRIC_EACH_FRAME", "UNITS", "add_flags", "options_from_flags"]
 
 MAX_SIDE = 480
 """Default working resolution: a frame's longer side, in pixels. The real
@@ -38,10 +38,20 @@ FINE_PASSES = ("field", "patches")
 """The fine passes, the default first (:mod:`nrdepth.reconstruct.fine`)."""
 UNITS = ("standard", "pixels")
 ISOMETRIC_SCALE = 0.3
-"""With a camera's focal length, the isometric depth's shape is kept above
-this scale (a fraction of the frame's shorter side) and the network's
-below it; picked by a rule fixed beforehand on 64 generated sheets
-(docs/campaign.md)."""
+"""With a camera's focal length, the isometric depth's shape from the
+joint template is kept above this scale (a fraction of the frame's
+shorter side) and the network's below it; picked by a rule fixed
+beforehand on 64 generated sheets (docs/campaign.md)."""
+REFINED_SCALE = 0.1
+"""The same for the held points' ``refined`` template that
+``isometric_template="auto"`` reads where its lengths hold: of 0.3, 0.2,
+0.1 and 0.05 the best on 32 generated paper-like sheets by a rule fixed
+beforehand (docs/campaign.md, "refined where its lengths hold")."""
+STAGE_TEMPLATES = ("auto",) + TEMPLATES
+"""The sheet stage's templates: "auto" (the held points through
+``refined`` where their pairs keep their lengths, the joint template
+otherwise: :func:`~nrdepth.reconstruct.sheet.sheet_depth`), or one of
+:data:`nrdepth.isometric.TEMPLATES` alone."""
 ISOMETRIC_DROP = DROP
 """With a camera's focal length, the share of the tracked points left out
 (:data:`nrdepth.isometric.DROP`)."""
@@ -166,23 +176,24 @@ class ReconstructOptions:
     focal: Union[None, float, Tuple[float, float], Camera] = _option(
         None, "for a sheet (paper, cloth) filmed by a perspective camera: its focal length in pixels of the video's frames, F or FX,FY "
         "(or a nrdepth.Camera, whose principal point comes with it). The "
-        "shape above isometric_scale then comes from inextensibility (points followed by optical flow over the sheet; nrdepth.isometric), "
+        "shape above isometric_scale then comes from inextensibility (points followed over the sheet; nrdepth.isometric), "
         "the relief below it from the network, and on a long video that bends the sheet many ways the relief's sign too (a short clip reads "
         f"as a dome). Without it, a sheet given (sheet) is seen through a pinhole guessed to see {GUESSED_VIEW:g}° across the frame's longer "
         "side (nrdepth.Camera.guessed). The sheet stage holds two frames at a time; on kinect_paper's 191 frames of 640×480 it "
-        "costs about 20 s on two threads (docs/reconstruction.md)", type=_parse_numbers("F or FX,FY in pixels", (1, 2)), metavar="F[,FY]")
+        "costs about 28 s on two threads (docs/reconstruction.md)", type=_parse_numbers("F or FX,FY in pixels", (1, 2)), metavar="F[,FY]")
     centre: Optional[Tuple[float, float]] = _option(None, "with focal or sheet: the principal point in the video's frames (default: their centre)",
                                                     type=_parse_numbers("CX,CY in pixels", (2,)), metavar="CX,CY")
     sheet: Union[None, np.ndarray, Tuple[int, int, int, int]] = _option(
         None, "a sheet (paper, cloth) in the video, whose shape then comes from inextensibility as with focal (without focal, through a "
         "guessed pinhole): where the points are spread in the first selected frame, on the sheet only (not the background or the hands): a "
         "box X,Y,W,H in the video's pixels, or bool (H, W) (with focal, default: roi, or the whole frame)", type=_ROI, metavar="X,Y,W,H")
-    isometric_scale: float = _option(ISOMETRIC_SCALE, "with focal or sheet: the length below which the network's relief is kept, as a fraction of the "
-                                     "frame's shorter side (0: the isometric depth alone)", type=float)
-    isometric_template: str = _option(TEMPLATES[0], "with focal or sheet: the pairs' template distances (nrdepth.isometric.mdh_depths): joint, refined "
-                                      "(each pair held to its distance in every keyframe; for a long video of a sheet bent many ways, with "
-                                      "isometric_drop 0.3 and isometric_scale 0.2), first (the first frame a flat sheet facing the camera)",
-                                      choices=TEMPLATES)
+    isometric_scale: Optional[float] = _option(None, "with focal or sheet: the length below which the network's relief is kept, as a fraction of the "
+                                               f"frame's shorter side (0: the isometric depth alone; default: {REFINED_SCALE} through the held points' refined "
+                                               f"template, {ISOMETRIC_SCALE} through the others)", type=float)
+    isometric_template: str = _option(STAGE_TEMPLATES[0], "with focal or sheet: the pairs' template distances (nrdepth.isometric.mdh_depths): auto (points "
+                                      "held to the first frame through refined where their pairs keep their lengths, the joint template otherwise), joint, "
+                                      "refined (each pair held to its distance in every keyframe), first (the first frame a flat sheet facing the camera)",
+                                      choices=STAGE_TEMPLATES)
     isometric_each_frame: str = _option(ISOMETRIC_EACH_FRAME, "with focal or sheet: each frame's depths (nrdepth.isometric.mdh_depths' each_frame): program "
                                         "(the maximum-depth program's), lengths (refined so that each pair keeps its template distance: every frame, or none where one "
                                         "would change its shape), "
@@ -192,7 +203,8 @@ class ReconstructOptions:
                                     type=float)
     isometric_hold: bool = _option(ISOMETRIC_HOLD, "with focal or sheet: each point found again after every step of the flow by its look in the "
                                    "first frame, lost (not dragged) where it is not (nrdepth.isometric.track_points' hold); the stage then "
-                                   "reads only the points held in at least 0.8 of their frames, and steps aside where too few are held",
+                                   "reads only the points held in at least 0.8 of their frames, and steps aside where too few are held; with the template auto, "
+                                   "the points read through the joint template where the held points through refined give way",
                                    action="store_true")
     isometric_points: int = _option(400, "with focal or sheet: about how many points are followed over the sheet (a square grid)", type=int)
     # The outputs.
@@ -299,12 +311,12 @@ def _check_sheet(o: ReconstructOptions) -> None:
         object.__setattr__(o, "focal", camera.focal)
         object.__setattr__(o, "centre", o.centre if o.centre is not None else camera.centre)
     Camera(1.0 if o.focal is None else o.focal, o.centre)  # raises naming focal or centre (a guessed focal length: the centre alone)
-    if not (is_number(o.isometric_scale) and np.isfinite(o.isometric_scale) and o.isometric_scale >= 0):
+    if o.isometric_scale is not None and not (is_number(o.isometric_scale) and np.isfinite(o.isometric_scale) and o.isometric_scale >= 0):
         raise option_error("isometric_scale", f"expected a fraction of the frame's shorter side >= 0, got {o.isometric_scale!r}")
     if o.units != "standard" or o.temporal:
         raise option_error("focal", "the isometric shape comes with units='standard' and temporal off only")
-    if o.isometric_template not in TEMPLATES:
-        raise option_error("isometric_template", f"expected one of {TEMPLATES}, got {o.isometric_template!r}")
+    if o.isometric_template not in STAGE_TEMPLATES:
+        raise option_error("isometric_template", f"expected one of {STAGE_TEMPLATES}, got {o.isometric_template!r}")
     if o.isometric_each_frame not in EACH_FRAME:
         raise option_error("isometric_each_frame", f"expected one of {EACH_FRAME}, got {o.isometric_each_frame!r}")
     if not (is_number(o.isometric_drop) and 0 <= o.isometric_drop < 1):

@@ -5,27 +5,31 @@ shape above a length scale from the sheet's inextensibility
 Points over the sheet are followed through the selected frames whole (not
 cut to the region: points near its edge stay in view), their depths come
 from the maximum-depth heuristic through the camera, and they are spread
-over the region's working frame and fused with the network's depth. A
-video that gives the shape nothing to read keeps the network's depth;
-either way the stage returns what it did (:class:`SheetDecision`).
+over the region's working frame and fused with the network's depth. By
+default two readings are tried in turn: points held to the first frame
+through the ``refined`` template, kept where their pairs keep their
+lengths (:data:`MAX_STRAIN`), else the flow's points through the joint
+template. A video that gives the shape nothing to read keeps the
+network's depth; either way the stage returns what it did
+(:class:`SheetDecision`).
 """
 
 from __future__ import annotations
 
 import itertools
 from dataclasses import asdict, dataclass
-from typing import Iterable, Optional, Tuple
+from typing import Callable, Iterable, List, Optional, Tuple, Union
 
 import numpy as np
 
 from ..baselines.tracks import densify
 from ..camera import Camera
 from ..checks import option_error
-from ..isometric import NotSolved, TooFewPoints, fuse, held_share, mdh_depths, point_held_shares, start_grid, track_grid
+from ..isometric import NotSolved, TooFewPoints, fuse, held_share, keyframe_indices, mdh_depths, neighbour_pairs, pair_strain, point_held_shares, start_grid, track_grid
 from .frames import CHUNK, as_uint8
-from .options import ReconstructOptions
+from .options import ISOMETRIC_SCALE, REFINED_SCALE, ReconstructOptions
 
-__all__ = ["sheet_region", "sheet_depth", "SheetDecision", "FLOW_MARGIN", "KEYFRAMES", "EVERY", "NEIGHBOURS", "MIN_FRAMES", "MIN_TEXTURE", "MIN_MOTION", "MIN_HELD", "KEEP_HELD"]
+__all__ = ["sheet_region", "sheet_depth", "SheetDecision", "FLOW_MARGIN", "KEYFRAMES", "EVERY", "NEIGHBOURS", "MIN_FRAMES", "MIN_TEXTURE", "MIN_MOTION", "MIN_HELD", "KEEP_HELD", "MAX_STRAIN"]
 
 FLOW_MARGIN = 48
 """The sheet's points are followed by the flow over their box and this
@@ -78,6 +82,16 @@ is rarely found, and the warp's guesses between would pull the program.
 On 32 generated print sheets they read −0.0146 ± 0.0089 per frame
 against every held point (docs/campaign.md, "Print sheets")."""
 
+MAX_STRAIN = 0.0107
+"""With ``isometric_template="auto"``: the held points' ``refined``
+template is read where its keyframes' pairs keep their lengths to this
+root mean square strain (:func:`~nrdepth.isometric.pair_strain`), and
+the flow's points through the joint template where they do not (a sheet
+that stretches, or tracks that slip). By a rule fixed beforehand: the
+90th percentile of the strain over 20 generated inextensible sheets
+whose points are held (clips 902–917; the print reads 0.0031, the cloth
+0.0110: docs/campaign.md, "refined where its lengths hold")."""
+
 
 @dataclass(frozen=True)
 class SheetDecision:
@@ -87,7 +101,10 @@ class SheetDecision:
     (:meth:`~nrdepth.Camera.guessed`), the ``frames`` read, the ``points`` read (after the drop and, held, :data:`KEEP_HELD`),
     the ``texture`` (gray levels, :data:`MIN_TEXTURE`), ``motion``
     (pixels, :data:`MIN_MOTION`) and the share of point-frames ``held``
-    (:data:`MIN_HELD`) its checks measured (None where not reached). :meth:`line` is the job's log
+    (:data:`MIN_HELD`) its checks measured (None where not reached), the
+    ``template`` whose points were read last, the held points' ``strain``
+    under ``refined`` (:data:`MAX_STRAIN`) and the fusion's ``scale`` (a
+    fraction of the shorter side) where used. :meth:`line` is the job's log
     line; ``depth.npz`` keeps :meth:`as_dict` as JSON under ``sheet``."""
 
     used: bool
@@ -100,15 +117,21 @@ class SheetDecision:
     texture: Optional[float] = None
     motion: Optional[float] = None
     held: Optional[float] = None
+    template: Optional[str] = None
+    strain: Optional[float] = None
+    scale: Optional[float] = None
 
     def as_dict(self) -> dict:
         return asdict(self)
 
     def line(self) -> str:
         what = "the sheet's shape from inextensibility" if self.used else "the network's depth alone"
-        measured = "".join(f", {name} {value:.2f}" for name, value in (("texture", self.texture), ("motion px", self.motion), ("held", self.held))
+        measured = "".join(f", {name} {value:.{digits}f}" for name, value, digits in
+                           (("texture", self.texture, 2), ("motion px", self.motion, 2), ("held", self.held, 2), ("strain", self.strain, 4), ("scale", self.scale, 2))
                            if value is not None)
-        return f"sheet: {what} ({self.reason}; focal {self.focal[0]:g},{self.focal[1]:g} px{' guessed' if self.guessed else ''}, {self.frames} frames, {self.points} points{measured})"
+        template = f", template {self.template}" if self.template else ""
+        return (f"sheet: {what} ({self.reason}; focal {self.focal[0]:g},{self.focal[1]:g} px{' guessed' if self.guessed else ''}, {self.frames} frames, "
+                f"{self.points} points{template}{measured})")
 
 
 def sheet_region(options: ReconstructOptions, frame: Tuple[int, int]) -> np.ndarray:
@@ -137,51 +160,107 @@ def sheet_region(options: ReconstructOptions, frame: Tuple[int, int]) -> np.ndar
 
 
 def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera: Camera, region: np.ndarray,
-                frames: Iterable[np.ndarray]) -> SheetDecision:
+                frames: Callable[[], Iterable[np.ndarray]]) -> SheetDecision:
     """Gives the stitched depth ``raw`` (T, h, w; an array or
     :class:`~.frames.DiskFrames`, changed in place, a chunk at a time) at
-    the working resolution ``work`` its shape above
-    ``options.isometric_scale`` from the sheet's inextensibility: points
-    over ``region`` (:func:`sheet_region`, bool (H, W)) followed through
-    ``frames`` (the selected frames whole, each (H, W), read once as they
-    come: two are held at a time) and their depths through ``camera``,
-    spread over the region's working frame. Unless the video gives the
-    shape nothing to read (fewer than :data:`MIN_FRAMES` frames, a region
-    with less texture than :data:`MIN_TEXTURE`, points that move less than
-    :data:`MIN_MOTION`, held points found again in fewer point-frames than
-    :data:`MIN_HELD`, a frame with too few of them for its program, or a
-    program with no answer, as through a focal length far too long):
-    then ``raw`` is left alone. Held, only the points found again in
-    :data:`KEEP_HELD` of their frames are read. Returns what it did."""
+    the working resolution ``work`` its shape above the fusion's scale
+    from the sheet's inextensibility: points over ``region``
+    (:func:`sheet_region`, bool (H, W)) followed through ``frames()`` (a
+    fresh stream of the selected frames whole, each (H, W), read as they
+    come: two are held at a time; a second stream where the first reading
+    gives way) and their depths through ``camera``, spread over the
+    region's working frame.
+
+    The readings tried, in order: with ``isometric_template`` "auto",
+    points held to the first frame, of them those found in every frame,
+    through the ``refined`` template, fused at ``REFINED_SCALE``, where
+    their pairs keep their lengths (strain at most :data:`MAX_STRAIN`);
+    else the points of ``isometric_hold`` (the flow's by default) through
+    the joint template at ``ISOMETRIC_SCALE`` (``isometric_scale`` given
+    replaces both scales). With another template, that one alone. A
+    reading gives way where the video gives it nothing to read (held
+    points found again in fewer point-frames than :data:`MIN_HELD`,
+    points that move less than :data:`MIN_MOTION`, a frame with too few
+    of them for its program, or a program with no answer, as through a
+    focal length far too long); where every reading gives way, or the
+    video has fewer than :data:`MIN_FRAMES` frames or a region with less
+    texture than :data:`MIN_TEXTURE`, ``raw`` is left alone. Held, only
+    the points found again in :data:`KEEP_HELD` of their frames are read.
+    Returns what it did, with each reading's reason for giving way."""
     camera = camera.at(region.shape)
     T = len(raw)
     record = dict(focal=tuple(map(float, camera.focal)), centre=tuple(map(float, camera.centre)), frames=T, guessed=options.focal is None)
     if T < MIN_FRAMES:
         return SheetDecision(False, f"{T} frames, fewer than the {MIN_FRAMES} the sheet's shape needs", **record)
-    frames = iter(frames)
-    first = as_uint8(next(frames))
-    texture = _texture(first, region)
-    if texture < MIN_TEXTURE:
-        return SheetDecision(False, f"the sheet's region has no texture for the flow to follow ({texture:.2f} < {MIN_TEXTURE:g})", texture=texture, **record)
-    xy = track_grid((as_uint8(frame) for frame in itertools.chain([first], frames)), region, points=int(options.isometric_points),
-                    drop=float(options.isometric_drop), margin=FLOW_MARGIN, hold=bool(options.isometric_hold))
+    auto = options.isometric_template == "auto"
+    readings = [("refined", True), ("joint", bool(options.isometric_hold))] if auto else [(options.isometric_template, bool(options.isometric_hold))]
+    passed: List[str] = []  # each reading's reason for giving way
+    for template, hold in readings:
+        stream = iter(frames())
+        first = as_uint8(next(stream))
+        if not passed:
+            texture = _texture(first, region)
+            record.update(texture=texture)
+            if texture < MIN_TEXTURE:
+                return SheetDecision(False, f"the sheet's region has no texture for the flow to follow ({texture:.2f} < {MIN_TEXTURE:g})", **record)
+        xy = track_grid((as_uint8(frame) for frame in itertools.chain([first], stream)), region, points=int(options.isometric_points),
+                        drop=float(options.isometric_drop), margin=FLOW_MARGIN, hold=hold)
+        through = auto and template == "refined"  # the points found in every frame: the setting its rule read
+        read = _read(xy, first.shape, hold, through, template, options, camera, record)
+        if isinstance(read, str):
+            passed.append(f"{_named(template, hold)}: {read}" if auto else read)
+            continue
+        scale = options.isometric_scale if options.isometric_scale is not None else (REFINED_SCALE if through else ISOMETRIC_SCALE)
+        _fused(raw, work, options, region, *read, float(scale))
+        why = "the video moves the textured sheet" + (f" (not {'; not '.join(passed)})" if passed else "")
+        return SheetDecision(True, why, scale=float(scale), **record)
+    return SheetDecision(False, "; ".join(passed), **record)
+
+
+def _named(template: str, hold: bool) -> str:
+    return f"{'held' if hold else 'the flow' + chr(39) + 's'} points through {template}"
+
+
+def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, through: bool, template: str, options: ReconstructOptions, camera: Camera,
+          record: dict) -> Union[Tuple[np.ndarray, np.ndarray], str]:
+    """The points read and their depths ((T, n, 2), (T, n)) of ``xy`` (T, n, 2) tracked over
+    frames of ``frame`` (H, W), ``hold`` (found again by their look in the
+    first frame), of them ``through``: only those found in every frame,
+    and the strain of their ``refined`` template held to
+    :data:`MAX_STRAIN`; or why the video gives this reading nothing to
+    read. ``record`` takes what the checks measured."""
     motion = float(np.median(np.nanmax(np.linalg.norm(xy - xy[:1], axis=2), axis=0)))
-    held = held_share(xy, first.shape) if options.isometric_hold else None
-    record.update(points=xy.shape[1], texture=texture, motion=motion, held=held)
+    held = held_share(xy, frame) if hold else None
+    record.update(points=xy.shape[1], motion=motion, held=held, template=template)
     if held is not None and held < MIN_HELD:  # first: the motion is measured on the points held
-        return SheetDecision(False, f"the points are found again in only {held:.0%} of the frames (< {MIN_HELD:.0%}): too faint a texture", **record)
+        return f"the points are found again in only {held:.0%} of the frames (< {MIN_HELD:.0%}): too faint a texture"
     if held is not None:
-        xy = xy[:, point_held_shares(xy, first.shape) >= KEEP_HELD]
-        record.update(points=xy.shape[1])
+        xy = xy[:, point_held_shares(xy, frame) >= KEEP_HELD]
+    if through:
+        xy = xy[:, np.isfinite(xy).all(axis=(0, 2))]
+    record.update(points=xy.shape[1])
     if not motion >= MIN_MOTION:
-        return SheetDecision(False, f"the video does not move (the points {motion:.2f} px at most from where they start, < {MIN_MOTION:g})", **record)
-    cheaper = {"keyframes": KEYFRAMES, "every": EVERY, "neighbours": NEIGHBOURS} if options.isometric_template == "joint" else {}  # what the rules read
+        return f"the video does not move (the points {motion:.2f} px at most from where they start, < {MIN_MOTION:g})"
+    if xy.shape[1] < 3:
+        return f"{xy.shape[1]} points held in every frame, fewer than the 3 a program needs"
+    cheaper = {"keyframes": KEYFRAMES, "every": EVERY, "neighbours": NEIGHBOURS} if template == "joint" or through else {}  # what the rules read
     try:
-        depths = mdh_depths(xy, camera, template=options.isometric_template, each_frame=options.isometric_each_frame, **cheaper)
+        depths, distances = mdh_depths(xy, camera, template=template, each_frame=options.isometric_each_frame, with_distances=True, **cheaper)
     except TooFewPoints as error:
-        return SheetDecision(False, f"too few points held in frames {error.frames[:5]}", **record)
+        return f"too few points held in frames {error.frames[:5]}"
     except NotSolved as error:  # e.g. a focal length far too long: rays nearly parallel, no perspective to read the shape by
-        return SheetDecision(False, f"the sheet's cone program found no answer ({error.status}): is the focal length right?", **record)
+        return f"the sheet's cone program found no answer ({error.status}): is the focal length right?"
+    if through:
+        keys = keyframe_indices(len(xy), KEYFRAMES)
+        strain = pair_strain(xy[keys], depths[keys], camera, neighbour_pairs(xy[0], NEIGHBOURS), distances)
+        record.update(strain=strain)
+        if strain > MAX_STRAIN:
+            return f"their pairs do not keep their lengths (strain {strain:.4f} > {MAX_STRAIN:g}): a sheet that stretches, or tracks that slip"
+    return xy, depths
+
+
+def _fused(raw, work: Tuple[int, int], options: ReconstructOptions, region: np.ndarray, xy: np.ndarray, depths: np.ndarray, scale: float) -> None:
+    """``raw`` fused in place, a chunk at a time, with the points' depths spread over the region's working frame."""
     x, y, w_region, h_region = options.roi or (0, 0, region.shape[1], region.shape[0])
     h, w = work
     # Into the region's working frame: area-averaged resizes keep pixel centres' relative places.
@@ -190,9 +269,8 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
         b = min(a + CHUNK, len(xy))
         chunk = np.asarray(raw[a:b])
         on = np.isfinite(chunk)
-        fused = fuse(np.where(on, chunk, 0.0), densify(working[a:b], depths[a:b], chunk.shape), float(options.isometric_scale) * min(h, w), mask=on)
+        fused = fuse(np.where(on, chunk, 0.0), densify(working[a:b], depths[a:b], chunk.shape), scale * min(h, w), mask=on)
         raw[a:b] = np.where(on, fused, np.nan).astype(np.float32)
-    return SheetDecision(True, "the video moves the textured sheet", **record)
 
 
 def _texture(frame: np.ndarray, region: np.ndarray) -> float:
