@@ -218,7 +218,8 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
 
 
 def _named(template: str, hold: bool) -> str:
-    return f"{'held' if hold else 'the flow' + chr(39) + 's'} points through {template}"
+    """A reading's name in the log line: whose points, through which template."""
+    return ("held" if hold else "the flow's") + f" points through {template}"
 
 
 def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, through: bool, template: str, options: ReconstructOptions, camera: Camera,
