@@ -69,7 +69,7 @@ def parse(setting: str) -> dict:
         key, _, value = item.partition("=")
         if key not in out:
             raise SystemExit(f"--settings: unknown lever {key!r} (known: {', '.join(out)})")
-        out[key] = value if key in ("flow", "each", "place", "template") or (key, value) == ("fov", "strain") else \
+        out[key] = value if key in ("flow", "each", "place", "template") or (key == "fov" and value in ("strain", "held")) else \
             float(value) if key in ("drop", "keep", "anchor", "fov") else (None if value == "none" else int(value))
     if out["keep"] and not out["hold"]:
         raise SystemExit(f"--settings {setting!r}: keep needs hold=1")
@@ -77,8 +77,8 @@ def parse(setting: str) -> dict:
         raise SystemExit(f"--settings {setting!r}: template is joint or refined")
     if out["anchor"] and out["each"] != "lengths":
         raise SystemExit(f"--settings {setting!r}: anchor needs each=lengths")
-    if out["fov"] not in (None, "strain") and not 0 < out["fov"] < 180:
-        raise SystemExit(f"--settings {setting!r}: fov is the degrees a pinhole sees across the frame's longer side, in (0, 180), or strain")
+    if out["fov"] not in (None, "strain", "held") and not 0 < out["fov"] < 180:
+        raise SystemExit(f"--settings {setting!r}: fov is the degrees a pinhole sees across the frame's longer side, in (0, 180), strain or held")
     if not out["backward"] and out["drop"]:
         raise SystemExit(f"--settings {setting!r}: drop needs the flow both ways: give drop=0 with backward=0")
     return out

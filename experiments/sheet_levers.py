@@ -10,7 +10,8 @@ and scale): per-frame MAE-SN of each, and its seconds for the points and
 the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 ``benchmarks/bench_sheet_stage.py`` (``margin``, ``flow``, ``keyframes``,
 ``neighbours``, ``points``, ``hold``, ``backward``, ``drop``, ``keep``, ``each``, ``anchor``, ``fov``: a guessed
-pinhole in place of the true camera (``strain``: the focal length from the points' strain), ``place``: the points where the first
+pinhole in place of the true camera (``strain``: the focal length from the points' strain; ``held``: the one an
+earlier held setting's ``strain`` found, else the guess), ``place``: the points where the first
 frame has texture, ``inset``: the sheet's region shrunk first, ``whole``: the points over
 the whole frame, backdrop and all, not over the sheet, ``piece``: of the points read, the one
 piece that moves most, as ``experiments/kinect_box_parts.py`` finds the paper); the first is the reference, each
@@ -154,7 +155,7 @@ def main() -> None:
             base = dense_baselines(truth, on)
             row["plane per frame"], row["bowl per frame"] = base["plane"], base["bowl"]
             score = sparse_scorer(video, region, clips.vertices[k], params, config.size, row, network) if args.sparse else None
-            tracks, programs = {}, {}
+            tracks, programs, held_focal = {}, {}, None  # held_focal: the camera a held setting's fov=strain found, for fov=held
             for name, lever in zip([s or "default" for s in settings], levers):
                 start = time.perf_counter()
                 key = (lever["flow"], lever["margin"], lever["points"], lever["hold"], lever["backward"], lever["drop"], lever["place"], lever["inset"],
@@ -186,7 +187,11 @@ def main() -> None:
                 try:
                     if held < args.min_held:
                         raise ValueError(f"{held:.2f} of the point-frames held")
-                    through = pinhole(lever["fov"], true_camera, xy, video.shape[1:])
+                    if lever["fov"] == "held":  # the held points' estimate, where a held setting before found one; the guess elsewhere
+                        through = held_focal or nrdepth.Camera.guessed(video.shape[1:])
+                    else:
+                        through = pinhole(lever["fov"], true_camera, xy, video.shape[1:])
+                        held_focal = through if lever["fov"] == "strain" and lever["hold"] else held_focal
                     if through is None:
                         raise SystemExit(f"--settings {name!r}: the video is seen orthographically: only a guessed camera (fov=) reads it")
                     # One every: solved as the stage solves it; several: read off the every-frame solution
