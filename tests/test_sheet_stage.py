@@ -185,3 +185,11 @@ def test_auto_reads_held_points_through_refined_where_their_lengths_hold_and_the
     assert fallback.used and fallback.template == "joint" and fallback.strain == refined.strain and fallback.held is None
     assert "not held points through refined: their pairs do not keep their lengths" in fallback.line()
     np.testing.assert_array_equal(stretched, joint)
+    # Held points for the joint reading too: the tracks the first reading followed, not followed again
+    followed, follow = [], stage.track_grid
+    monkeypatch.setattr(stage, "track_grid", lambda *a, **k: followed.append(k["hold"]) or follow(*a, **k))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SheetFallback)
+        held = nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS, isometric_hold=True)
+    assert followed == [True] and decisions[-1].template == "joint" and decisions[-1].held is not None
+    np.testing.assert_array_equal(held, nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS, isometric_hold=True, isometric_template="joint"))

@@ -195,18 +195,20 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
     auto = options.isometric_template == "auto"
     readings = [("refined", True), ("joint", bool(options.isometric_hold))] if auto else [(options.isometric_template, bool(options.isometric_hold))]
     passed: List[str] = []  # each reading's reason for giving way
+    tracked = {}  # hold: the tracks, followed once for every reading that reads them
     for template, hold in readings:
-        stream = iter(frames())
-        first = as_uint8(next(stream))
-        if not passed:
-            texture = _texture(first, region)
-            record.update(texture=texture)
-            if texture < MIN_TEXTURE:
-                return SheetDecision(False, f"the sheet's region has no texture for the flow to follow ({texture:.2f} < {MIN_TEXTURE:g})", **record)
-        xy = track_grid((as_uint8(frame) for frame in itertools.chain([first], stream)), region, points=int(options.isometric_points),
-                        drop=float(options.isometric_drop), margin=FLOW_MARGIN, hold=hold)
+        if hold not in tracked:
+            stream = iter(frames())
+            first = as_uint8(next(stream))
+            if not tracked:
+                texture = _texture(first, region)
+                record.update(texture=texture)
+                if texture < MIN_TEXTURE:
+                    return SheetDecision(False, f"the sheet's region has no texture for the flow to follow ({texture:.2f} < {MIN_TEXTURE:g})", **record)
+            tracked[hold] = track_grid((as_uint8(frame) for frame in itertools.chain([first], stream)), region, points=int(options.isometric_points),
+                                       drop=float(options.isometric_drop), margin=FLOW_MARGIN, hold=hold)
         through = auto and template == "refined"  # the points found in every frame: the setting its rule read
-        read = _read(xy, first.shape, hold, through, template, options, camera, record)
+        read = _read(tracked[hold], region.shape, hold, through, template, options, camera, record)
         if isinstance(read, str):
             passed.append(f"{_named(template, hold)}: {read}" if auto else read)
             continue
