@@ -46,9 +46,9 @@ def named(setting: str, through: str) -> str:
     return setting + (f":{through}" if through else "")
 
 
-def gated(rows: list, tau: float, min_held: float, through: str, scale: float) -> tuple:
-    """Per sheet: the gated stage's per-frame error through the camera ``through`` with ``T`` at ``scale``, and whether ``T`` holds."""
-    t, f = named(T, through), named(F, through)
+def gated(rows: list, tau: float, min_held: float, held: str, through: str, scale: float) -> tuple:
+    """Per sheet: the gated stage's per-frame error through the camera ``through`` with the held setting ``held`` at ``scale``, and whether it holds."""
+    t, f = named(held, through), named(F, through)
     holds = (column(rows, f"{t} held") >= min_held) & (column(rows, f"{t} strain") <= tau)
     return np.where(holds, column(rows, per_frame(t, scale)), column(rows, per_frame(f, 0.3))), holds
 
@@ -64,11 +64,13 @@ def main() -> None:
     parser.add_argument("--tau", type=float, default=None, help="the strain read (default: the 90th percentile of T's over the set)")
     parser.add_argument("--min-held", type=float, default=0.8, help="the held gate (reconstruct.sheet.MIN_HELD)")
     parser.add_argument("--through", default="", help="the camera the settings read through: a fov lever of sheet_levers.py (default: the true one)")
+    parser.add_argument("--held", default=T, help="the held setting (default: T, module docstring)")
+    parser.add_argument("--versus-held", default=None, help="with --versus: the held setting there (default: --held's)")
     parser.add_argument("--fallback", default=None, help="the camera F reads through (default: --through's)")
     parser.add_argument("--versus", default=None, help="another camera (a fov lever, or 'true'): the gated stage through it, paired")
     args = parser.parse_args()
     rows = [row for path in args.csv for row in csv.DictReader(open(path, newline=""))]
-    held, strain = column(rows, f"{named(T, args.through)} held"), column(rows, f"{named(T, args.through)} strain")
+    held, strain = column(rows, f"{named(args.held, args.through)} held"), column(rows, f"{named(args.held, args.through)} strain")
     passes = held >= args.min_held
     tau = float(np.percentile(strain[passes], 90)) if args.tau is None else args.tau
     holds = passes & (strain <= tau)
@@ -79,17 +81,17 @@ def main() -> None:
     print(f"per frame: the network {network.mean():.4f}, F at 0.3 {flow.mean():.4f}, the bowl {column(rows, 'bowl per frame').mean():.4f}, "
           f"the plane {column(rows, 'plane per frame').mean():.4f}")
     if args.through:
-        for setting, through in ((T, args.through), (F, fallback)):
+        for setting, through in ((args.held, args.through), (F, fallback)):
             ratio = column(rows, f"{named(setting, through)} focal ratio")
             read = ratio[np.isfinite(ratio)]
             print(f"{named(setting, through)}: the focal length over the truth on {len(read)} sheets: median {np.median(read):.3f}, "
                   f"within 25 % on {np.mean(np.abs(np.log(read)) <= np.log(1.25)):.0%}" + (f" ({np.mean(np.abs(np.log(ratio[passes])) <= np.log(1.25)):.0%} "
-                  f"of the {passes.sum()} whose held gate passes)" if setting == T else ""))
-    for scale in [scale for scale in SCALES if per_frame(named(T, args.through), scale) in rows[0]]:  # the scales the run read
-        stage = np.where(holds, column(rows, per_frame(named(T, args.through), scale)), flow)
+                  f"of the {passes.sum()} whose held gate passes)" if setting == args.held else ""))
+    for scale in [scale for scale in SCALES if per_frame(named(args.held, args.through), scale) in rows[0]]:  # the scales the run read
+        stage = np.where(holds, column(rows, per_frame(named(args.held, args.through), scale)), flow)
         line = f"T at {scale:g}: the gated stage {stage.mean():.4f}, against F at 0.3 {paired(stage, flow)}, against the network {paired(stage, network)}"
         if args.versus is not None:
-            other, _ = gated(rows, tau, args.min_held, "" if args.versus == "true" else args.versus, scale)
+            other, _ = gated(rows, tau, args.min_held, args.versus_held or args.held, "" if args.versus == "true" else args.versus, scale)
             line += f", against the same through {args.versus} ({other.mean():.4f}) {paired(stage, other)}"
         print(line)
 
