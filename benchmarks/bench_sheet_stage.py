@@ -240,7 +240,7 @@ def main() -> None:
         scales = [ISOMETRIC_SCALE] if args.scales is None else [float(v) for v in args.scales.split(",")]
         mm = [kinect_score(isometric.fuse(network, dense, scale * min(rw, rh)), truth) for scale in scales]
         print(f"{setting:40s} points {tracked - start:5.1f} s, programs {solved - tracked:5.1f} s, stage {solved - start:5.1f} s "
-              f"({(solved - start) / rest:.2f}× the rest): " + ", ".join(f"{m:.2f} mm at {scale:g}" for m, scale in zip(mm, scales)), flush=True)
+              f"({(solved - start) / rest:.2f}× the rest): " + ", ".join(f"{m:.3f} mm at {scale:g}" for m, scale in zip(mm, scales)), flush=True)
     print(f"sgemm 2048²: {sgemm():.0f} GFLOP/s", flush=True)
 
 
