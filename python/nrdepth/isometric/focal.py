@@ -15,7 +15,9 @@ strain measured; the least is refined by the parabola through it and
 its two neighbours (in the logarithm). On ``kinect_paper``'s held
 points the strain is least at the Kinect's focal length and twice as
 large at 0.7× or 1.4× it; on the cloth, which stretches, it barely
-changes (docs/campaign.md, "The focal length from the strain").
+changes (docs/campaign.md, "The focal length from the strain"). The
+sheet stage does not use it: on generated sheets filmed at 40–80° it
+read them no better than a guessed 40° pinhole (docs/findings.md).
 
 Frames and units: pixel coordinates (column x, row y); focal lengths in
 pixels; the principal point at the frame's centre unless given.

@@ -27,9 +27,9 @@ from .coarse import coarse_depth, coarse_half
 from .fine import GPU_TILE, MARGIN, TILE, field_frames, field_windows, patch_depths, tile_plan
 from .frames import Statistic, working_shape
 from .network import inference_model
-from .options import FINE_PASSES, ISOMETRIC_DROP, ISOMETRIC_SCALE, MAX_SIDE, ReconstructOptions
+from .options import FINE_PASSES, ISOMETRIC_DROP, ISOMETRIC_SCALE, MAX_SIDE, REFINED_SCALE, ReconstructOptions
 from .sheet import SheetDecision
 
-__all__ = ["reconstruct", "reconstruct_file", "reconstruct_many", "BatchRow", "SheetDecision", "SheetFallback", "ReconstructOptions", "Camera", "MAX_SIDE", "FINE_PASSES", "ISOMETRIC_SCALE", "ISOMETRIC_DROP",
+__all__ = ["reconstruct", "reconstruct_file", "reconstruct_many", "BatchRow", "SheetDecision", "SheetFallback", "ReconstructOptions", "Camera", "MAX_SIDE", "FINE_PASSES", "ISOMETRIC_SCALE", "REFINED_SCALE", "ISOMETRIC_DROP",
            "coarse_depth", "coarse_half", "patch_depths", "field_frames", "field_windows", "tile_plan", "inference_model", "working_shape",
            "Statistic", "TILE", "GPU_TILE", "MARGIN"]
