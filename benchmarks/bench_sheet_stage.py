@@ -129,13 +129,11 @@ def shortfall(xy: np.ndarray, depths: np.ndarray, camera, distances: np.ndarray,
 
 
 def strain(xy: np.ndarray, depths: np.ndarray, camera, distances: np.ndarray, lever: dict) -> float:
-    """:func:`nrdepth.isometric.pair_strain` in the keyframes the template
-    was read from (after ``refined``, what the tracks and the sheet's
-    stretch leave). Arguments as :func:`shortfall`'s."""
+    """:func:`nrdepth.isometric.template_strain` of the setting's keyframes and
+    pairs. Arguments as :func:`shortfall`'s."""
     from nrdepth import isometric
 
-    keys = isometric.keyframe_indices(len(xy), lever["keyframes"])
-    return isometric.pair_strain(xy[keys], depths[keys], camera, isometric.neighbour_pairs(xy[0], lever["neighbours"]), distances)
+    return isometric.template_strain(xy, depths, camera, distances, lever["keyframes"], lever["neighbours"])
 
 
 def keep_held(xy: np.ndarray, shape: tuple, lever: dict) -> np.ndarray:

@@ -92,8 +92,7 @@ def phisft_isometric(shape: tuple, points: int, neighbours: int, far: int, reach
     camera = nrdepth.Camera.guessed(full.shape[1:]) if guessed else nrdepth.Camera(FOCAL, CENTRE)
     depths, distances = isometric.mdh_depths(xy, camera, neighbours=neighbours, far=far, reach=reach, template=template, each_frame=each_frame,
                                                anchor=anchor, keyframes=keyframes, every=every, with_distances=True)
-    keys = isometric.keyframe_indices(len(xy), keyframes)
-    strain = isometric.pair_strain(xy[keys], depths[keys], camera, isometric.neighbour_pairs(xy[0], neighbours, far, reach), distances)
+    strain = isometric.template_strain(xy, depths, camera, distances, keyframes, neighbours, far, reach)
     print(f"phisft_R1: {xy.shape[1]} points, their keyframes' strain {strain:.4f} (reconstruct.sheet.MAX_STRAIN: the stage's gate on refined)")
     binned = (xy + 0.5) / 4 - 0.5 - np.array([left, top])  # full-frame pixels to the binned crop's
     return densify(binned, depths, shape)

@@ -20,7 +20,7 @@ from ..camera import Camera
 from .mirror import check_anchor, keep_lengths, mirror_or_not, shape_kept
 from .points import DROP, check_video, track_grid
 
-__all__ = ["neighbour_pairs", "mdh_depths", "pair_strain", "keyframe_indices", "solve_template", "isometric_depth", "TooFewPoints", "TEMPLATES", "EACH_FRAME"]
+__all__ = ["neighbour_pairs", "mdh_depths", "pair_strain", "template_strain", "keyframe_indices", "solve_template", "isometric_depth", "TooFewPoints", "TEMPLATES", "EACH_FRAME"]
 
 
 class TooFewPoints(ValueError):
@@ -355,6 +355,18 @@ def pair_strain(xy: np.ndarray, depths: np.ndarray, camera: Camera, pairs: np.nd
     if not strains.size:
         raise ValueError("xy: expected a pair with both points in view in some frame")
     return float(np.sqrt(np.mean(strains**2)))
+
+
+def template_strain(xy: np.ndarray, depths: np.ndarray, camera: Camera, distances: np.ndarray, keyframes: int, neighbours: int = 20,
+                    far: int = 0, reach: int = 0) -> float:
+    """:func:`pair_strain` in the ``keyframes`` frames :func:`mdh_depths`
+    read its template from, of its default pairs (``neighbours``, ``far``,
+    ``reach``): ``xy`` (T, n, 2) and ``depths`` (T, n) and ``distances``
+    (E,) as ``mdh_depths(..., with_distances=True)`` gave them. After
+    ``template="refined"``, what the tracks' errors and the sheet's own
+    stretch leave."""
+    keys = keyframe_indices(len(xy), keyframes)
+    return pair_strain(np.asarray(xy)[keys], np.asarray(depths)[keys], camera, neighbour_pairs(np.asarray(xy)[0], neighbours, far, reach), distances)
 
 
 def keyframe_indices(T: int, keyframes: int) -> np.ndarray:

@@ -25,7 +25,7 @@ import numpy as np
 from ..baselines.tracks import densify
 from ..camera import Camera
 from ..checks import option_error
-from ..isometric import NotSolved, TooFewPoints, fuse, held_share, keyframe_indices, mdh_depths, neighbour_pairs, pair_strain, point_held_shares, start_grid, track_grid
+from ..isometric import NotSolved, TooFewPoints, fuse, held_share, mdh_depths, point_held_shares, start_grid, template_strain, track_grid
 from .frames import CHUNK, as_uint8
 from .options import ISOMETRIC_SCALE, REFINED_SCALE, ReconstructOptions
 
@@ -254,8 +254,7 @@ def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, through: bool, tem
     except NotSolved as error:  # e.g. a focal length far too long: rays nearly parallel, no perspective to read the shape by
         return f"the sheet's cone program found no answer ({error.status}): is the focal length right?"
     if through:
-        keys = keyframe_indices(len(xy), KEYFRAMES)
-        strain = pair_strain(xy[keys], depths[keys], camera, neighbour_pairs(xy[0], NEIGHBOURS), distances)
+        strain = template_strain(xy, depths, camera, distances, KEYFRAMES, NEIGHBOURS)
         record.update(strain=strain)
         if strain > MAX_STRAIN:
             return f"their pairs do not keep their lengths (strain {strain:.4f} > {MAX_STRAIN:g}): a sheet that stretches, or tracks that slip"
