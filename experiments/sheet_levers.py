@@ -12,7 +12,7 @@ the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 ``neighbours``, ``points``, ``hold``, ``backward``, ``drop``, ``keep``, ``each``, ``anchor``, ``fov``: a guessed
 pinhole in place of the true camera (``strain``: the focal length from the points' strain; ``held``: the one an
 earlier held setting's ``strain`` found, else the guess), ``place``: the points where the first
-frame has texture, ``inset``: the sheet's region shrunk first, ``whole``: the points over
+frame has texture, ``inset``: the sheet's region shrunk first, ``moving``: of the points read, those that move, ``whole``: the points over
 the whole frame, backdrop and all, not over the sheet, ``piece``: of the points read, the one
 piece that moves most, as ``experiments/kinect_box_parts.py`` finds the paper); the first is the reference, each
 other is paired against it. Each setting's ``shortfall`` is recorded too:

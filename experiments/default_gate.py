@@ -1,0 +1,80 @@
+"""The sheet stage by default, read off ``sheet_levers.py``'s CSVs
+(docs/campaign.md, "The sheet's shape by default"):
+
+1. the held gate on the points read: the given-sheet stage (``T`` at 0.1
+   where at least ``MIN_READ`` of the points asked for are read and their
+   strain is at most τ, ``F`` at 0.3 elsewhere) against the stage with
+   the gate on the point-frames held (``--min-held``), paired per frame;
+2. the default: ``T`` through the 40° guess over the whole frame
+   (``$T:fov=40:whole=1``) at 0.1 where the same gate holds, the network
+   elsewhere, against the network alone, paired per frame, on the sheets
+   and (``--noise``) on videos that are no sheet.
+
+    python experiments/default_gate.py docs/reconstruction/default_below.csv docs/reconstruction/default_above.csv
+    python experiments/default_gate.py docs/reconstruction/moving_below.csv docs/reconstruction/moving_above.csv --default "$T:fov=40:whole=1:moving=1" --noise docs/reconstruction/moving_noise.csv
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+from strain_gate import F, T, column, paired, per_frame  # noqa: E402
+
+DEFAULT = T + ":fov=40:whole=1"
+
+
+def rows_of(paths: list) -> list:
+    return [row for path in paths for row in csv.DictReader(open(path, newline=""))]
+
+
+def holds(rows: list, setting: str, tau: float, min_read: float, points: int) -> np.ndarray:
+    """Per video: whether ``setting``'s points read number at least ``min_read`` of ``points`` and their strain is at most ``tau`` (NaN: no program)."""
+    strain = np.array([float(row.get(f"{setting} strain", "nan") or "nan") for row in rows])
+    return (column(rows, f"{setting} points") >= min_read * points) & (strain <= tau)
+
+
+def default_reading(rows: list, setting: str, tau: float, min_read: float, points: int) -> tuple:
+    read = holds(rows, setting, tau, min_read, points)
+    return np.where(read, column(rows, per_frame(setting, 0.1)), column(rows, "network per frame")), read
+
+
+def main() -> None:
+    from nrdepth.reconstruct.sheet import MAX_STRAIN, MIN_READ
+
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("csv", type=Path, nargs="+", help="sheet_levers.py's CSVs of the sheets (settings F, T and the default), read as one set")
+    parser.add_argument("--noise", type=Path, nargs="*", default=[], help="sheet_levers.py's CSVs of videos that are no sheet (the default setting)")
+    parser.add_argument("--tau", type=float, default=MAX_STRAIN)
+    parser.add_argument("--min-read", type=float, default=MIN_READ)
+    parser.add_argument("--min-held", type=float, default=0.8, help="the gate on the point-frames held, before")
+    parser.add_argument("--points", type=int, default=400, help="the points asked for (sheet_levers.py's points)")
+    parser.add_argument("--default", default=DEFAULT, help="the default's setting (default: T through the guess over the whole frame)")
+    args = parser.parse_args()
+    rows = rows_of(args.csv)
+    network = column(rows, "network per frame")
+    print(f"{len(rows)} sheets; the network {network.mean():.4f}, the bowl {column(rows, 'bowl per frame').mean():.4f}, the plane {column(rows, 'plane per frame').mean():.4f}")
+    if per_frame(F, 0.3) in rows[0]:  # the given-sheet stage's two gates
+        flow, held = column(rows, per_frame(F, 0.3)), column(rows, per_frame(T, 0.1))
+        before = (column(rows, f"{T} held") >= args.min_held) & (column(rows, f"{T} strain") <= args.tau)
+        after = holds(rows, T, args.tau, args.min_read, args.points)
+        stage_before, stage_after = np.where(before, held, flow), np.where(after, held, flow)
+        print(f"1. T read on {before.sum()} with the gate on the point-frames held, on {after.sum()} with the gate on the points read: "
+              f"{stage_after.mean():.4f} against {stage_before.mean():.4f}, {paired(stage_after, stage_before)}")
+    default, read = default_reading(rows, args.default, args.tau, args.min_read, args.points)
+    print(f"2. the default reads {read.sum()} of {len(rows)} sheets: {default.mean():.4f} against the network {paired(default, network)}; "
+          f"where read, {paired(default[read], network[read])}")
+    if args.noise:
+        noise = rows_of(args.noise)
+        default, read = default_reading(noise, args.default, args.tau, args.min_read, args.points)
+        net = column(noise, "network per frame")
+        print(f"   not sheets: the default reads {read.sum()} of {len(noise)}: {default.mean():.4f} against the network {net.mean():.4f}, {paired(default, net)}")
+
+
+if __name__ == "__main__":
+    main()
