@@ -335,6 +335,26 @@ def test_held_points_beside_blank_paper_are_not_pulled_by_its_flow():
     assert np.linalg.norm(held[:, beside] - truth[:, beside], axis=2)[found].max() < 0.5
 
 
+def test_the_warp_fitted_to_held_points_on_one_line_falls_back_to_every_point_not_a_singular_fit():
+    """Where the points held in a frame lie on one line (a coloured-noise video once held just such a row), the affine moving
+    least squares has no answer: the warp is fitted to every point instead of raising numpy's LinAlgError."""
+    import cv2
+
+    from nrdepth.isometric.hold import Anchor
+
+    video = shifted_texture(frames=2, window=140)
+    start = isometric.start_grid(None, video.shape[1:], points=49)
+    anchor = Anchor(cv2, video[0], start, margin=48)
+    row = np.isclose(start[:, 1], start[0, 1])  # the grid's first row: collinear
+    assert row.sum() >= 3
+    for fitted in (row, np.eye(len(start), dtype=bool)[0] | np.eye(len(start), dtype=bool)[1]):  # a line; two points
+        anchor._fit(fitted)
+        assert anchor.fitted.all() and np.isfinite(anchor.to_nodes).all()
+    some = row | np.isclose(start[:, 0], start[0, 0])  # a row and a column span the plane: fitted as asked
+    anchor._fit(some)
+    np.testing.assert_array_equal(anchor.fitted, some)
+
+
 def test_points_placed_by_texture_go_on_the_print_with_their_windows_on_the_mask_and_follow_it():
     from nrdepth.isometric import start_texture
 

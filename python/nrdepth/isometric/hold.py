@@ -131,7 +131,12 @@ class Anchor:
                        criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01), flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
 
     def _fit(self, fitted: np.ndarray) -> None:
-        """The warp's matrices over the points ``fitted`` (n,) bool (at least 3)."""
+        """The warp's matrices over the points ``fitted`` (n,) bool, or over
+        every point where those do not span the plane (fewer than 3, or all
+        on one line: an affine fit would be singular)."""
+        anchors = np.column_stack([self.start[fitted], np.ones(int(fitted.sum()))])
+        if fitted.sum() < 3 or np.linalg.matrix_rank(anchors) < 3:
+            fitted = np.ones(len(self.start), bool)
         if self.fitted is None or not np.array_equal(fitted, self.fitted):
             self.fitted, anchors = fitted.copy(), self.start[fitted]
             self.to_nodes = _mls(self.nodes, anchors, self.node_weights[:, fitted])
@@ -179,5 +184,5 @@ class Anchor:
                 & (found[:, 0] >= 0) & (found[:, 1] >= 0) & (found[:, 0] <= w - 1) & (found[:, 1] <= h - 1))
         held &= _correlation(self.look, origin.reshape(-1, 2), pulled, found) >= HOLD_NCC
         position = np.stack([map_coordinates(m, [found[:, 1], found[:, 0]], order=1, mode="nearest") for m in (map_x, map_y)], axis=1).astype(np.float64)
-        self._fit(held if held.sum() >= 3 else np.ones(len(held), bool))
+        self._fit(held)
         return position, held, predicted
