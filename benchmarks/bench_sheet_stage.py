@@ -31,7 +31,9 @@ whole frame, not the sheet's true region), ``piece`` (``sheet_levers.py``
 only: of the points read, the one piece that moves most,
 ``experiments/kinect_box_parts.moving_piece``), ``template`` (``mdh_depths``':
 joint or refined), ``throughout`` (1: only the points found in every
-frame, none that leaves the view or is lost).
+frame, none that leaves the view or is lost), ``moving`` (1: of the points
+read, only those that move at least the stage's ``MIN_MOTION`` from where
+they start: none on a still background).
 With ``hold``, where fewer of the point-frames in view are held than the
 stage's ``MIN_HELD``, the stage steps aside, as it does in the job.
 ``--job true``: also the whole job with the sheet stage at its defaults
@@ -65,7 +67,7 @@ def sgemm() -> float:
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
@@ -139,11 +141,14 @@ def strain(xy: np.ndarray, depths: np.ndarray, camera, distances: np.ndarray, le
 def keep_held(xy: np.ndarray, shape: tuple, lever: dict) -> np.ndarray:
     """The tracks of the points held in at least ``lever["keep"]`` of their
     frames in view; with ``lever["throughout"]``, of those only the points
-    held in every frame."""
+    held in every frame; with ``lever["moving"]``, of those only the points
+    that move at least the stage's ``MIN_MOTION`` from where they start."""
     from nrdepth import isometric
+    from nrdepth.reconstruct.sheet import MIN_MOTION
 
     xy = xy[:, isometric.point_held_shares(xy, shape) >= lever["keep"]] if lever["keep"] else xy
-    return xy[:, np.isfinite(xy).all(axis=(0, 2))] if lever["throughout"] else xy
+    xy = xy[:, np.isfinite(xy).all(axis=(0, 2))] if lever["throughout"] else xy
+    return xy[:, np.nanmax(np.linalg.norm(xy - xy[:1], axis=2), axis=0) >= MIN_MOTION] if lever["moving"] else xy
 
 
 def box_check(frames: np.ndarray, box: np.ndarray) -> None:
@@ -168,6 +173,7 @@ def main() -> None:
                         "setting's whole sheet is read at (default: the stage's)")
     parser.add_argument("--box", choices=("print", "sheet"), default="print",
                         help="the points over the print (KINECT_INNER) or the whole sheet's box (KINECT_ROI)")
+    parser.add_argument("--min-held", type=float, default=None, help="the held gate on the point-frames (default: the stage's MIN_HELD; 0: none)")
     parser.add_argument("--no-box-check", action="store_true", help="skip following every point with and without the box first")
     parser.add_argument("--job", choices=("true", "guessed"), default=None,
                         help="also the whole job with the sheet stage at its defaults, through the true camera or the guessed one (module docstring)")
@@ -224,7 +230,7 @@ def main() -> None:
         xy = isometric.track_grid(frames, inset_region(box, lever["inset"]), points=lever["points"], drop=lever["drop"], flow=lever["flow"], margin=lever["margin"],
                                   hold=bool(lever["hold"]), backward=bool(lever["backward"]), place=lever["place"])
         held = isometric.held_share(xy, frames.shape[1:]) if lever["hold"] else 1.0
-        if held < MIN_HELD:  # the stage's gate, before keep: it steps aside, the sheet reads as the network
+        if held < (MIN_HELD if args.min_held is None else args.min_held):  # the stage's gate, before keep: it steps aside, the sheet reads as the network
             print(f"{setting:40s} points {time.perf_counter() - start:5.1f} s: steps aside ({held:.2f} of the point-frames held); "
                   f"the network's {kinect_score(network, truth):.2f} mm", flush=True)
             continue

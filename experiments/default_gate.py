@@ -2,7 +2,7 @@
 (docs/campaign.md, "The sheet's shape by default"):
 
 1. the held gate on the points read: the given-sheet stage (``T`` at 0.1
-   where at least ``MIN_READ`` of the points asked for are read and their
+   where at least :data:`MIN_READ` of the points asked for are read and their
    strain is at most τ, ``F`` at 0.3 elsewhere) against the stage with
    the gate on the point-frames held (``--min-held``), paired per frame;
 2. the default: ``T`` through the 40° guess over the whole frame
@@ -11,7 +11,8 @@
    and (``--noise``) on videos that are no sheet.
 
     python experiments/default_gate.py docs/reconstruction/default_below.csv docs/reconstruction/default_above.csv
-    python experiments/default_gate.py docs/reconstruction/moving_below.csv docs/reconstruction/moving_above.csv --default "$T:fov=40:whole=1:moving=1" --noise docs/reconstruction/moving_noise.csv
+    python experiments/default_gate.py docs/reconstruction/moving_below.csv docs/reconstruction/moving_above.csv --default "$T:fov=40:whole=1:moving=1" \
+        --noise docs/reconstruction/long_noise_1030.csv docs/reconstruction/long_noise_1046.csv docs/reconstruction/long_noise_1061.csv
 """
 
 from __future__ import annotations
@@ -27,6 +28,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 from strain_gate import F, T, column, paired, per_frame  # noqa: E402
 
 DEFAULT = T + ":fov=40:whole=1"
+MIN_READ = 0.1
+"""The proposal's gate: at least this share of the points asked for read."""
 
 
 def rows_of(paths: list) -> list:
@@ -45,7 +48,7 @@ def default_reading(rows: list, setting: str, tau: float, min_read: float, point
 
 
 def main() -> None:
-    from nrdepth.reconstruct.sheet import MAX_STRAIN, MIN_READ
+    from nrdepth.reconstruct.sheet import MAX_STRAIN
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("csv", type=Path, nargs="+", help="sheet_levers.py's CSVs of the sheets (settings F, T and the default), read as one set")
