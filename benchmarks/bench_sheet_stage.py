@@ -33,7 +33,8 @@ only: of the points read, the one piece that moves most,
 joint or refined), ``throughout`` (1: only the points found in every
 frame, none that leaves the view or is lost), ``moving`` (1: of the points
 read, only those that move at least the stage's ``MIN_MOTION`` from where
-they start: none on a still background).
+they start: none on a still background), ``fscale`` (the flow on frames
+shrunk by this factor, ``track_points``' ``flow_scale``).
 With ``hold``, where fewer of the point-frames in view are held than the
 stage's ``MIN_HELD``, the stage steps aside, as it does in the job.
 ``--job true``: also the whole job with the sheet stage at its defaults
@@ -67,13 +68,13 @@ def sgemm() -> float:
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0, "fscale": 1.0}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
             raise SystemExit(f"--settings: unknown lever {key!r} (known: {', '.join(out)})")
         out[key] = value if key in ("flow", "each", "place", "template") or (key == "fov" and value in ("strain", "held")) else \
-            float(value) if key in ("drop", "keep", "anchor", "fov") else (None if value == "none" else int(value))
+            float(value) if key in ("drop", "keep", "anchor", "fov", "fscale") else (None if value == "none" else int(value))
     if out["keep"] and not out["hold"]:
         raise SystemExit(f"--settings {setting!r}: keep needs hold=1")
     if out["template"] not in ("joint", "refined"):
@@ -228,7 +229,7 @@ def main() -> None:
         lever = parse(setting)
         start = time.perf_counter()
         xy = isometric.track_grid(frames, inset_region(box, lever["inset"]), points=lever["points"], drop=lever["drop"], flow=lever["flow"], margin=lever["margin"],
-                                  hold=bool(lever["hold"]), backward=bool(lever["backward"]), place=lever["place"])
+                                  hold=bool(lever["hold"]), backward=bool(lever["backward"]), place=lever["place"], flow_scale=lever["fscale"])
         held = isometric.held_share(xy, frames.shape[1:]) if lever["hold"] else 1.0
         if held < (MIN_HELD if args.min_held is None else args.min_held):  # the stage's gate, before keep: it steps aside, the sheet reads as the network
             print(f"{setting:40s} points {time.perf_counter() - start:5.1f} s: steps aside ({held:.2f} of the point-frames held); "

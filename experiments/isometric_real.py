@@ -74,7 +74,7 @@ def phisft_crop() -> tuple:
 
 def phisft_isometric(shape: tuple, points: int, neighbours: int, far: int, reach: int, window: int, backward: bool, template: str, drop: float, hold: bool = False,
                      each_frame: str = "program", anchor: float = 0.0, place: str = "grid", keyframes: int = 24, every: int = 1,
-                     guessed: bool = False, keep: float = 0.0, throughout: bool = False, flow: str = "farneback") -> np.ndarray:
+                     guessed: bool = False, keep: float = 0.0, throughout: bool = False, flow: str = "farneback", flow_scale: float = 1.0) -> np.ndarray:
     """The cloth's isometric depth on the binned crop, of ``shape`` (T, H, W), through the true camera or, ``guessed``, ``Camera.guessed``'s;
     with ``hold``, only the points held in ``keep`` of their frames and, ``throughout``, in every frame."""
     from scipy.ndimage import binary_erosion
@@ -86,7 +86,7 @@ def phisft_isometric(shape: tuple, points: int, neighbours: int, far: int, reach
     cloth = binary_erosion(full[0] > 10, iterations=8)
     inside = np.zeros_like(cloth)
     inside[4 * top : 4 * bottom, 4 * left : 4 * right] = True
-    xy = isometric.track_grid(full, cloth & inside, points, window, backward, drop, flow=flow, hold=hold, place=place)
+    xy = isometric.track_grid(full, cloth & inside, points, window, backward, drop, flow=flow, hold=hold, place=place, flow_scale=flow_scale)
     xy = xy[:, isometric.point_held_shares(xy, full.shape[1:]) >= keep] if keep else xy
     xy = xy[:, np.isfinite(xy).all(axis=(0, 2))] if throughout else xy
     camera = nrdepth.Camera.guessed(full.shape[1:]) if guessed else nrdepth.Camera(FOCAL, CENTRE)
@@ -125,12 +125,12 @@ def read_all(args) -> list:
                                               far=args.far, reach=args.reach, window=args.window,
                                               backward=not args.forward, template=args.template, drop=drop, hold=args.hold,
                                               each_frame=args.each_frame, anchor=args.anchor, place=args.place, keyframes=args.keyframes, every=args.every,
-                                              flow=args.flow)
+                                              flow=args.flow, flow_scale=args.flow_scale)
             print(f"kinect_paper: isometric depth in {time.perf_counter() - start:.0f} s")
             start = time.perf_counter()
             cloth = phisft_isometric(video.shape, args.points[0], args.neighbours[0], args.far, args.reach, args.window, not args.forward, args.template, drop,
                                      hold=args.hold, each_frame=args.each_frame, anchor=args.anchor, place=args.place, keyframes=args.keyframes, every=args.every,
-                                     guessed=args.guessed, keep=args.keep, throughout=args.throughout, flow=args.flow)
+                                     guessed=args.guessed, keep=args.keep, throughout=args.throughout, flow=args.flow, flow_scale=args.flow_scale)
             print(f"phisft_R1: isometric depth in {time.perf_counter() - start:.0f} s")
         reading = "network" if scale is None else ("isometric" if scale == 0 else f"fused at {scale:g}") + (f", drop {drop:g}" if len(args.drop) > 1 else "")
         row = {"reading": reading, "drop": "" if drop is None else drop, "scale": "" if scale is None else scale}
@@ -209,6 +209,7 @@ def main() -> None:
     parser.add_argument("--window", type=int, default=21, help="the flow's window in pixels (isometric.track_grid)")
     parser.add_argument("--forward", action="store_true", help="the forward flow alone, not both ways (isometric.track_grid)")
     parser.add_argument("--flow", default="farneback", choices=isometric.FLOWS, help="the dense flow (isometric.track_grid's flow)")
+    parser.add_argument("--flow-scale", type=float, default=1.0, help="the flow on frames shrunk by this factor (isometric.track_grid's flow_scale)")
     parser.add_argument("--hold", action="store_true", help="each point found again by its look in the first frame (isometric.track_grid's hold)")
     parser.add_argument("--keep", type=float, default=0.0, help="with --hold, the cloth's points held in this share of their frames alone (isometric.point_held_shares)")
     parser.add_argument("--throughout", action="store_true", help="the cloth's points found in every frame alone")

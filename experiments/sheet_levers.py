@@ -12,7 +12,7 @@ the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 ``neighbours``, ``points``, ``hold``, ``backward``, ``drop``, ``keep``, ``each``, ``anchor``, ``fov``: a guessed
 pinhole in place of the true camera (``strain``: the focal length from the points' strain; ``held``: the one an
 earlier held setting's ``strain`` found, else the guess), ``place``: the points where the first
-frame has texture, ``inset``: the sheet's region shrunk first, ``moving``: of the points read, those that move, ``whole``: the points over
+frame has texture, ``inset``: the sheet's region shrunk first, ``moving``: of the points read, those that move, ``fscale``: the flow on frames shrunk by this factor, ``whole``: the points over
 the whole frame, backdrop and all, not over the sheet, ``piece``: of the points read, the one
 piece that moves most, as ``experiments/kinect_box_parts.py`` finds the paper); the first is the reference, each
 other is paired against it. Each setting's ``shortfall`` is recorded too:
@@ -159,7 +159,7 @@ def main() -> None:
             for name, lever in zip([s or "default" for s in settings], levers):
                 start = time.perf_counter()
                 key = (lever["flow"], lever["margin"], lever["points"], lever["hold"], lever["backward"], lever["drop"], lever["place"], lever["inset"],
-                       lever["whole"])  # keep, each: after the tracks
+                       lever["whole"], lever["fscale"])  # keep, each: after the tracks
                 if lever.get("truth"):
                     truth_xy, _ = true_tracks(clips.vertices[k], params, config.size, points=lever["points"])
                     tracks[key + ("truth",)] = np.where(in_view(truth_xy, config.size)[..., None], truth_xy, np.nan)
@@ -172,7 +172,7 @@ def main() -> None:
                 elif key not in tracks:
                     tracks[key] = isometric.track_grid(video, None if lever["whole"] else inset_region(region, lever["inset"]), points=lever["points"],
                                                        drop=lever["drop"], flow=lever["flow"], margin=lever["margin"], hold=bool(lever["hold"]),
-                                                       backward=bool(lever["backward"]), place=lever["place"])
+                                                       backward=bool(lever["backward"]), place=lever["place"], flow_scale=lever["fscale"])
                 held = held_share(tracks[key], video.shape[1:]) if lever["hold"] else 1.0  # before keep, as the stage gates
                 xy = keep_held(tracks[key], video.shape[1:], lever)
                 if lever.get("at_truth"):  # the same points, lost where they are, at their true positions

@@ -207,6 +207,23 @@ def test_the_flow_over_the_points_box_follows_as_the_whole_frames_does():
         isometric.track_grid(video, mask, margin=-1)
 
 
+def test_the_flow_on_shrunk_frames_moves_points_in_the_frames_own_pixels_and_held_points_land_where_they_would():
+    video = shifted_texture(frames=6, size=200, window=140)
+    mask = np.zeros(video.shape[1:], bool)
+    mask[40:100, 40:100] = True
+    for hold in (False, True):
+        full = isometric.track_grid(video, mask, points=16, margin=24, hold=hold)
+        half = isometric.track_grid(video, mask, points=16, margin=24, hold=hold, flow_scale=0.5)
+        assert not np.array_equal(half, full)  # the flow did read other frames
+        np.testing.assert_allclose(half[-1] - half[0], np.broadcast_to([10.0, 5.0], half[0].shape), atol=0.3)  # the field scaled back
+        if hold:  # found again by their look at the frames' own size: where the full flow's would be
+            np.testing.assert_allclose(half, full, atol=0.05)
+    np.testing.assert_array_equal(isometric.track_grid(video, mask, points=16, flow_scale=1.0), isometric.track_grid(video, mask, points=16))
+    for bad in (0, 1.5, "half"):
+        with pytest.raises(ValueError, match="flow_scale: expected a factor in"):
+            isometric.track_grid(video, mask, flow_scale=bad)
+
+
 class InPlace:
     """An executor that runs what it is given at once, in the caller's thread."""
 

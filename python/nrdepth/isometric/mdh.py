@@ -400,13 +400,13 @@ def _between(depths: np.ndarray, anchors: np.ndarray, seen: np.ndarray) -> None:
 def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.ndarray] = None, points: int = 400,
                     neighbours: int = 20, keyframes: int = 24, far: int = 0, reach: int = 0, window: int = 21,
                     backward: bool = True, template: str = "joint", drop: float = DROP, hold: bool = False, each_frame: str = "program",
-                    anchor: float = 0.0, place: str = "grid", every: int = 1, flow: str = "farneback") -> np.ndarray:
+                    anchor: float = 0.0, place: str = "grid", every: int = 1, flow: str = "farneback", flow_scale: float = 1.0) -> np.ndarray:
     """Dense depth (T, H, W) float64 of an inextensible sheet filmed by
     ``video`` (T, H, W) uint8 through a perspective camera of focal length
     ``focal`` pixels (one number or (f_x, f_y)) and principal point
     ``centre`` (default: the frame's centre): :func:`track_grid` over
     ``mask`` (the sheet in the first frame; default: the whole frame;
-    ``points``, ``window``, ``backward``, ``drop``: :data:`DROP`, ``hold``, ``place``, ``flow``), :func:`mdh_depths` (``neighbours``,
+    ``points``, ``window``, ``backward``, ``drop``: :data:`DROP`, ``hold``, ``place``, ``flow``, ``flow_scale``), :func:`mdh_depths` (``neighbours``,
     ``keyframes``, ``far``, ``reach``, ``template``, ``each_frame``, ``anchor``, ``every``), then linear over the points' Delaunay triangles,
     nearest outside their hull. Units: the mean distance between
     neighbouring points is about 1."""
@@ -420,7 +420,7 @@ def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.nda
     check_anchor(anchor, each_frame)
     if not (isinstance(every, (int, np.integer)) and every >= 1):  # checked before tracking
         raise ValueError(f"every: expected an int >= 1 (1: every frame solved), got {every!r}")
-    xy = track_grid(video, mask, points, window, backward, drop, flow=flow, hold=hold, place=place)
+    xy = track_grid(video, mask, points, window, backward, drop, flow=flow, hold=hold, place=place, flow_scale=flow_scale)
     depths = mdh_depths(xy, camera, neighbours=neighbours, keyframes=keyframes, far=far, reach=reach, template=template, each_frame=each_frame,
                         anchor=anchor, every=every)
     return densify(xy, depths, video.shape)

@@ -93,13 +93,13 @@ to follow (:func:`start_texture`)."""
 
 def track_grid(video: Union[np.ndarray, Iterable[np.ndarray]], mask: Optional[np.ndarray] = None, points: int = 400, window: int = 21,
                backward: bool = True, drop: float = 0.0, border: float = BORDER, flow: str = "farneback",
-               margin: Optional[int] = None, hold: bool = False, place: str = "grid") -> np.ndarray:
+               margin: Optional[int] = None, hold: bool = False, place: str = "grid", flow_scale: float = 1.0) -> np.ndarray:
     """Tracks (T, n, 2) (column, row) of about ``points`` points over
     ``mask`` (H, W) of the first frame (default: the whole frame), placed
     by ``place`` (:data:`PLACES`: on a square grid, or where the first
     frame has texture), at least ``border`` pixels inside the frame's edge, moved through
     ``video`` ((T, H, W) uint8, or a stream of frames: :func:`frames_of`) by :func:`track_points` (``window``,
-    ``backward``, ``border``, ``flow``, ``margin``, ``hold``). ``drop``: the share of the points left out,
+    ``backward``, ``border``, ``flow``, ``margin``, ``hold``, ``flow_scale``). ``drop``: the share of the points left out,
     those whose forward and backward flows disagree most over the video
     (:func:`track_points`' ``disagreement``; needs ``backward``): points
     at a boundary of the motion, where the flow bleeds from one side to
@@ -112,8 +112,9 @@ def track_grid(video: Union[np.ndarray, Iterable[np.ndarray]], mask: Optional[np
         raise ValueError(f"place: expected one of {PLACES}, got {place!r}")
     grid = start_grid(mask, first.shape, points, drop, border) if place == "grid" else start_texture(first, mask, points, window, drop, border)
     if drop == 0:
-        return track_points(video, grid, window, backward, border=border, flow=flow, margin=margin, hold=hold)
-    xy, disagreement = track_points(video, grid, window, backward, disagreement=True, border=border, flow=flow, margin=margin, hold=hold)
+        return track_points(video, grid, window, backward, border=border, flow=flow, margin=margin, hold=hold, flow_scale=flow_scale)
+    xy, disagreement = track_points(video, grid, window, backward, disagreement=True, border=border, flow=flow, margin=margin, hold=hold,
+                                    flow_scale=flow_scale)
     return xy[:, least_disagreeing(disagreement, drop)]
 
 
@@ -188,7 +189,7 @@ def least_disagreeing(disagreement: np.ndarray, drop: float) -> np.ndarray:
 
 def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarray, window: int = 21, backward: bool = True,
                  disagreement: bool = False, border: float = BORDER, flow: str = "farneback", margin: Optional[int] = None,
-                 hold: bool = False):
+                 hold: bool = False, flow_scale: float = 1.0):
     """Tracks (T, n, 2) (column, row) of the points ``start`` (n, 2) of the
     first frame, moved through ``video`` ((T, H, W) uint8, or a stream of
     frames: :func:`frames_of`) by dense optical flow (``flow``) from each frame to the
@@ -211,7 +212,11 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
     flow's drift does not add up; a point not found again is NaN in that
     frame, not dragged, and may be found again later (NaN also where it
     is outside the frame). ``disagreement`` then averages over the frames
-    where a point is held."""
+    where a point is held.
+
+    ``flow_scale`` (0, 1]: the flow computed on the frames shrunk by this
+    factor (area-averaged), its field scaled back: its cost goes with the
+    area, and held points are found again at the frames' own size."""
     import cv2  # imported here: `import nrdepth` stays light
     from scipy.ndimage import map_coordinates
 
@@ -231,7 +236,9 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
         raise ValueError(f"margin: expected pixels >= 0 or None (the whole frame), got {margin!r}")
     if not isinstance(hold, (bool, np.bool_)):
         raise ValueError(f"hold: expected a bool, got {hold!r}")
-    dense, dense_back = _flow(cv2, flow, window), _flow(cv2, flow, window)  # one each: a DIS object is not shared between threads
+    if not (isinstance(flow_scale, (int, float, np.integer, np.floating)) and 0 < flow_scale <= 1):
+        raise ValueError(f"flow_scale: expected a factor in (0, 1], got {flow_scale!r}")
+    dense, dense_back = _flow(cv2, flow, window, flow_scale), _flow(cv2, flow, window, flow_scale)  # one each: a DIS object is not shared between threads
     H, W = first.shape
     anchor = Anchor(cv2, first, start, max(H, W) if margin is None else margin) if hold else None
 
@@ -287,12 +294,24 @@ FLOWS = ("farneback", "dis")
 ``window``-pixel windows) or DIS (its "medium" preset; ``window`` unused)."""
 
 
-def _flow(cv2, name: str, window: int):
-    """The dense flow from one uint8 frame to another, (H, W, 2) float32 (column, row)."""
+def _flow(cv2, name: str, window: int, scale: float = 1.0):
+    """The dense flow from one uint8 frame to another, (H, W, 2) float32
+    (column, row); with ``scale`` below 1, computed on both shrunk by it."""
     if name == "farneback":
-        return lambda a, b: cv2.calcOpticalFlowFarneback(a, b, None, 0.5, 5, window, 5, 7, 1.5, 0)
-    dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
-    return lambda a, b: dis.calc(np.ascontiguousarray(a), np.ascontiguousarray(b), None)
+        flow = lambda a, b: cv2.calcOpticalFlowFarneback(a, b, None, 0.5, 5, window, 5, 7, 1.5, 0)  # noqa: E731
+    else:
+        dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
+        flow = lambda a, b: dis.calc(np.ascontiguousarray(a), np.ascontiguousarray(b), None)  # noqa: E731
+    if scale == 1:
+        return flow
+
+    def shrunk(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        size = (max(1, round(a.shape[1] * scale)), max(1, round(a.shape[0] * scale)))
+        small = flow(cv2.resize(a, size, interpolation=cv2.INTER_AREA), cv2.resize(b, size, interpolation=cv2.INTER_AREA))
+        field = cv2.resize(small, (a.shape[1], a.shape[0]), interpolation=cv2.INTER_LINEAR)
+        return field * np.array([a.shape[1] / size[0], a.shape[0] / size[1]], np.float32)
+
+    return shrunk
 
 
 def inside(xy: np.ndarray, shape: Tuple[int, int], border: float) -> np.ndarray:
