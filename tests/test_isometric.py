@@ -219,7 +219,7 @@ def test_the_flow_on_shrunk_frames_moves_points_in_the_frames_own_pixels_and_hel
         if hold:  # found again by their look at the frames' own size: where the full flow's would be
             np.testing.assert_allclose(half, full, atol=0.05)
     np.testing.assert_array_equal(isometric.track_grid(video, mask, points=16, flow_scale=1.0), isometric.track_grid(video, mask, points=16))
-    for bad in (0, 1.5, "half"):
+    for bad in (0, 1.5, "half", True):
         with pytest.raises(ValueError, match="flow_scale: expected a factor in"):
             isometric.track_grid(video, mask, flow_scale=bad)
 

@@ -236,7 +236,7 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
         raise ValueError(f"margin: expected pixels >= 0 or None (the whole frame), got {margin!r}")
     if not isinstance(hold, (bool, np.bool_)):
         raise ValueError(f"hold: expected a bool, got {hold!r}")
-    if not (isinstance(flow_scale, (int, float, np.integer, np.floating)) and 0 < flow_scale <= 1):
+    if isinstance(flow_scale, (bool, np.bool_)) or not (isinstance(flow_scale, (int, float, np.integer, np.floating)) and 0 < flow_scale <= 1):
         raise ValueError(f"flow_scale: expected a factor in (0, 1], got {flow_scale!r}")
     dense, dense_back = _flow(cv2, flow, window, flow_scale), _flow(cv2, flow, window, flow_scale)  # one each: a DIS object is not shared between threads
     H, W = first.shape
