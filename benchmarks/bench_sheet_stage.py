@@ -34,7 +34,9 @@ joint or refined), ``throughout`` (1: only the points found in every
 frame, none that leaves the view or is lost), ``moving`` (1: of the points
 read, only those that move at least the stage's ``MIN_MOTION`` from where
 they start: none on a still background), ``fscale`` (the flow on frames
-shrunk by this factor, ``track_points``' ``flow_scale``).
+shrunk by this factor, ``track_points``' ``flow_scale``), ``contrast``
+(``experiments/sheet_levers.py`` only, 1: also ``estimate_focal``'s
+contrast on the points read, recorded, not used).
 With ``hold``, where fewer of the point-frames in view are held than the
 stage's ``MIN_HELD``, the stage steps aside, as it does in the job.
 ``--job true``: also the whole job with the sheet stage at its defaults
@@ -68,7 +70,7 @@ def sgemm() -> float:
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0, "fscale": 1.0}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0, "fscale": 1.0, "contrast": 0}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
@@ -180,8 +182,8 @@ def main() -> None:
                         help="also the whole job with the sheet stage at its defaults, through the true camera or the guessed one (module docstring)")
     args = parser.parse_args()
     for setting in args.settings.split(","):  # before the network's minutes
-        if any(parse(setting)[key] for key in ("whole", "piece")):  # read by sheet_levers alone: here they would change nothing, silently
-            raise SystemExit(f"--settings {setting!r}: whole and piece are experiments/sheet_levers.py's levers; the box here is --box")
+        if any(parse(setting)[key] for key in ("whole", "piece", "contrast")):  # read by sheet_levers alone: here they would change nothing, silently
+            raise SystemExit(f"--settings {setting!r}: whole, piece and contrast are experiments/sheet_levers.py's levers; the box here is --box")
 
     import cv2
     import torch

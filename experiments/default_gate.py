@@ -36,14 +36,16 @@ def rows_of(paths: list) -> list:
     return [row for path in paths for row in csv.DictReader(open(path, newline=""))]
 
 
-def holds(rows: list, setting: str, tau: float, min_read: float, points: int) -> np.ndarray:
-    """Per video: whether ``setting``'s points read number at least ``min_read`` of ``points`` and their strain is at most ``tau`` (NaN: no program)."""
-    strain = np.array([float(row.get(f"{setting} strain", "nan") or "nan") for row in rows])
-    return (column(rows, f"{setting} points") >= min_read * points) & (strain <= tau)
+def holds(rows: list, setting: str, tau: float, min_read: float, points: int, min_contrast: float = 0.0) -> np.ndarray:
+    """Per video: whether ``setting``'s points read number at least ``min_read`` of ``points``, their strain is at most
+    ``tau`` and, with ``min_contrast``, ``estimate_focal``'s contrast on them at least that (NaN: no program)."""
+    number = lambda name: np.array([float(row.get(f"{setting} {name}", "nan") or "nan") for row in rows])  # noqa: E731
+    read = (column(rows, f"{setting} points") >= min_read * points) & (number("strain") <= tau)
+    return read & (number("contrast") >= min_contrast) if min_contrast else read
 
 
-def default_reading(rows: list, setting: str, tau: float, min_read: float, points: int) -> tuple:
-    read = holds(rows, setting, tau, min_read, points)
+def default_reading(rows: list, setting: str, tau: float, min_read: float, points: int, min_contrast: float = 0.0) -> tuple:
+    read = holds(rows, setting, tau, min_read, points, min_contrast)
     return np.where(read, column(rows, per_frame(setting, 0.1)), column(rows, "network per frame")), read
 
 
@@ -57,6 +59,7 @@ def main() -> None:
     parser.add_argument("--min-read", type=float, default=MIN_READ)
     parser.add_argument("--min-held", type=float, default=0.8, help="the gate on the point-frames held, before")
     parser.add_argument("--points", type=int, default=400, help="the points asked for (sheet_levers.py's points)")
+    parser.add_argument("--min-contrast", type=float, default=0.0, help="also estimate_focal's contrast at least this (sheet_levers.py's contrast lever)")
     parser.add_argument("--default", default=DEFAULT, help="the default's setting (default: T through the guess over the whole frame)")
     args = parser.parse_args()
     rows = rows_of(args.csv)
@@ -69,12 +72,12 @@ def main() -> None:
         stage_before, stage_after = np.where(before, held, flow), np.where(after, held, flow)
         print(f"1. T read on {before.sum()} with the gate on the point-frames held, on {after.sum()} with the gate on the points read: "
               f"{stage_after.mean():.4f} against {stage_before.mean():.4f}, {paired(stage_after, stage_before)}")
-    default, read = default_reading(rows, args.default, args.tau, args.min_read, args.points)
+    default, read = default_reading(rows, args.default, args.tau, args.min_read, args.points, args.min_contrast)
     print(f"2. the default reads {read.sum()} of {len(rows)} sheets: {default.mean():.4f} against the network {paired(default, network)}; "
           f"where read, {paired(default[read], network[read])}")
     if args.noise:
         noise = rows_of(args.noise)
-        default, read = default_reading(noise, args.default, args.tau, args.min_read, args.points)
+        default, read = default_reading(noise, args.default, args.tau, args.min_read, args.points, args.min_contrast)
         net = column(noise, "network per frame")
         print(f"   not sheets: the default reads {read.sum()} of {len(noise)}: {default.mean():.4f} against the network {net.mean():.4f}, {paired(default, net)}")
 
