@@ -134,8 +134,7 @@ class Anchor:
         """The warp's matrices over the points ``fitted`` (n,) bool, or over
         every point where those do not span the plane (fewer than 3, or all
         on one line: an affine fit would be singular)."""
-        anchors = np.column_stack([self.start[fitted], np.ones(int(fitted.sum()))])
-        if fitted.sum() < 3 or np.linalg.matrix_rank(anchors) < 3:
+        if np.linalg.matrix_rank(np.column_stack([self.start[fitted], np.ones(int(fitted.sum()))])) < 3:  # also fewer than 3 points
             fitted = np.ones(len(self.start), bool)
         if self.fitted is None or not np.array_equal(fitted, self.fitted):
             self.fitted, anchors = fitted.copy(), self.start[fitted]
