@@ -33,10 +33,16 @@ only: of the points read, the one piece that moves most,
 joint or refined), ``throughout`` (1: only the points found in every
 frame, none that leaves the view or is lost), ``moving`` (1: of the points
 read, only those that move at least the stage's ``MIN_MOTION`` from where
-they start: none on a still background), ``fscale`` (the flow on frames
+they start: none on a still background), ``relmove`` (with ``moving``: of
+those, only the points that move at least this share of their median
+motion too), ``trim`` (of the points read, those whose pairs
+stretch in the keyframes' ``refined`` template more than this many times
+the points' median left out, up to three times over: ``trim_strained``), ``fscale`` (the flow on frames
 shrunk by this factor, ``track_points``' ``flow_scale``), ``contrast``
 (``experiments/sheet_levers.py`` only, 1: also ``estimate_focal``'s
-contrast on the points read, recorded, not used).
+contrast on the points read, recorded, not used), ``onsheet``
+(``sheet_levers.py`` only, 1: of the points read, those that start on the
+sheet's true region: an oracle).
 With ``hold``, where fewer of the point-frames in view are held than the
 stage's ``MIN_HELD``, the stage steps aside, as it does in the job.
 ``--job true``: also the whole job with the sheet stage at its defaults
@@ -70,13 +76,13 @@ def sgemm() -> float:
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0, "fscale": 1.0, "contrast": 0}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0, "fscale": 1.0, "contrast": 0, "onsheet": 0, "relmove": 0.0, "trim": 0.0}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
             raise SystemExit(f"--settings: unknown lever {key!r} (known: {', '.join(out)})")
         out[key] = value if key in ("flow", "each", "place", "template") or (key == "fov" and value in ("strain", "held")) else \
-            float(value) if key in ("drop", "keep", "anchor", "fov", "fscale") else (None if value == "none" else int(value))
+            float(value) if key in ("drop", "keep", "anchor", "fov", "fscale", "relmove", "trim") else (None if value == "none" else int(value))
     if out["keep"] and not out["hold"]:
         raise SystemExit(f"--settings {setting!r}: keep needs hold=1")
     if out["template"] not in ("joint", "refined"):
@@ -85,6 +91,8 @@ def parse(setting: str) -> dict:
         raise SystemExit(f"--settings {setting!r}: anchor needs each=lengths")
     if out["fov"] not in (None, "strain", "held") and not 0 < out["fov"] < 180:
         raise SystemExit(f"--settings {setting!r}: fov is the degrees a pinhole sees across the frame's longer side, in (0, 180), strain or held")
+    if out["trim"] and not out["throughout"]:
+        raise SystemExit(f"--settings {setting!r}: trim needs throughout=1 (points in every frame)")
     if not out["backward"] and out["drop"]:
         raise SystemExit(f"--settings {setting!r}: drop needs the flow both ways: give drop=0 with backward=0")
     return out
@@ -145,13 +153,50 @@ def keep_held(xy: np.ndarray, shape: tuple, lever: dict) -> np.ndarray:
     """The tracks of the points held in at least ``lever["keep"]`` of their
     frames in view; with ``lever["throughout"]``, of those only the points
     held in every frame; with ``lever["moving"]``, of those only the points
-    that move at least the stage's ``MIN_MOTION`` from where they start."""
+    that move at least the stage's ``MIN_MOTION`` from where they start (with
+    ``lever["relmove"]``, at least that share of the median such point's motion
+    too: a still backdrop's points by the sheet's edge move a little)."""
     from nrdepth import isometric
     from nrdepth.reconstruct.sheet import MIN_MOTION
 
     xy = xy[:, isometric.point_held_shares(xy, shape) >= lever["keep"]] if lever["keep"] else xy
     xy = xy[:, np.isfinite(xy).all(axis=(0, 2))] if lever["throughout"] else xy
-    return xy[:, np.nanmax(np.linalg.norm(xy - xy[:1], axis=2), axis=0) >= MIN_MOTION] if lever["moving"] else xy
+    if not lever["moving"]:
+        return xy
+    motion = np.nanmax(np.linalg.norm(xy - xy[:1], axis=2), axis=0)
+    moving = motion >= MIN_MOTION
+    least = max(MIN_MOTION, lever["relmove"] * float(np.median(motion[moving]))) if moving.any() else MIN_MOTION
+    return xy[:, motion >= least]
+
+
+def trim_strained(xy: np.ndarray, camera, lever: dict, passes: int = 3) -> np.ndarray:
+    """The tracks ``xy`` (T, n, 2), finite in every frame, less the points
+    whose pairs stray from their lengths more than ``lever["trim"]`` times
+    the points' median: each point's strain the root mean square of its
+    pairs' ``‖Z_i r_i − Z_j r_j‖ / D_ij − 1`` over the keyframes'
+    ``refined`` template (``lever["keyframes"]``, ``lever["neighbours"]``),
+    solved again after each pass. A still backdrop's points beside a
+    moving sheet keep their lengths among themselves, not to the sheet."""
+    from nrdepth.isometric.mdh import keyframe_indices, neighbour_pairs, solve_template
+
+    keys = keyframe_indices(len(xy), lever["keyframes"])
+    for _ in range(passes):
+        if xy.shape[1] <= lever["neighbours"] + 1:
+            break
+        tracks = xy[keys]
+        pairs = neighbour_pairs(tracks[0], lever["neighbours"])
+        rays = camera.rays(tracks)
+        depths, distances = solve_template(rays, pairs, refined=True)
+        points = rays * depths[..., None]
+        strain = np.sqrt(np.mean((np.linalg.norm(points[:, pairs[:, 0]] - points[:, pairs[:, 1]], axis=2) / distances - 1) ** 2, axis=0))
+        n = xy.shape[1]
+        per_point = np.sqrt((np.bincount(pairs[:, 0], strain**2, n) + np.bincount(pairs[:, 1], strain**2, n))
+                            / np.maximum(np.bincount(pairs.ravel(), minlength=n), 1))
+        kept = per_point <= lever["trim"] * np.median(per_point)
+        if kept.all():
+            break
+        xy = xy[:, kept]
+    return xy
 
 
 def box_check(frames: np.ndarray, box: np.ndarray) -> None:
@@ -182,8 +227,8 @@ def main() -> None:
                         help="also the whole job with the sheet stage at its defaults, through the true camera or the guessed one (module docstring)")
     args = parser.parse_args()
     for setting in args.settings.split(","):  # before the network's minutes
-        if any(parse(setting)[key] for key in ("whole", "piece", "contrast")):  # read by sheet_levers alone: here they would change nothing, silently
-            raise SystemExit(f"--settings {setting!r}: whole, piece and contrast are experiments/sheet_levers.py's levers; the box here is --box")
+        if any(parse(setting)[key] for key in ("whole", "piece", "contrast", "onsheet")):  # read by sheet_levers alone: here they would change nothing, silently
+            raise SystemExit(f"--settings {setting!r}: whole, piece, contrast and onsheet are experiments/sheet_levers.py's levers; the box here is --box")
 
     import cv2
     import torch

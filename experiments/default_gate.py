@@ -37,10 +37,11 @@ def rows_of(paths: list) -> list:
 
 
 def holds(rows: list, setting: str, tau: float, min_read: float, points: int, min_contrast: float = 0.0) -> np.ndarray:
-    """Per video: whether ``setting``'s points read number at least ``min_read`` of ``points``, their strain is at most
+    """Per video: whether ``setting``'s points read (with ``trim``, those it leaves) number at least ``min_read`` of ``points``, their strain is at most
     ``tau`` and, with ``min_contrast``, ``estimate_focal``'s contrast on them at least that (NaN: no program)."""
     number = lambda name: np.array([float(row.get(f"{setting} {name}", "nan") or "nan") for row in rows])  # noqa: E731
-    read = (column(rows, f"{setting} points") >= min_read * points) & (number("strain") <= tau)
+    counted = "trimmed" if f"{setting} trimmed" in rows[0] else "points"  # with trim: the points left by it
+    read = (number(counted) >= min_read * points) & (number("strain") <= tau)
     return read & (number("contrast") >= min_contrast) if min_contrast else read
 
 

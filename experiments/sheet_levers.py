@@ -12,7 +12,9 @@ the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 ``neighbours``, ``points``, ``hold``, ``backward``, ``drop``, ``keep``, ``each``, ``anchor``, ``fov``: a guessed
 pinhole in place of the true camera (``strain``: the focal length from the points' strain; ``held``: the one an
 earlier held setting's ``strain`` found, else the guess), ``place``: the points where the first
-frame has texture, ``inset``: the sheet's region shrunk first, ``moving``: of the points read, those that move, ``fscale``: the flow on frames shrunk by this factor, ``contrast``: ``estimate_focal``'s contrast on the points read, recorded, ``whole``: the points over
+frame has texture, ``inset``: the sheet's region shrunk first, ``moving``: of the points read, those that move (``relmove``: at least this share of their median motion too), ``trim``: of those,
+the points whose pairs stretch least (``bench_sheet_stage.trim_strained``), ``fscale``: the flow on frames shrunk by this factor, ``contrast``: ``estimate_focal``'s contrast on the points read, recorded, ``onsheet``: of the points read, those
+that start on the sheet (an oracle: what the points off it cost), ``whole``: the points over
 the whole frame, backdrop and all, not over the sheet, ``piece``: of the points read, the one
 piece that moves most, as ``experiments/kinect_box_parts.py`` finds the paper); the first is the reference, each
 other is paired against it. Each setting's ``shortfall`` is recorded too:
@@ -72,7 +74,7 @@ from nrdepth.scores.metrics import dense_baselines, mae_sn, sparse_baselines, sp
 
 sys.path.insert(0, str(Path(__file__).parent))
 sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
-from bench_sheet_stage import inset_region, keep_held, parse, pinhole, shortfall, strain  # noqa: E402
+from bench_sheet_stage import inset_region, keep_held, parse, pinhole, shortfall, strain, trim_strained  # noqa: E402
 from isometric_generated import LIGHTS, SEED, camera, in_view, long_sheets, setting, true_tracks  # noqa: E402
 from kinect_box_parts import moving_piece  # noqa: E402
 
@@ -175,6 +177,9 @@ def main() -> None:
                                                        backward=bool(lever["backward"]), place=lever["place"], flow_scale=lever["fscale"])
                 held = held_share(tracks[key], video.shape[1:]) if lever["hold"] else 1.0  # before keep, as the stage gates
                 xy = keep_held(tracks[key], video.shape[1:], lever)
+                if lever["onsheet"]:  # an oracle: the points that start off the sheet left out
+                    start_px = np.clip(np.rint(np.nan_to_num(xy[0], nan=-1)).astype(int), 0, [video.shape[2] - 1, video.shape[1] - 1])
+                    xy = xy[:, np.isfinite(xy[0]).all(axis=1) & on[0][start_px[:, 1], start_px[:, 0]]]
                 if lever.get("at_truth"):  # the same points, lost where they are, at their true positions
                     xy = np.where(np.isfinite(xy), truth_at(xy[0], clips.vertices[k], params, config.size), np.nan)
                 if lever["piece"]:  # of the points read, the one piece that moves most (kinect_box_parts)
@@ -194,6 +199,10 @@ def main() -> None:
                         held_focal = through if lever["fov"] == "strain" and lever["hold"] else held_focal
                     if through is None:
                         raise SystemExit(f"--settings {name!r}: the video is seen orthographically: only a guessed camera (fov=) reads it")
+                    if lever["trim"]:  # of the points read, those whose pairs keep their lengths
+                        xy = trim_strained(xy, through, lever)
+                        trimmed_px = np.clip(np.rint(xy[0]).astype(int), 0, [video.shape[2] - 1, video.shape[1] - 1])
+                        row[f"{name} trimmed"], row[f"{name} trimmed on sheet"] = xy.shape[1], float(np.mean(on[0][trimmed_px[:, 1], trimmed_px[:, 0]]))
                     # One every: solved as the stage solves it; several: read off the every-frame solution
                     depths, distances = isometric.mdh_depths(xy, through, keyframes=lever["keyframes"], neighbours=lever["neighbours"],
                                                              every=everies[0] if len(everies) == 1 else 1, each_frame=lever["each"], template=lever["template"],
