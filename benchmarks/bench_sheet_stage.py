@@ -48,7 +48,11 @@ stage's ``MIN_HELD``, the stage steps aside, as it does in the job.
 ``--job true``: also the whole job with the sheet stage at its defaults
 (``reconstruct(roi=..., focal=..., sheet=box)``), timed, with its log
 line and its whole-sheet error; ``--job guessed``: the same without the
-focal length (the stage's guessed pinhole).
+focal length (the stage's guessed pinhole); ``--job default``: nothing
+given but the roi (``reconstruct(roi=...)``, the stage by default);
+``--job whole``: nothing given at all, the whole 640×480 frame, scored on
+the sheet's points. The rest of the job is ``reconstruct(roi=...,
+sheet_stage=False)``.
 
     python benchmarks/bench_sheet_stage.py [--threads 2] [--settings margin=none,margin=48,margin=48:keyframes=12:every=3]
 """
@@ -161,42 +165,17 @@ def keep_held(xy: np.ndarray, shape: tuple, lever: dict) -> np.ndarray:
 
     xy = xy[:, isometric.point_held_shares(xy, shape) >= lever["keep"]] if lever["keep"] else xy
     xy = xy[:, np.isfinite(xy).all(axis=(0, 2))] if lever["throughout"] else xy
-    if not lever["moving"]:
-        return xy
-    motion = np.nanmax(np.linalg.norm(xy - xy[:1], axis=2), axis=0)
-    moving = motion >= MIN_MOTION
-    least = max(MIN_MOTION, lever["relmove"] * float(np.median(motion[moving]))) if moving.any() else MIN_MOTION
-    return xy[:, motion >= least]
+    return xy[:, isometric.moving_points(xy, MIN_MOTION, lever["relmove"])] if lever["moving"] else xy
 
 
-def trim_strained(xy: np.ndarray, camera, lever: dict, passes: int = 3) -> np.ndarray:
+def trim_strained(xy: np.ndarray, camera, lever: dict) -> np.ndarray:
     """The tracks ``xy`` (T, n, 2), finite in every frame, less the points
     whose pairs stray from their lengths more than ``lever["trim"]`` times
-    the points' median: each point's strain the root mean square of its
-    pairs' ``‖Z_i r_i − Z_j r_j‖ / D_ij − 1`` over the keyframes'
-    ``refined`` template (``lever["keyframes"]``, ``lever["neighbours"]``),
-    solved again after each pass. A still backdrop's points beside a
-    moving sheet keep their lengths among themselves, not to the sheet."""
-    from nrdepth.isometric.mdh import keyframe_indices, neighbour_pairs, solve_template
+    the points' median (``nrdepth.isometric.unstrained_points`` over
+    ``lever["keyframes"]`` and ``lever["neighbours"]``)."""
+    from nrdepth import isometric
 
-    keys = keyframe_indices(len(xy), lever["keyframes"])
-    for _ in range(passes):
-        if xy.shape[1] <= lever["neighbours"] + 1:
-            break
-        tracks = xy[keys]
-        pairs = neighbour_pairs(tracks[0], lever["neighbours"])
-        rays = camera.rays(tracks)
-        depths, distances = solve_template(rays, pairs, refined=True)
-        points = rays * depths[..., None]
-        strain = np.sqrt(np.mean((np.linalg.norm(points[:, pairs[:, 0]] - points[:, pairs[:, 1]], axis=2) / distances - 1) ** 2, axis=0))
-        n = xy.shape[1]
-        per_point = np.sqrt((np.bincount(pairs[:, 0], strain**2, n) + np.bincount(pairs[:, 1], strain**2, n))
-                            / np.maximum(np.bincount(pairs.ravel(), minlength=n), 1))
-        kept = per_point <= lever["trim"] * np.median(per_point)
-        if kept.all():
-            break
-        xy = xy[:, kept]
-    return xy
+    return xy[:, isometric.unstrained_points(xy, camera, lever["keyframes"], lever["neighbours"], lever["trim"])]
 
 
 def box_check(frames: np.ndarray, box: np.ndarray) -> None:
@@ -223,8 +202,9 @@ def main() -> None:
                         help="the points over the print (KINECT_INNER) or the whole sheet's box (KINECT_ROI)")
     parser.add_argument("--min-held", type=float, default=None, help="the held gate on the point-frames (default: the stage's MIN_HELD; 0: none)")
     parser.add_argument("--no-box-check", action="store_true", help="skip following every point with and without the box first")
-    parser.add_argument("--job", choices=("true", "guessed"), default=None,
-                        help="also the whole job with the sheet stage at its defaults, through the true camera or the guessed one (module docstring)")
+    parser.add_argument("--job", choices=("true", "guessed", "default", "whole"), default=None,
+                        help="also the whole job with the sheet stage at its defaults: through the true camera or the guessed one over the box, "
+                        "nothing given but the roi, or nothing at all (module docstring)")
     args = parser.parse_args()
     for setting in args.settings.split(","):  # before the network's minutes
         if any(parse(setting)[key] for key in ("whole", "piece", "contrast", "onsheet")):  # read by sheet_levers alone: here they would change nothing, silently
@@ -252,7 +232,7 @@ def main() -> None:
     box[y : y + h, x : x + w] = True
     rx, ry, rw, rh = KINECT_ROI
     start = time.perf_counter()
-    network = nrdepth.reconstruct(frames, roi=KINECT_ROI).astype(np.float64)
+    network = nrdepth.reconstruct(frames, roi=KINECT_ROI, sheet_stage=False).astype(np.float64)
     rest = time.perf_counter() - start
     print(f"the rest of the job (reconstruct, roi, no focal): {rest:.1f} s; network alone {kinect_score(network, truth):.2f} mm, "
           f"fixed bowl {kinect_references(truth, KINECT_ROI)['bowl']:.2f} mm", flush=True)
@@ -268,10 +248,14 @@ def main() -> None:
         start = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # a fallback is printed below
-            job = nrdepth.reconstruct(frames, roi=KINECT_ROI, focal=camera if args.job == "true" else None, sheet=(x, y, w, h)).astype(np.float64)
+            given = {"true": dict(roi=KINECT_ROI, focal=camera, sheet=(x, y, w, h)), "guessed": dict(roi=KINECT_ROI, sheet=(x, y, w, h)),
+                     "default": dict(roi=KINECT_ROI), "whole": {}}[args.job]
+            job = nrdepth.reconstruct(frames, **given).astype(np.float64)
         whole = time.perf_counter() - start
-        print(f"the job with the sheet stage's defaults ({args.job} camera): {whole:.1f} s (the stage {whole - rest:.1f} s, {(whole - rest) / rest:.2f}× the rest): "
-              f"{kinect_score(job, truth):.2f} mm; {decisions[0].line()}", flush=True)
+        read = given.get("roi", (0, 0, frames.shape[2], frames.shape[1]))
+        print(f"the job with the sheet stage's defaults ({args.job}): {whole:.1f} s (the stage {whole - rest:.1f} s, {(whole - rest) / rest:.2f}× the rest"
+              f"{'' if 'roi' in given else ', the rest over the roi'}): {kinect_score(job, truth, roi=read):.2f} mm (the fixed bowl over the same frame "
+              f"{kinect_references(truth, read)['bowl']:.2f} mm); {decisions[0].line()}", flush=True)
     for setting in args.settings.split(","):
         lever = parse(setting)
         start = time.perf_counter()

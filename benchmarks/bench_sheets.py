@@ -100,17 +100,17 @@ class Scorer:
         held = evaluate(path, clips=128, device="cpu")
         row["heldout_frame"], row["heldout_first"] = held["mae_sn_frame"]["mean"], held["mae_sn_first"]["mean"]
         video, depth = self.sheets
-        row["sheets_frame"] = float(np.mean([mae_sn(nrdepth.reconstruct(v, model), d) for v, d in zip(video, depth)]))
+        row["sheets_frame"] = float(np.mean([mae_sn(nrdepth.reconstruct(v, model, sheet_stage=False), d) for v, d in zip(video, depth)]))
         video, depth = self.backdrops
-        row["backdrops_frame"] = float(np.mean([mae_sn(nrdepth.reconstruct(v, model), d, mask=np.isfinite(d)) for v, d in zip(video, depth)]))
+        row["backdrops_frame"] = float(np.mean([mae_sn(nrdepth.reconstruct(v, model, sheet_stage=False), d, mask=np.isfinite(d)) for v, d in zip(video, depth)]))
         gray, truth = self.cloth
         mask = np.isfinite(truth)
-        pred = nrdepth.reconstruct(gray, model)
+        pred = nrdepth.reconstruct(gray, model, sheet_stage=False)
         row["phisft_frame"], row["phisft_first"] = mae_sn(pred, truth, "frame", mask=mask), mae_sn(pred, truth, "first", mask=mask)
         row["phisft_sign"] = sign_rates(pred, truth, mask=mask)["sign_correct"]
         row.update({f"phisft_{k}": v for k, v in region_errors(pred, truth, self.cloth_regions).items()})
         for tag, region in (("", KINECT_ROI), ("_inner", KINECT_INNER)):
-            pred = nrdepth.reconstruct(self.kinect[region], model)
+            pred = nrdepth.reconstruct(self.kinect[region], model, sheet_stage=False)
             row[f"kinect{tag}_mm"] = kinect_score(pred, self.truth, region)
             row[f"kinect{tag}_sign"] = kinect_score(pred, self.truth, region, signs=True)
         return row

@@ -91,7 +91,7 @@ def main() -> None:
     cpu = torch.device("cpu")
     for name in args.models:
         net = inference_model(None if name == "default" else name, cpu)
-        readings = {"stitched": nrdepth.reconstruct(video, net), "coarse": coarse_depth(video, net, 8, cpu)}
+        readings = {"stitched": nrdepth.reconstruct(video, net, sheet_stage=False), "coarse": coarse_depth(video, net, 8, cpu)}
         row = []
         for label, depth in readings.items():
             frame, first, offset = (mae_sn(depth, truth, a, mask=mask) for a in ("frame", "first", "first_offset"))

@@ -64,7 +64,7 @@ def main() -> None:
     for model in sys.argv[1:] or ["default"]:
         for fill, frames in fills.items():
             for masked in (False, True):
-                depth = nrdepth.reconstruct(frames, None if model == "default" else model, mask=cloth if masked else None)
+                depth = nrdepth.reconstruct(frames, None if model == "default" else model, mask=cloth if masked else None, sheet_stage=False)
                 r = region_errors(depth, truth, regions)
                 print(f"{model[-40:]:40s}{fill:>8s}{'cloth' if masked else 'none':>6s}{mae_sn(depth, truth, 'frame', mask=scored):>8.4f}"
                       f"{mae_sn(depth, truth, 'first', mask=scored):>8.4f}{r['border']:>8.4f}{r['inside']:>8.4f}", flush=True)

@@ -83,7 +83,7 @@ def reconstruct_with(kind: str, video: np.ndarray, model, overlap: int) -> np.nd
     pipeline.coarse_half = windows_half if kind == "windows" else (
         lambda small, net, bs, dev, readings=2: chained_half(small, net, bs, dev, readings, overlap, kind))
     try:
-        return nrdepth.reconstruct(video, model)
+        return nrdepth.reconstruct(video, model, sheet_stage=False)
     finally:
         pipeline.coarse_half = windows_half
 

@@ -36,8 +36,11 @@ import numpy as np
 from nrdepth import Camera, generate_clips, isometric
 from nrdepth.scores.generated import SHEET_FAMILIES
 from nrdepth.isometric import held_share
-from nrdepth.reconstruct.sheet import FLOW_MARGIN, MIN_HELD
+from nrdepth.reconstruct.sheet import FLOW_MARGIN
 from nrdepth.scores.real import DATA, FOCAL, KINECT_INNER, KINECT_ROI
+
+MIN_HELD = 0.8
+"""The stage's held gate on the point-frames when this was read (since: the points read, ``sheet.MIN_READ``)."""
 
 sys.path.insert(0, str(Path(__file__).parent))
 from isometric_generated import LIGHTS, camera, long_sheets, setting  # noqa: E402

@@ -168,7 +168,7 @@ def main() -> None:
         rows, start = [], time.perf_counter()
         for k, (video, truth, params) in enumerate(zip(clips.video, clips.depth, clips.params)):
             focal, centre = camera(params, config.size)
-            network = nrdepth.reconstruct(video)
+            network = nrdepth.reconstruct(video, sheet_stage=False)
             sheets, drift = {}, np.nan
             for tracker in trackers:
                 if tracker == "truth":

@@ -102,7 +102,7 @@ def cached_network(name: str, video: np.ndarray, cache: Path) -> np.ndarray:
     path = cache / f"{name}.npy"
     if not path.exists():
         cache.mkdir(parents=True, exist_ok=True)
-        np.save(path, nrdepth.reconstruct(video).astype(np.float32))
+        np.save(path, nrdepth.reconstruct(video, sheet_stage=False).astype(np.float32))
     return np.load(path).astype(np.float64)
 
 

@@ -46,7 +46,7 @@ def main() -> None:
         for label, region in (("whole sheet", KINECT_ROI), ("inside", KINECT_INNER)):
             x, y, w, h = region
             video = frames[:, y : y + h, x : x + w]
-            stitched = nrdepth.reconstruct(video, net)
+            stitched = nrdepth.reconstruct(video, net, sheet_stage=False)
             coarse = coarse_depth(video, net, 8, cpu)
             row.append(f"{label} {kinect_score(stitched, truth, region):.2f} / {kinect_score(coarse, truth, region):.2f} / "
                        f"{kinect_score(quadratic(stitched), truth, region):.2f}")

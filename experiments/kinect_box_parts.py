@@ -68,7 +68,7 @@ def main() -> None:
     x, y, w, h = KINECT_ROI
     box = np.zeros(frames.shape[1:], bool)
     box[y : y + h, x : x + w] = True
-    network = nrdepth.reconstruct(frames, roi=KINECT_ROI).astype(np.float64)
+    network = nrdepth.reconstruct(frames, roi=KINECT_ROI, sheet_stage=False).astype(np.float64)
     print(f"network alone {kinect_score(network, truth):.2f} mm", flush=True)
 
     def read(name: str, xy: np.ndarray, keep: np.ndarray, paper: np.ndarray) -> None:

@@ -58,7 +58,7 @@ def main() -> None:
     print(f"{'model':58s}{'mask':>7s}{'mm':>8s}{'sign':>7s}")
     for model in args.models:
         for name, mask in (("none", None), ("hull", masks)):
-            depth = nrdepth.reconstruct(video, None if model == "default" else model, mask=mask)
+            depth = nrdepth.reconstruct(video, None if model == "default" else model, mask=mask, sheet_stage=False)
             print(f"{model[-58:]:58s}{name:>7s}{kinect_score(depth, truth):>8.2f}{100 * kinect_score(depth, truth, signs=True):>6.0f}%")
 
 

@@ -53,7 +53,7 @@ def main() -> None:
     for label, region in (("whole sheet", KINECT_ROI), ("inside", KINECT_INNER)):
         x, y, w, h = region
         video = frames[:, y : y + h, x : x + w]
-        depths = {side: nrdepth.reconstruct(video, net, max_side=side) for side in SIDES}
+        depths = {side: nrdepth.reconstruct(video, net, max_side=side, sheet_stage=False) for side in SIDES}
         row = [f"{side}: {kinect_score(depths[side], truth, region):.2f}" for side in SIDES]
         row += [f"mean of {'+'.join(map(str, sides))}: {kinect_score(np.mean([aligned_to(depths[s], depths[MAX_SIDE]) for s in sides], 0), truth, region):.2f}"
                 for sides in AVERAGES]

@@ -74,12 +74,12 @@ def scores(coarse, fine_model, cloth: tuple, paper: tuple) -> str:
     pipeline.coarse_half = coarse
     try:
         video, truth, regions = cloth
-        depth = nrdepth.reconstruct(video, fine_model)
+        depth = nrdepth.reconstruct(video, fine_model, sheet_stage=False)
         scored, r = np.isfinite(truth), region_errors(depth, truth, regions)
         row = f"{mae_sn(depth, truth, 'frame', mask=scored):8.4f}{mae_sn(depth, truth, 'first', mask=scored):8.4f}{r['border']:8.4f}{r['inside']:8.4f}"
         frames, points = paper
         for x, y, w, h in (KINECT_ROI, KINECT_INNER):
-            row += f"{kinect_score(nrdepth.reconstruct(frames[:, y : y + h, x : x + w], fine_model), points, (x, y, w, h)):8.2f}"
+            row += f"{kinect_score(nrdepth.reconstruct(frames[:, y : y + h, x : x + w], fine_model, sheet_stage=False), points, (x, y, w, h)):8.2f}"
         return row
     finally:
         pipeline.coarse_half = original_coarse_half
@@ -112,7 +112,7 @@ def generated_scores(readings: dict, fine_model, videos: int, cameras: tuple, ag
             try:
                 for label, coarse in readings.items():
                     pipeline.coarse_half = coarse
-                    reading = nrdepth.reconstruct(video, fine_model)
+                    reading = nrdepth.reconstruct(video, fine_model, sheet_stage=False)
                     scores[label].append([mae_sn(reading, truth, a) for a in ("frame", "first")])
             finally:
                 pipeline.coarse_half, pipeline.field_windows = original_coarse_half, original_field_windows

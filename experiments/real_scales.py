@@ -95,9 +95,9 @@ def main() -> None:
     for name in args.models:
         net = load_model(DEFAULT_MODEL if name == "default" else name, device="cpu")
         local = np.mean([mae_sn(p, g, "frame", mask=m) for p, g, m in zip(predict_depth(net, clips), clip_truth, clip_masks)])
-        depths = coarse_depth(video, net, 8, cpu), nrdepth.reconstruct(video, net, device="cpu")
+        depths = coarse_depth(video, net, 8, cpu), nrdepth.reconstruct(video, net, device="cpu", sheet_stage=False)
         coarse, stitched = (mae_sn(d, truth, "frame", mask=mask) for d in depths)
-        paper = mae_sn(nrdepth.reconstruct(video, net, device="cpu", alignment="coarse", window="triangle"), truth, "frame", mask=mask)
+        paper = mae_sn(nrdepth.reconstruct(video, net, device="cpu", alignment="coarse", window="triangle", sheet_stage=False), truth, "frame", mask=mask)
         right = "".join(f"{np.mean(relief_signs(d, truth, mask=mask) > 0):>8.0%}" for d in depths)
         print(f"{name[-50:]:50s}{local:>9.4f}{coarse:>9.4f}{stitched:>10.4f}{paper:>9.4f}{right}", flush=True)
     if args.cross:

@@ -85,7 +85,7 @@ def readings(video: np.ndarray, net, companion, shares: tuple):
     try:
         for s in shares:
             pipeline.coarse_half = keeping_half(s)
-            depths[s] = nrdepth.reconstruct(video, net)
+            depths[s] = nrdepth.reconstruct(video, net, sheet_stage=False)
     finally:
         pipeline.coarse_half, pipeline.field_windows = original_coarse_half, original_field_windows
     fine = np.concatenate(field)

@@ -27,7 +27,9 @@ def main() -> None:
     from matplotlib.path import Path as Polygon
 
     from nrdepth import isometric
-    from nrdepth.reconstruct.sheet import FLOW_MARGIN, MIN_HELD
+    from nrdepth.reconstruct.sheet import FLOW_MARGIN
+
+    MIN_HELD = 0.8  # the stage's held gate on the point-frames when this was read (since: the points read, sheet.MIN_READ)
     from nrdepth.scores.real import KINECT_ROI, kinect_truth, kinect_video
 
     frames, truth = kinect_video(), kinect_truth()

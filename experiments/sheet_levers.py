@@ -151,7 +151,7 @@ def main() -> None:
             on = np.isfinite(truth)  # NaN off the sheet over a backdrop
             if behind is not None:
                 video = np.where(on, video, behind[k])
-            network = nrdepth.reconstruct(video).astype(np.float64)
+            network = nrdepth.reconstruct(video, sheet_stage=False).astype(np.float64)
             region = None if on.all() else on[0]
             row = {"light": light, "clip": args.start + k, "network per frame": mae_sn(network, truth, mask=on)}
             base = dense_baselines(truth, on)

@@ -798,3 +798,43 @@ def test_the_focal_length_whose_refined_template_keeps_the_lengths_best_is_the_c
         isometric.estimate_focal(xy, (300, 300), views=(90.0, 30.0))
     with pytest.raises(ValueError, match="steps"):
         isometric.estimate_focal(xy, (300, 300), steps=2)
+
+
+def test_the_points_that_move_are_kept_and_the_backdrops_by_the_sheets_edge_left_out():
+    xy, _ = rolled_sheet()
+    T, n, _ = xy.shape
+    backdrop = np.repeat(xy[:1, :4] + 3.0, T, axis=0)  # still, 3 px beside the sheet's first points
+    edge = backdrop + np.linspace(0, 1.5, T)[:, None, None]  # by the edge: dragged a little, 1.5 px at most
+    lost = np.full((T, 1, 2), np.nan)  # lost from the first frame on: never seen to move
+    tracks = np.concatenate([xy, backdrop, edge, lost], axis=1)
+    farthest = np.linalg.norm(xy - xy[:1], axis=2).max(axis=0)
+    assert np.median(farthest) > 5 * 1.5  # the sheet moves far more than the edge's points
+    kept = isometric.moving_points(tracks)
+    np.testing.assert_array_equal(kept, np.r_[farthest >= 0.2 * np.median(farthest), np.zeros(9, bool)])
+    assert kept[:n].mean() > 0.9
+    np.testing.assert_array_equal(isometric.moving_points(tracks, share=0.0), np.r_[farthest >= 0.5, np.zeros(4, bool), np.ones(4, bool), False])
+    assert not isometric.moving_points(backdrop).any()  # nothing moves: nothing kept
+    for bad in ({"least": -1.0}, {"share": 1.5}, {"share": "a fifth"}):
+        with pytest.raises(ValueError, match=f"^{next(iter(bad))}: expected"):
+            isometric.moving_points(tracks, **bad)
+    with pytest.raises(ValueError, match="^xy: expected"):
+        isometric.moving_points(tracks[0])
+
+
+def test_the_points_whose_pairs_keep_their_lengths_are_the_sheets_not_a_still_backdrops_among_them():
+    xy, _ = rolled_sheet()
+    T, n, _ = xy.shape
+    still = np.repeat(xy[:1, [10, 40, 70]] + 4.0, T, axis=0)  # three still points among the sheet's, pairs with it that cannot keep their lengths
+    # a tracker's error of 0.1 px: without any, the sheet's strain is rounding, and 3 times its median a few of them
+    tracks = np.concatenate([xy, still], axis=1) + np.random.default_rng(0).normal(0, 0.1, (T, n + 3, 2))
+    camera = nrdepth.Camera(FOCAL, (0.0, 0.0))
+    kept = isometric.unstrained_points(tracks, camera, keyframes=8)
+    assert not kept[n:].any() and kept[:n].mean() >= 0.8
+    assert isometric.unstrained_points(tracks[:, :n], camera, keyframes=8).all()  # a sheet alone keeps all of its points
+    np.testing.assert_array_equal(isometric.unstrained_points(tracks[:, :8], camera, neighbours=8), np.ones(8, bool))  # too few to tie: all kept
+    with pytest.raises(ValueError, match="^xy: expected tracks"):
+        isometric.unstrained_points(np.where(np.arange(n + 3)[None, :, None] == 3, np.nan, tracks), camera)
+    with pytest.raises(ValueError, match="^factor: expected"):
+        isometric.unstrained_points(tracks, camera, factor=0.5)
+    with pytest.raises(ValueError, match="^passes: expected"):
+        isometric.unstrained_points(tracks, camera, passes=0)

@@ -29,6 +29,7 @@ FLAGS = [
     (["--temporal-weight", "0"], {"temporal_weight": 0.0}),
     (["--window", "triangle"], {"window": "triangle"}),
     (["--temporal-align"], {"temporal": True}),
+    (["--no-sheet"], {"sheet_stage": False}),
     (["--focal", "500,510", "--centre", "10,20", "--sheet", "0,0,8,8", "--isometric-scale", "0.1", "--isometric-template", "refined",
       "--isometric-each-frame", "mirror", "--isometric-drop", "0.3", "--isometric-points", "900", "--isometric-hold"],
      {"focal": (500.0, 510.0), "centre": (10.0, 20.0), "sheet": (0, 0, 8, 8), "isometric_scale": 0.1, "isometric_template": "refined",
@@ -78,13 +79,15 @@ def test_an_unknown_option_is_named():
     ({"focal": -5.0}, "focal"),
     ({"focal": (1.0, 2.0, 3.0)}, "focal"),
     ({"focal": 100.0, "centre": ("a", 1)}, "centre"),
-    ({"centre": (1.0, 1.0)}, "focal"),  # the centre shapes the isometric depth: it needs the focal length
+    ({"centre": (1.0, 1.0), "sheet_stage": False}, "sheet_stage"),  # the centre shapes the sheet's depth: it needs the sheet stage
+    ({"sheet_stage": "no"}, "sheet_stage"),
+    ({"sheet_stage": False, "focal": 100.0}, "sheet_stage"),
     ({"focal": 100.0, "isometric_drop": 1.0}, "isometric_drop"),
     ({"focal": 100.0, "isometric_scale": float("nan")}, "isometric_scale"),
     ({"focal": 100.0, "isometric_points": 2.5}, "isometric_points"),
     ({"focal": 100.0, "isometric_hold": "yes"}, "isometric_hold"),
     ({"focal": 100.0, "isometric_each_frame": "best"}, "isometric_each_frame"),
-    ({"isometric_each_frame": "program"}, "focal"),
+    ({"isometric_each_frame": "program", "units": "pixels"}, "isometric_each_frame"),
     ({"roi": (0, 0, 8.5, 8)}, "roi"),
     ({"max_side": 4}, "max_side"),
     ({"tile": (8, 36, 64)}, "tile"),
@@ -128,7 +131,10 @@ def test_a_sheet_without_a_focal_length_is_seen_through_the_guessed_pinhole():
         assert guessed.centre == ((frame[1] - 1) / 2, (frame[0] - 1) / 2)
         assert nrdepth.ReconstructOptions(sheet=(0, 0, 8, 8)).sheet_camera(frame) == guessed
     assert nrdepth.ReconstructOptions(sheet=(0, 0, 8, 8), centre=(10, 20)).sheet_camera((480, 640)).centre == (10.0, 20.0)
-    assert not nrdepth.ReconstructOptions().sheet_mode
+    default = nrdepth.ReconstructOptions()
+    assert default.sheet_mode and not default.sheet_given and default.sheet_camera((480, 640)) == nrdepth.Camera.guessed((480, 640))
+    for off in ({"sheet_stage": False}, {"units": "pixels"}, {"temporal": True}):  # no stage where its shape could not join the depth
+        assert not nrdepth.ReconstructOptions(**off).sheet_mode
     assert np.allclose(nrdepth.Camera.guessed((256, 256), view=90).focal, 128.0)  # 90° across: the focal length half the side
     with pytest.raises(ValueError, match="^view: expected degrees"):
         nrdepth.Camera.guessed((480, 640), view=180)

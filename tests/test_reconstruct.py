@@ -145,8 +145,8 @@ def test_cli_reconstructs_an_image_folder(tmp_path, tiny_model):
         ("focal", ["--device", "cpu", "--focal", "0"], "--focal: expected the camera's focal length in pixels"),
         ("focal units", ["--device", "cpu", "--focal", "50", "--temporal-align"], "--focal: the isometric shape comes with units='standard' and temporal off only"),
         ("sheet", ["--device", "cpu", "--focal", "50", "--sheet", "30,0,20,20"], "--sheet: expected a box x, y, width, height inside the 40×48 frame"),
-        ("isometric without a sheet", ["--device", "cpu", "--isometric-drop", "0.3"],
-         "--focal: the isometric depth's options \\(isometric_drop\\) need the camera's focal length or the sheet"),
+        ("isometric without the sheet stage", ["--device", "cpu", "--isometric-drop", "0.3", "--no-sheet"],
+         "--no-sheet: the sheet stage is off, yet its options are set \\(isometric_drop\\)"),
         ("drop", ["--device", "cpu", "--focal", "50", "--isometric-drop", "1"], r"--isometric-drop: expected a share of the points in \[0, 1\)"),
     ],
 )
@@ -163,7 +163,7 @@ def test_cli_bad_input_is_named_and_writes_nothing(tmp_path, tiny_model, capsys,
         "focal": tmp_path / "good.npy",
         "focal units": tmp_path / "good.npy",
         "sheet": tmp_path / "good.npy",
-        "isometric without a sheet": tmp_path / "good.npy",
+        "isometric without the sheet stage": tmp_path / "good.npy",
         "drop": tmp_path / "good.npy",
     }[case]
     (tmp_path / "bad.mp4").write_bytes(b"\x00\x00\x00\x18ftypmp42" + bytes(range(256)) * 8)

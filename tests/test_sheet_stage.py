@@ -1,8 +1,9 @@
-"""The sheet stage (``reconstruct(focal=...)``): it reads a bending sheet
+"""The sheet stage (by default, or ``reconstruct(focal=...)``): it reads a bending sheet
 alike streamed from a file or held in memory, says what it did (a log
 line, ``depth.npz``'s ``sheet``), and leaves the network's depth alone,
 with its reason, where the video gives the shape nothing to read: too few
-frames, no texture, no motion, nothing its points can be held to."""
+frames, no texture, no motion, nothing its points can be held to, or,
+by default, no sheet."""
 
 import json
 import warnings
@@ -16,7 +17,7 @@ import nrdepth.model
 from nrdepth.model import save_model
 from nrdepth import GeneratorConfig, generate_clips
 from nrdepth.reconstruct import SheetFallback, reconstruct_file
-from nrdepth.reconstruct.sheet import MIN_FRAMES, MIN_MOTION
+from nrdepth.reconstruct.sheet import MAX_STRAIN, MIN_CONTRAST, MIN_FRAMES, MIN_FRAMES_BY_DEFAULT, MIN_HELD, MIN_MOTION, MIN_READ
 
 OPTIONS = {"max_side": 32, "focal": 60.0, "isometric_points": 36}
 
@@ -35,7 +36,7 @@ def bending():
 
 
 def network_alone(video, model, **options):
-    return nrdepth.reconstruct(video, model, device="cpu", max_side=OPTIONS["max_side"], **options)
+    return nrdepth.reconstruct(video, model, device="cpu", max_side=OPTIONS["max_side"], sheet_stage=False, **options)
 
 
 def test_a_bending_sheet_streamed_from_a_file_reads_as_in_memory_and_says_so(tmp_path, model, bending, capsys):
@@ -193,3 +194,98 @@ def test_auto_reads_held_points_through_refined_where_their_lengths_hold_and_the
         held = nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS, isometric_hold=True)
     assert followed == [True] and decisions[-1].template == "joint" and decisions[-1].held is not None
     np.testing.assert_array_equal(held, nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS, isometric_hold=True, isometric_template="joint"))
+
+
+def test_by_default_the_stage_reads_a_sheet_and_leaves_what_is_no_sheet_alone(tmp_path, model, bending, capsys):
+    import importlib
+
+    api = importlib.import_module("nrdepth.reconstruct.api")  # nrdepth.reconstruct is also the function
+    decisions, decide = [], api.sheet_depth
+    options = {key: value for key, value in OPTIONS.items() if key != "focal"}  # nothing given
+    noise = np.random.default_rng(0).integers(0, 256, (MIN_FRAMES_BY_DEFAULT, 48, 56), dtype=np.uint8)  # nothing that stays
+    short = bending[: MIN_FRAMES_BY_DEFAULT - 1]  # a sheet, but too short a clip to be found by default
+    still = np.repeat(bending[:1], MIN_FRAMES_BY_DEFAULT, axis=0)  # every point held, none moves
+    stage = importlib.import_module("nrdepth.reconstruct.sheet")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SheetFallback)  # not asked for: where it steps aside, it says so in its line, not a warning
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(api, "sheet_depth", lambda *a, **k: decisions.append(decide(*a, **k)) or decisions[-1])
+            vague, lost, brief, stands = (nrdepth.reconstruct(video, model, device="cpu", **options) for video in (bending, noise, short, still))
+            patch.setattr(stage, "MIN_CONTRAST", 1.0)  # 36 points over 64×64 pixels: their strain picks no focal length sharply
+            sheet = nrdepth.reconstruct(bending, model, device="cpu", **options)
+            patch.setattr(stage, "MAX_STRAIN", 0.0)  # a sheet whose pairs keep no length: no sheet, and no other reading
+            stretching = nrdepth.reconstruct(bending, model, device="cpu", **options)
+    unsure, faint, few, unmoved, read, stretched = decisions
+    assert not unsure.used and 1.0 <= unsure.contrast < MIN_CONTRAST and unsure.reason.startswith("no focal length keeps their pairs' lengths")
+    np.testing.assert_array_equal(vague, network_alone(bending, model))
+    assert read.used and read.guessed and read.template == "refined" and read.strain <= MAX_STRAIN and read.contrast == unsure.contrast
+    assert np.abs(sheet - network_alone(bending, model)).max() > 0.1  # the sheet's shape did change the depth
+    assert not faint.used and "of the 36 asked for: too faint a texture" in faint.reason
+    assert not stretched.used and stretched.strain == read.strain and stretched.reason.startswith("their pairs do not keep their lengths")
+    assert not few.used and f"fewer than the {MIN_FRAMES_BY_DEFAULT} a sheet found by default needs" in few.reason
+    np.testing.assert_array_equal(lost, network_alone(noise, model))
+    assert not unmoved.used and unmoved.reason.startswith("the video does not move")
+    np.testing.assert_array_equal(brief, network_alone(short, model))
+    np.testing.assert_array_equal(stands, network_alone(still, model))
+    np.testing.assert_array_equal(stretching, network_alone(bending, model))
+    from nrdepth.cli import main
+
+    np.save(tmp_path / "clip.npy", bending)
+    save_model(model, tmp_path / "model.safetensors")
+    command = ["reconstruct", str(tmp_path / "clip.npy"), "--model", str(tmp_path / "model.safetensors"), "--device", "cpu", "--max-side", "32"]
+    assert main([*command, "-o", str(tmp_path / "on"), "--isometric-points", "36"]) == 0
+    assert f"sheet: the network's depth alone ({unsure.reason}" in capsys.readouterr().out  # by default, the stage's line
+    with np.load(tmp_path / "on" / "depth.npz") as saved:
+        assert json.loads(str(saved["sheet"]))["contrast"] == unsure.contrast
+    assert main([*command, "-o", str(tmp_path / "off"), "--no-sheet"]) == 0
+    assert "sheet:" not in capsys.readouterr().out
+    with np.load(tmp_path / "off" / "depth.npz") as saved:
+        assert "sheet" not in saved
+
+
+def test_by_default_held_points_are_counted_where_they_are_read_so_a_frame_half_background_still_reads_its_sheet(model, bending):
+    import importlib
+
+    api = importlib.import_module("nrdepth.reconstruct.api")
+    decisions, decide = [], api.sheet_depth
+    T, H, W = bending.shape
+    beside = np.concatenate([bending, np.random.default_rng(1).integers(0, 256, (T, H, 48), dtype=np.uint8)], axis=2)  # noise beside it: lost
+    still = np.concatenate([bending, np.repeat(bending[:1, :, ::-1][:, :, :48], T, axis=0)], axis=2)  # a still background beside it: held, not moving
+    options = {key: value for key, value in OPTIONS.items() if key != "focal"}
+    stage = importlib.import_module("nrdepth.reconstruct.sheet")
+    starts, solve = [], stage.mdh_depths
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SheetFallback)
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(api, "sheet_depth", lambda *a, **k: decisions.append(decide(*a, **k)) or decisions[-1])
+            patch.setattr(stage, "mdh_depths", lambda xy, *a, **k: starts.append(xy[0]) or solve(xy, *a, **k))
+            patch.setattr(stage, "MIN_CONTRAST", 1.0)  # as above: a clip too small for the strain to pick a focal length
+            for video in (beside, still):
+                nrdepth.reconstruct(video, model, device="cpu", **options)
+    lost, held = decisions
+    assert lost.held < MIN_HELD  # most of the frame's point-frames are lost, which given a sheet would send the stage aside...
+    assert lost.used and lost.template == "refined" and MIN_READ * OPTIONS["isometric_points"] <= lost.points  # ...but the sheet's are read
+    assert held.used and held.held > 0.9  # the still background's points are held in every frame...
+    assert (starts[1][:, 0] < W).all()  # ...but not read: every point read starts on the sheet
+
+
+def test_points_are_followed_in_frames_shrunk_to_the_tracking_side_and_come_back_in_the_videos_pixels(monkeypatch):
+    import importlib
+
+    stage = importlib.import_module("nrdepth.reconstruct.sheet")
+    texture = np.random.default_rng(2).random((96, 160))
+    texture = np.real(np.fft.ifft2(np.fft.fft2(texture) * np.exp(-0.5 * (np.fft.fftfreq(96)[:, None] ** 2 + np.fft.fftfreq(160) ** 2) / 0.04**2)))
+    texture = np.rint(255 * (texture - texture.min()) / np.ptp(texture)).astype(np.uint8)
+    video = np.stack([np.roll(texture, 2 * t, axis=1)[:, 32:128] for t in range(8)])  # 2 px a frame to the right, 96×96
+    options = nrdepth.ReconstructOptions(isometric_points=25, isometric_drop=0.0)
+    region = np.zeros((96, 96), bool)
+    region[24:72, 24:72] = True
+    seen = []
+    follow = stage.track_grid
+    monkeypatch.setattr(stage, "track_grid", lambda frames, *a, **k: follow([seen.append(f.shape) or f for f in frames], *a, **k))
+    native = stage._tracked(iter(video), region, options, hold=False)
+    monkeypatch.setattr(stage, "TRACK_SIDE", 48)
+    shrunk = stage._tracked(iter(video), region, options, hold=False)
+    assert seen == [(96, 96)] * 8 + [(48, 48)] * 8
+    np.testing.assert_allclose(np.nanmedian(shrunk[-1] - shrunk[0], axis=0), [14.0, 0.0], atol=0.3)  # in the video's pixels
+    assert shrunk.shape == native.shape and np.abs(shrunk[0] - native[0]).max() <= 0.5  # the same grid, within half a video pixel

@@ -52,8 +52,8 @@ def _reconstruct(args: argparse.Namespace) -> int:
             bar.close()
     seconds = time.perf_counter() - start
     (t, h, w), _ = npz_header(out / "depth.npz", "depth")
-    if options.sheet_mode:  # the sheet stage's decision, in one line (depth.npz keeps it as "sheet")
-        with np.load(out / "depth.npz") as saved:
+    with np.load(out / "depth.npz") as saved:  # the sheet stage's decision, in one line (depth.npz keeps it as "sheet")
+        if "sheet" in saved:
             print(SheetDecision(**json.loads(str(saved["sheet"]))).line())
     print(f"wrote {out}: depth of {t} frames of {w}×{h} in {seconds:.1f} s on {resolve_device(options.device)} "
           f"(depth.npz, depth.mp4, side_by_side.mp4{', viewer.html' if options.viewer else ''}{', png16/' if options.png16 else ''}{', ply/' if options.ply else ''})")

@@ -172,18 +172,18 @@ def score_real(model: torch.nn.Module, real: RealVideo, device: Union[str, torch
     if real.depth is not None:
         return score_real_video(model, real.video, real.depth, device)
     p = real.points
-    pred = reconstruct(real.video, model, device=str(device))[p["frames"]]
+    pred = reconstruct(real.video, model, device=str(device), sheet_stage=False)[p["frames"]]
     return {"mae": sparse_mae(pred, p["uv"], p["z"]), "flat_mae": sparse_baselines(p["uv"], p["z"])["plane"],
             "sign_correct": sparse_sign_rate(pred, p["uv"], p["z"])}
 
 
 def score_real_video(model: torch.nn.Module, video: np.ndarray, depth: np.ndarray, device: Union[str, torch.device] = "cpu") -> Dict[str, float]:
-    """Reconstruct a real video (stitched, as ``nrdepth reconstruct`` does)
-    and score it over the pixels with a ground-truth value: MAE-SN per frame
+    """Reconstruct a real video (stitched, as ``nrdepth reconstruct`` does,
+    without the sheet stage: what the model reads) and score it over the pixels with a ground-truth value: MAE-SN per frame
     and from the first frame, the flat plane's per frame, and the share of
     frames whose relief sign is read right."""
     mask = np.isfinite(depth)
-    pred = reconstruct(video, model, device=str(device))
+    pred = reconstruct(video, model, device=str(device), sheet_stage=False)
     return {
         "frame": mae_sn(pred, depth, "frame", mask=mask),
         "first": mae_sn(pred, depth, "first", mask=mask),

@@ -3,7 +3,7 @@ depth out) and :func:`reconstruct_file` (a file to a folder, streamed).
 Each checks everything it can before any work, then chains the stages:
 :class:`~.pipeline.Pipeline` (reading, statistic, coarse pass),
 :func:`~.stitching.stitched` (fine pass and stitch), the sheet stage
-(:mod:`.sheet`, with a focal length or a sheet) and :mod:`.export` (units, resolution).
+(:mod:`.sheet`: a sheet's shape where the video shows one) and :mod:`.export` (units, resolution).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import math
 import os
 import warnings
 from pathlib import Path
-from typing import Any, Callable, Optional, Union
+from typing import Any, Callable, Optional, Tuple, Union
 
 import numpy as np
 
@@ -51,11 +51,24 @@ def _network(model: Model, options: ReconstructOptions) -> tuple:
     return device, load_net(model, options.units, device)
 
 
-def _said(decision: SheetDecision) -> SheetDecision:
-    """The sheet stage's decision, said: a warning where it left the network's depth alone."""
-    if not decision.used:
+def _said(decision: SheetDecision, options: ReconstructOptions) -> SheetDecision:
+    """The sheet stage's decision, said: a warning where it left the network's depth alone that ``focal`` or ``sheet`` asked it to shape."""
+    if not decision.used and options.sheet_given:
         warnings.warn(decision.line(), SheetFallback, stacklevel=3)
     return decision
+
+
+def _region(options: ReconstructOptions, frame: Tuple[int, int]) -> Optional[np.ndarray]:
+    """Where the sheet stage's points go (:func:`~.sheet.sheet_region`), or None where it does not run:
+    off, or by default over a region with no room for its points (a refusal only where the user gave the sheet)."""
+    if not options.sheet_mode:
+        return None
+    try:
+        return sheet_region(options, frame)
+    except ValueError:
+        if options.sheet_given:
+            raise
+        return None
 
 
 class SheetFallback(UserWarning):
@@ -80,9 +93,10 @@ def reconstruct(video: np.ndarray, model: Model = None, options: Optional[Recons
     (``max_side``), the coarse pass (each whole frame through the network
     at the patch size, :mod:`~nrdepth.reconstruct.coarse`), the fine pass
     (:mod:`~nrdepth.reconstruct.fine`), its 16×64×64 windows aligned and
-    overlap-added (:mod:`~nrdepth.reconstruct.stitch`), with ``focal`` or
-    ``sheet`` the sheet's shape from inextensibility (:mod:`~nrdepth.reconstruct.sheet`),
-    then the depth's units and the video's resolution back.
+    overlap-added (:mod:`~nrdepth.reconstruct.stitch`), where the video
+    shows a sheet the sheet's shape from inextensibility (:mod:`~nrdepth.reconstruct.sheet`:
+    by default where its held points keep their lengths, or as ``focal``
+    and ``sheet`` ask; ``sheet_stage=False`` leaves it out), then the depth's units and the video's resolution back.
 
     Depth is defined up to one GBR per frame (one for the video with
     ``temporal``) and returned with zero mean over the video, in
@@ -94,8 +108,8 @@ def reconstruct(video: np.ndarray, model: Model = None, options: Optional[Recons
     from above (within ±70° of image-up, row 0 the top): under an
     orthographic camera a surface and its mirror image under mirrored
     lights make the same video, so a video lit from below reads inverted,
-    and ``flip=True`` (or ``-depth``) is the other reading. With
-    ``focal`` or ``sheet``, a long video that bends a sheet many ways gets its shape
+    and ``flip=True`` (or ``-depth``) is the other reading. Where the
+    sheet stage reads a sheet, a long video that bends it many ways gets its shape
     and the relief's sign from the sheet instead (docs/reconstruction.md).
     To stream a long video from a file to a folder, see
     :func:`reconstruct_file`."""
@@ -105,14 +119,14 @@ def reconstruct(video: np.ndarray, model: Model = None, options: Optional[Recons
     if file_only:
         raise option_error(file_only[0], "says what reconstruct_file writes; reconstruct returns the depth")
     mask = video_mask(options.mask, gray.shape, options.frames, options.roi)
-    region = None if not options.sheet_mode else sheet_region(options, gray.shape[1:3])
+    region = _region(options, gray.shape[1:3])
     video = select(gray, options.frames, options.roi)
     device, net = _network(model, options)
     chunks = lambda: (video[a : a + CHUNK] for a in range(0, len(video), CHUNK))  # noqa: E731
     pipeline = Pipeline(video.shape[1:], chunks, net, device, options, mask)
     raw = np.concatenate(list(stitched(pipeline, progress)))
     if region is not None:
-        _said(sheet_depth(raw, pipeline.work, options, options.sheet_camera(gray.shape[1:3]), region, lambda: iter(select(gray, options.frames, None))))
+        _said(sheet_depth(raw, pipeline.work, options, options.sheet_camera(gray.shape[1:3]), region, lambda: iter(select(gray, options.frames, None))), options)
     offset, scale = units_of(pipeline, raw, options.temporal, options.units)
     return final(pipeline, raw, 0, len(raw), offset, -scale if options.flip else scale)
 
@@ -146,7 +160,7 @@ def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.
     out = check_output_folder(out, options.overwrite, inputs=(input,))
     source = open_video(input, "input", options.frames, options.roi)
     mask = file_mask(options.mask, source, options.frames, options.roi)
-    region = None if not options.sheet_mode else sheet_region(options, source.raw_size)
+    region = _region(options, source.raw_size)
     pipeline = Pipeline(source.frame_size, lambda: source.chunks(CHUNK), net, device, options, mask)
     t = pipeline.shape[0]
     ply_relief = options.ply_relief
@@ -159,7 +173,7 @@ def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.
             raw.append(chunk)
         if region is not None:
             whole = lambda: (frame for chunk in open_video(input, "input", options.frames, None).chunks(CHUNK) for frame in chunk)  # noqa: E731 (streamed)
-            writer.set_metadata("sheet", _said(sheet_depth(raw, pipeline.work, options, options.sheet_camera(source.raw_size), region, whole)).as_dict())
+            writer.set_metadata("sheet", _said(sheet_depth(raw, pipeline.work, options, options.sheet_camera(source.raw_size), region, whole), options).as_dict())
         offset, scale = units_of(pipeline, raw, options.temporal, options.units)
         scale = -scale if options.flip else scale
         # The ranges from the working resolution (bilinear resizing makes no new extremes), a chunk at a time.

@@ -172,7 +172,14 @@ class ReconstructOptions:
                           "alignment coarse, window triangle)", choices=WINDOWS)
     temporal: bool = _option(False, "give every frame frame 0's plane and relief norm (nrdepth.temporal_align): for models trained with "
                              "per-frame losses only", flag="--temporal-align", action="store_true")
-    # A sheet through a known camera.
+    # A sheet: its shape from inextensibility.
+    sheet_stage: bool = _option(
+        True, "the sheet stage (nrdepth.reconstruct.sheet). With neither focal nor sheet given, on a video of at least 32 frames: points over "
+        f"the roi (the whole frame without one) are held to their look in the first frame and seen through a pinhole guessed to see {GUESSED_VIEW:g}°; "
+        "of those held in every frame, the ones that move and whose pairs keep their lengths are taken for the sheet's, and where enough are "
+        "left, their strain picks out a focal length and stays small, the shape of a sheet (paper, cloth) comes from inextensibility; "
+        "elsewhere the network's depth stays (the log line and depth.npz's sheet say which, and why). Off (--no-sheet): the network's depth alone",
+        flag="--no-sheet", action="store_false")
     focal: Union[None, float, Tuple[float, float], Camera] = _option(
         None, "for a sheet (paper, cloth) filmed by a perspective camera: its focal length in pixels of the video's frames, F or FX,FY "
         "(or a nrdepth.Camera, whose principal point comes with it). The "
@@ -181,32 +188,33 @@ class ReconstructOptions:
         f"as a dome). Without it, a sheet given (sheet) is seen through a pinhole guessed to see {GUESSED_VIEW:g}° across the frame's longer "
         "side (nrdepth.Camera.guessed). The sheet stage holds two frames at a time; on kinect_paper's 191 frames of 640×480 it "
         "costs about 28 s on two threads (docs/reconstruction.md)", type=_parse_numbers("F or FX,FY in pixels", (1, 2)), metavar="F[,FY]")
-    centre: Optional[Tuple[float, float]] = _option(None, "with focal or sheet: the principal point in the video's frames (default: their centre)",
+    centre: Optional[Tuple[float, float]] = _option(None, "the sheet stage's camera: the principal point in the video's frames (default: their centre)",
                                                     type=_parse_numbers("CX,CY in pixels", (2,)), metavar="CX,CY")
     sheet: Union[None, np.ndarray, Tuple[int, int, int, int]] = _option(
         None, "a sheet (paper, cloth) in the video, whose shape then comes from inextensibility as with focal (without focal, through a "
         "guessed pinhole): where the points are spread in the first selected frame, on the sheet only (not the background or the hands): a "
         "box X,Y,W,H in the video's pixels, or bool (H, W) (with focal, default: roi, or the whole frame)", type=_ROI, metavar="X,Y,W,H")
-    isometric_scale: Optional[float] = _option(None, "with focal or sheet: the length below which the network's relief is kept, as a fraction of the "
+    isometric_scale: Optional[float] = _option(None, "the sheet stage: the length below which the network's relief is kept, as a fraction of the "
                                                f"frame's shorter side (0: the isometric depth alone; default: {REFINED_SCALE} through the held points' refined "
                                                f"template, {ISOMETRIC_SCALE} through the others)", type=float)
-    isometric_template: str = _option(STAGE_TEMPLATES[0], "with focal or sheet: the pairs' template distances (nrdepth.isometric.mdh_depths): auto (points "
-                                      "held to the first frame through refined where their pairs keep their lengths, the joint template otherwise), joint, "
+    isometric_template: str = _option(STAGE_TEMPLATES[0], "the sheet stage: the pairs' template distances (nrdepth.isometric.mdh_depths): auto (points "
+                                      "held to the first frame through refined where their pairs keep their lengths; with focal or sheet given, the joint "
+                                      "template otherwise), joint, "
                                       "refined (each pair held to its distance in every keyframe), first (the first frame a flat sheet facing the camera)",
                                       choices=STAGE_TEMPLATES)
-    isometric_each_frame: str = _option(ISOMETRIC_EACH_FRAME, "with focal or sheet: each frame's depths (nrdepth.isometric.mdh_depths' each_frame): program "
+    isometric_each_frame: str = _option(ISOMETRIC_EACH_FRAME, "the sheet stage: each frame's depths (nrdepth.isometric.mdh_depths' each_frame): program "
                                         "(the maximum-depth program's), lengths (refined so that each pair keeps its template distance: every frame, or none where one "
                                         "would change its shape), "
                                         "mirror (the same, from the program's answer or its mirror, whichever keeps the lengths better)",
                                         choices=EACH_FRAME)
-    isometric_drop: float = _option(ISOMETRIC_DROP, "with focal or sheet: the share of the points left out where the flow's two directions disagree most",
+    isometric_drop: float = _option(ISOMETRIC_DROP, "the sheet stage: the share of the points left out where the flow's two directions disagree most",
                                     type=float)
-    isometric_hold: bool = _option(ISOMETRIC_HOLD, "with focal or sheet: each point found again after every step of the flow by its look in the "
+    isometric_hold: bool = _option(ISOMETRIC_HOLD, "the sheet stage: each point found again after every step of the flow by its look in the "
                                    "first frame, lost (not dragged) where it is not (nrdepth.isometric.track_points' hold); the stage then "
-                                   "reads only the points held in at least 0.8 of their frames, and steps aside where too few are held; with the template auto, "
-                                   "the points read through the joint template where the held points through refined give way",
+                                   "reads only the points held in at least 0.8 of their frames, and steps aside where too few are held; with the template auto and "
+                                   "focal or sheet given, the points read through the joint template where the held points through refined give way",
                                    action="store_true")
-    isometric_points: int = _option(400, "with focal or sheet: about how many points are followed over the sheet (a square grid)", type=int)
+    isometric_points: int = _option(400, "the sheet stage: about how many points are followed over the sheet (a square grid)", type=int)
     # The outputs.
     flip: bool = _option(False, "negate the depth: the other convex/concave reading (the model assumes light from above; use it for a video "
                          "lit from below)", action="store_true")
@@ -223,9 +231,16 @@ class ReconstructOptions:
         _check(self)
 
     @property
-    def sheet_mode(self) -> bool:
-        """Whether the sheet stage runs: ``focal`` or ``sheet`` given."""
+    def sheet_given(self) -> bool:
+        """Whether the user asked for the sheet's shape: ``focal`` or ``sheet`` given."""
         return self.focal is not None or self.sheet is not None
+
+    @property
+    def sheet_mode(self) -> bool:
+        """Whether the sheet stage runs: ``focal`` or ``sheet`` given, or by
+        default (``sheet_stage``) where its shape can join the depth (``units``
+        standard, ``temporal`` off)."""
+        return self.sheet_given or (self.sheet_stage and self.units == "standard" and not self.temporal)
 
     def sheet_camera(self, frame: Tuple[int, int]) -> Camera:
         """The sheet's camera for the video's frames of ``frame`` (H, W): ``focal`` and
@@ -300,11 +315,17 @@ def _check(o: ReconstructOptions) -> None:
 
 
 def _check_sheet(o: ReconstructOptions) -> None:
+    if not isinstance(o.sheet_stage, (bool, np.bool_)):
+        raise option_error("sheet_stage", f"expected a bool, got {o.sheet_stage!r}", TypeError)
+    if o.sheet_given and not o.sheet_stage:
+        raise option_error("sheet_stage", f"the sheet stage is off, yet {'focal' if o.focal is not None else 'sheet'} asks for the sheet's shape")
     if not o.sheet_mode:
         given = [name for name in ("centre", "isometric_scale", "isometric_template", "isometric_each_frame", "isometric_drop", "isometric_points",
                                    "isometric_hold") if _differs(getattr(o, name), _DEFAULTS[name])]
+        if given and not o.sheet_stage:
+            raise option_error("sheet_stage", f"the sheet stage is off, yet its options are set ({', '.join(given)})")
         if given:
-            raise option_error("focal", f"the isometric depth's options ({', '.join(given)}) need the camera's focal length or the sheet (sheet)")
+            raise option_error(given[0], "the sheet stage, whose option this is, runs with units='standard' and temporal off only")
         return
     if isinstance(o.focal, Camera):  # a camera as itself: its focal length, and its principal point unless centre says otherwise
         camera = o.focal
@@ -313,8 +334,8 @@ def _check_sheet(o: ReconstructOptions) -> None:
     Camera(1.0 if o.focal is None else o.focal, o.centre)  # raises naming focal or centre (a guessed focal length: the centre alone)
     if o.isometric_scale is not None and not (is_number(o.isometric_scale) and np.isfinite(o.isometric_scale) and o.isometric_scale >= 0):
         raise option_error("isometric_scale", f"expected a fraction of the frame's shorter side >= 0, got {o.isometric_scale!r}")
-    if o.units != "standard" or o.temporal:
-        raise option_error("focal", "the isometric shape comes with units='standard' and temporal off only")
+    if o.units != "standard" or o.temporal:  # given: the default stage steps aside here (sheet_mode)
+        raise option_error("focal" if o.focal is not None else "sheet", "the isometric shape comes with units='standard' and temporal off only")
     if o.isometric_template not in STAGE_TEMPLATES:
         raise option_error("isometric_template", f"expected one of {STAGE_TEMPLATES}, got {o.isometric_template!r}")
     if o.isometric_each_frame not in EACH_FRAME:

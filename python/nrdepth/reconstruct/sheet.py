@@ -1,17 +1,19 @@
-"""The sheet stage: with a camera's focal length or a sheet given, the stitched depth's
-shape above a length scale from the sheet's inextensibility
-(:mod:`nrdepth.isometric`), its relief below it from the network.
+"""The sheet stage: the stitched depth's shape above a length scale from a
+sheet's inextensibility (:mod:`nrdepth.isometric`), its relief below it
+from the network.
 
 Points over the sheet are followed through the selected frames whole (not
 cut to the region: points near its edge stay in view), their depths come
 from the maximum-depth heuristic through the camera, and they are spread
 over the region's working frame and fused with the network's depth. By
-default two readings are tried in turn: points held to the first frame
-through the ``refined`` template, kept where their pairs keep their
-lengths (:data:`MAX_STRAIN`), else the flow's points through the joint
-template. A video that gives the shape nothing to read keeps the
-network's depth; either way the stage returns what it did
-(:class:`SheetDecision`).
+default, points held to the first frame are read through the ``refined``
+template, kept where enough are held and their pairs keep their lengths
+(:data:`MAX_STRAIN`); with a focal length or a sheet given, where they
+do not, the flow's points through the joint template.
+With neither given the stage runs over the roi (or the whole frame)
+through a guessed pinhole, and a video that is no sheet, or gives the
+shape nothing to read, keeps the network's depth; either way the stage
+returns what it did (:class:`SheetDecision`).
 """
 
 from __future__ import annotations
@@ -25,16 +27,24 @@ import numpy as np
 from ..baselines.tracks import densify
 from ..camera import Camera
 from ..checks import option_error
-from ..isometric import NotSolved, TooFewPoints, fuse, held_share, mdh_depths, point_held_shares, start_grid, template_strain, track_grid
-from .frames import CHUNK, as_uint8
+from ..isometric import (NotSolved, TooFewPoints, estimate_focal, fuse, held_share, mdh_depths, moving_points, point_held_shares, start_grid, template_strain,
+                         track_grid, unstrained_points)
+from .frames import CHUNK, as_uint8, as_unit_float, resize, working_shape
 from .options import ISOMETRIC_SCALE, REFINED_SCALE, ReconstructOptions
 
-__all__ = ["sheet_region", "sheet_depth", "SheetDecision", "FLOW_MARGIN", "KEYFRAMES", "EVERY", "NEIGHBOURS", "MIN_FRAMES", "MIN_TEXTURE", "MIN_MOTION", "MIN_HELD", "KEEP_HELD", "MAX_STRAIN"]
+__all__ = ["sheet_region", "sheet_depth", "SheetDecision", "FLOW_MARGIN", "KEYFRAMES", "EVERY", "NEIGHBOURS", "TRACK_SIDE", "MIN_FRAMES", "MIN_FRAMES_BY_DEFAULT", "MIN_TEXTURE", "MIN_MOTION", "MIN_HELD", "MIN_READ", "MOVING_SHARE", "TRIM", "MIN_CONTRAST", "KEEP_HELD", "MAX_STRAIN"]
 
 FLOW_MARGIN = 48
 """The sheet's points are followed by the flow over their box and this
 many pixels, not over the whole frame (the same tracks for a fraction of
 the cost: docs/campaign.md, "The sheet stage's cost")."""
+
+TRACK_SIDE = 640
+"""Pixels: the sheet's points are followed in frames shrunk (area-averaged)
+to this longer side at most, their places scaled back to the video's.
+The flow's cost grows with the pixels: a 1920×1080 frame would cost nine
+times ``kinect_paper``'s 640×480, the largest video any of the stage's
+rules or checks read (a bound on cost, not chosen by a rule)."""
 
 KEYFRAMES, EVERY, NEIGHBOURS = 8, 4, 8
 """The sheet's joint cone program runs over this many keyframes, only
@@ -52,6 +62,13 @@ MIN_FRAMES = 16
 depth alone: the shortest clips the sheet's shape was read on (16 frames
 barely bend a sheet: docs/reconstruction.md)."""
 
+MIN_FRAMES_BY_DEFAULT = 32
+"""With nothing given (neither ``focal`` nor ``sheet``), fewer selected
+frames than this and the stage leaves the network's depth alone: on a
+short clip the maximum-depth program reads a dome, and over 16-frame
+coloured-noise videos the default read worse than the network alone
+(docs/campaign.md, "The sheet's shape by default, on long videos only")."""
+
 MIN_TEXTURE = 1.0
 """The gray-level step between neighbouring pixels of the sheet's region
 in the first frame that a tenth of them must reach, or the flow has
@@ -60,19 +77,53 @@ network's depth alone. A tenth, not half: white paper with print on it
 is flat between its lines."""
 
 MIN_MOTION = 0.5
-"""Pixels: the median over the points of the farthest each moves from
+"""Pixels: the median over the points read of the farthest each moves from
 where it starts, below which the video does not move, and the stage
 leaves the network's depth alone; half the flow's own median error on
 the paper's true points (docs/findings.md)."""
 
 
 MIN_HELD = 0.8
-"""With held points (``isometric_hold``): fewer of the point-frames in
-view found again than this share (:func:`~nrdepth.isometric.held_share`),
-and the stage leaves the network's depth alone:
-the video's texture is too faint for its points to be followed (as on
-most generated sheets: docs/campaign.md, "Tracks held to the first
-frame"). As many lost as the drop leaves out."""
+"""With held points and ``focal`` or ``sheet`` given: fewer of the
+point-frames in view found again than this share
+(:func:`~nrdepth.isometric.held_share`), and the reading gives way: the
+video's texture is too faint for its points to be followed (as on most
+generated sheets: docs/campaign.md, "Tracks held to the first frame").
+As many lost as the drop leaves out."""
+
+MIN_READ = 0.1
+"""With nothing given (neither ``focal`` nor ``sheet``): fewer held points
+read (held in :data:`KEEP_HELD` of their frames, through ``refined`` in
+every frame, and moving at least :data:`MIN_MOTION`) than this share of
+``isometric_points``, and the reading gives way: too faint a texture, or
+no sheet. They are counted in place of the point-frames held
+(:data:`MIN_HELD`): over a region that holds more than a sheet, the
+background's points are lost and the sheet's held (docs/campaign.md,
+"The sheet's shape by default"). Counted again after :data:`TRIM`."""
+
+MOVING_SHARE = 0.2
+"""With nothing given: of the points read, only those that move at least
+:data:`MIN_MOTION` and this share of the median such point's farthest
+motion are the sheet's (:func:`~nrdepth.isometric.moving_points`): a
+still backdrop's points by the sheet's edge move a little."""
+
+TRIM = 3.0
+"""With nothing given: of the points that move, those whose pairs stray
+from their lengths more than this many times the points' median are left
+out (:func:`~nrdepth.isometric.unstrained_points`): a pair with one point
+off the sheet does not keep its length. With :data:`MOVING_SHARE`, the
+nearest of three ways to the points that start on the sheet, on 32
+generated paper-like sheets (docs/campaign.md, "Why the default's reading
+did not hold")."""
+
+MIN_CONTRAST = 1.35
+"""With nothing given: where the strain of the points read does not pick
+out a focal length (:func:`~nrdepth.isometric.estimate_focal`'s
+``contrast`` under this), the reading gives way: a surface that moves
+more than it stretches, such as coloured noise, keeps its lengths
+through any camera, a sheet only through its own (the least value above
+every coloured-noise video an earlier default read: docs/campaign.md,
+"The sheet's shape by default, where the strain picks a focal length")."""
 
 KEEP_HELD = 0.8
 """With held points (``isometric_hold``), only those found again in at
@@ -101,8 +152,10 @@ class SheetDecision:
     (:meth:`~nrdepth.Camera.guessed`), the ``frames`` read, the ``points`` read (after the drop and, held, :data:`KEEP_HELD`),
     the ``texture`` (gray levels, :data:`MIN_TEXTURE`), ``motion``
     (pixels, :data:`MIN_MOTION`) and the share of point-frames ``held``
-    (:data:`MIN_HELD`) its checks measured (None where not reached), the
-    ``template`` whose points were read last, the held points' ``strain``
+    its checks measured (None where not reached), the
+    ``template`` whose points were read last, with nothing given the
+    ``contrast`` with which their strain picks a focal length
+    (:data:`MIN_CONTRAST`), the held points' ``strain``
     under ``refined`` (:data:`MAX_STRAIN`) and the fusion's ``scale`` (a
     fraction of the shorter side) where used. :meth:`line` is the job's log
     line; ``depth.npz`` keeps :meth:`as_dict` as JSON under ``sheet``."""
@@ -118,6 +171,7 @@ class SheetDecision:
     motion: Optional[float] = None
     held: Optional[float] = None
     template: Optional[str] = None
+    contrast: Optional[float] = None
     strain: Optional[float] = None
     scale: Optional[float] = None
 
@@ -127,7 +181,7 @@ class SheetDecision:
     def line(self) -> str:
         what = "the sheet's shape from inextensibility" if self.used else "the network's depth alone"
         measured = "".join(f", {name} {value:.{digits}f}" for name, value, digits in
-                           (("texture", self.texture, 2), ("motion px", self.motion, 2), ("held", self.held, 2), ("strain", self.strain, 4), ("scale", self.scale, 2))
+                           (("texture", self.texture, 2), ("motion px", self.motion, 2), ("held", self.held, 2), ("contrast", self.contrast, 2), ("strain", self.strain, 4), ("scale", self.scale, 2))
                            if value is not None)
         template = f", template {self.template}" if self.template else ""
         return (f"sheet: {what} ({self.reason}; focal {self.focal[0]:g},{self.focal[1]:g} px{' guessed' if self.guessed else ''}, {self.frames} frames, "
@@ -175,11 +229,13 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
     points held to the first frame, of them those found in every frame,
     through the ``refined`` template, fused at ``REFINED_SCALE``, where
     their pairs keep their lengths (strain at most :data:`MAX_STRAIN`);
-    else the points of ``isometric_hold`` (the flow's by default) through
-    the joint template at ``ISOMETRIC_SCALE`` (``isometric_scale`` given
-    replaces both scales). With another template, that one alone. A
+    else, with ``focal`` or ``sheet`` given (``options.sheet_given``), the
+    points of ``isometric_hold`` (the flow's by default) through the joint
+    template at ``ISOMETRIC_SCALE`` (``isometric_scale`` given replaces
+    both scales). With another template, that one alone. A
     reading gives way where the video gives it nothing to read (held
-    points found again in fewer point-frames than :data:`MIN_HELD`,
+    points found again in fewer point-frames than :data:`MIN_HELD`, or
+    with nothing given fewer read than :data:`MIN_READ` of those asked for,
     points that move less than :data:`MIN_MOTION`, a frame with too few
     of them for its program, or a program with no answer, as through a
     focal length far too long); where every reading gives way, or the
@@ -192,8 +248,13 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
     record = dict(focal=tuple(map(float, camera.focal)), centre=tuple(map(float, camera.centre)), frames=T, guessed=options.focal is None)
     if T < MIN_FRAMES:
         return SheetDecision(False, f"{T} frames, fewer than the {MIN_FRAMES} the sheet's shape needs", **record)
+    if not options.sheet_given and T < MIN_FRAMES_BY_DEFAULT:
+        return SheetDecision(False, f"{T} frames, fewer than the {MIN_FRAMES_BY_DEFAULT} a sheet found by default needs", **record)
     auto = options.isometric_template == "auto"
-    readings = [("refined", True), ("joint", bool(options.isometric_hold))] if auto else [(options.isometric_template, bool(options.isometric_hold))]
+    if auto:  # nothing given, a region that may be no sheet: the held reading alone, which says whether it is one
+        readings = [("refined", True)] + ([("joint", bool(options.isometric_hold))] if options.sheet_given else [])
+    else:
+        readings = [(options.isometric_template, bool(options.isometric_hold))]
     passed: List[str] = []  # each reading's reason for giving way
     tracked = {}  # hold: the tracks, followed once for every reading that reads them
     for template, hold in readings:
@@ -205,18 +266,36 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
                 record.update(texture=texture)
                 if texture < MIN_TEXTURE:
                     return SheetDecision(False, f"the sheet's region has no texture for the flow to follow ({texture:.2f} < {MIN_TEXTURE:g})", **record)
-            tracked[hold] = track_grid((as_uint8(frame) for frame in itertools.chain([first], stream)), region, points=int(options.isometric_points),
-                                       drop=float(options.isometric_drop), margin=FLOW_MARGIN, hold=hold)
+            tracked[hold] = _tracked(itertools.chain([first], stream), region, options, hold)
         through = auto and template == "refined"  # the points found in every frame: the setting its rule read
         read = _read(tracked[hold], region.shape, hold, through, template, options, camera, record)
         if isinstance(read, str):
-            passed.append(f"{_named(template, hold)}: {read}" if auto else read)
+            passed.append(f"{_named(template, hold)}: {read}" if len(readings) > 1 else read)
             continue
         scale = options.isometric_scale if options.isometric_scale is not None else (REFINED_SCALE if through else ISOMETRIC_SCALE)
         _fused(raw, work, options, region, *read, float(scale))
         why = "the video moves the textured sheet" + (f" (not {'; not '.join(passed)})" if passed else "")
         return SheetDecision(True, why, scale=float(scale), **record)
     return SheetDecision(False, "; ".join(passed), **record)
+
+
+def _tracked(frames: Iterable[np.ndarray], region: np.ndarray, options: ReconstructOptions, hold: bool) -> np.ndarray:
+    """The points over ``region`` (H, W) followed through ``frames``
+    (:func:`~nrdepth.isometric.track_grid`), in frames shrunk to
+    :data:`TRACK_SIDE` where larger, their tracks (T, n, 2) in the video's pixels."""
+    follow = lambda frames, region: track_grid(frames, region, points=int(options.isometric_points), drop=float(options.isometric_drop),  # noqa: E731
+                                               margin=FLOW_MARGIN, hold=hold)
+    H, W = region.shape
+    h, w = working_shape((H, W), TRACK_SIDE)
+    shrunk = resize(region[None].astype(np.float32), (h, w))[0] >= 0.5
+    try:
+        start_grid(shrunk, (h, w), int(options.isometric_points), float(options.isometric_drop))
+    except ValueError:  # a region with room for the points only at the video's size
+        h, w = H, W
+    if (h, w) == (H, W):
+        return follow((as_uint8(frame) for frame in frames), region)
+    xy = follow((as_uint8(resize(as_unit_float(frame)[None], (h, w))[0]) for frame in frames), shrunk)
+    return (xy + 0.5) * np.array([W / w, H / h]) - 0.5  # pixel centres to the video's
 
 
 def _named(template: str, hold: bool) -> str:
@@ -231,19 +310,53 @@ def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, through: bool, tem
     first frame), of them ``through``: only those found in every frame,
     and the strain of their ``refined`` template held to
     :data:`MAX_STRAIN`; or why the video gives this reading nothing to
-    read. ``record`` takes what the checks measured."""
-    motion = float(np.median(np.nanmax(np.linalg.norm(xy - xy[:1], axis=2), axis=0)))
+    read. With nothing given (``options.sheet_given`` false), the region
+    may hold more than a sheet: of the held points in every frame, only
+    those that move (:data:`MOVING_SHARE`) and whose pairs keep their
+    lengths (:data:`TRIM`) are read, they are counted (:data:`MIN_READ`)
+    in place of the point-frames held (:data:`MIN_HELD`), and their strain
+    must pick a focal length (:data:`MIN_CONTRAST`). ``record`` takes what the checks measured."""
     held = held_share(xy, frame) if hold else None
+    farthest = np.nanmax(np.linalg.norm(xy - xy[:1], axis=2), axis=0)
+    motion = float(np.median(farthest))
     record.update(points=xy.shape[1], motion=motion, held=held, template=template)
-    if held is not None and held < MIN_HELD:  # first: the motion is measured on the points held
+    if hold and options.sheet_given and held < MIN_HELD:  # first: the motion is measured on the points held
         return f"the points are found again in only {held:.0%} of the frames (< {MIN_HELD:.0%}): too faint a texture"
-    if held is not None:
-        xy = xy[:, point_held_shares(xy, frame) >= KEEP_HELD]
-    if through:
-        xy = xy[:, np.isfinite(xy).all(axis=(0, 2))]
+    read = np.ones(xy.shape[1], bool)
+    if hold:
+        read &= point_held_shares(xy, frame) >= KEEP_HELD
+    found = hold and not options.sheet_given  # a region that may hold more than a sheet: count the points read, read the sheet's
+    if through or found:
+        read &= np.isfinite(xy).all(axis=(0, 2))
+    need = MIN_READ * options.isometric_points
+    held_in = f"held in {KEEP_HELD:.0%} of their frames{' and in every frame' if through or found else ''}"
+    still = f"the video does not move (the points {{:.2f}} px at most from where they start, < {MIN_MOTION:g})"
+    no_answer = "the sheet's cone program found no answer ({}): is the focal length right?"
+    if found:  # of the points read, those that move (none on a still background) and keep their pairs' lengths, counted
+        motion = float(np.median(farthest[read])) if read.any() else 0.0  # a point lost at once never moves from where it starts
+        record.update(points=int(read.sum()), motion=motion)
+        if read.sum() < need:
+            return f"{read.sum()} points {held_in}, fewer than {MIN_READ:.0%} of the {options.isometric_points} asked for: too faint a texture"
+        read[read] = moving_points(xy[:, read], MIN_MOTION, MOVING_SHARE)
+        record.update(points=int(read.sum()))
+        if read.sum() < need:
+            return still.format(motion) if motion < MIN_MOTION else \
+                f"{read.sum()} points {held_in} move, fewer than {MIN_READ:.0%} of the {options.isometric_points} asked for: no sheet that bends"
+        try:
+            read[read] = unstrained_points(xy[:, read], camera, KEYFRAMES, NEIGHBOURS, TRIM)
+            record.update(points=int(read.sum()))
+            if read.sum() < need:
+                return f"{read.sum()} points keep their pairs' lengths, fewer than {MIN_READ:.0%} of the {options.isometric_points} asked for: no sheet"
+            contrast = estimate_focal(xy[:, read], frame).contrast
+        except NotSolved as error:
+            return no_answer.format(error.status)
+        record.update(contrast=contrast)
+        if not contrast >= MIN_CONTRAST:
+            return f"no focal length keeps their pairs' lengths better than the others (contrast {contrast:.2f} < {MIN_CONTRAST:g}): no sheet"
+    elif not motion >= MIN_MOTION:
+        return still.format(motion)
+    xy = xy[:, read]
     record.update(points=xy.shape[1])
-    if not motion >= MIN_MOTION:
-        return f"the video does not move (the points {motion:.2f} px at most from where they start, < {MIN_MOTION:g})"
     if xy.shape[1] < 3:
         return f"{xy.shape[1]} points held in every frame, fewer than the 3 a program needs"
     cheaper = {"keyframes": KEYFRAMES, "every": EVERY, "neighbours": NEIGHBOURS} if template == "joint" or through else {}  # what the rules read
@@ -252,7 +365,7 @@ def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, through: bool, tem
     except TooFewPoints as error:
         return f"too few points held in frames {error.frames[:5]}"
     except NotSolved as error:  # e.g. a focal length far too long: rays nearly parallel, no perspective to read the shape by
-        return f"the sheet's cone program found no answer ({error.status}): is the focal length right?"
+        return no_answer.format(error.status)
     if through:
         strain = template_strain(xy, depths, camera, distances, KEYFRAMES, NEIGHBOURS)
         record.update(strain=strain)
