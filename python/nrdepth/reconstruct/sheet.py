@@ -345,14 +345,10 @@ def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, through: bool, tem
         try:
             read[read] = unstrained_points(xy[:, read], camera, KEYFRAMES, NEIGHBOURS, TRIM)
             record.update(points=int(read.sum()))
-            if read.sum() < need:
-                return f"{read.sum()} points keep their pairs' lengths, fewer than {MIN_READ:.0%} of the {options.isometric_points} asked for: no sheet"
-            contrast = estimate_focal(xy[:, read], frame).contrast
         except NotSolved as error:
             return no_answer.format(error.status)
-        record.update(contrast=contrast)
-        if not contrast >= MIN_CONTRAST:
-            return f"no focal length keeps their pairs' lengths better than the others (contrast {contrast:.2f} < {MIN_CONTRAST:g}): no sheet"
+        if read.sum() < need:
+            return f"{read.sum()} points keep their pairs' lengths, fewer than {MIN_READ:.0%} of the {options.isometric_points} asked for: no sheet"
     elif not motion >= MIN_MOTION:
         return still.format(motion)
     xy = xy[:, read]
@@ -371,6 +367,14 @@ def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, through: bool, tem
         record.update(strain=strain)
         if strain > MAX_STRAIN:
             return f"their pairs do not keep their lengths (strain {strain:.4f} > {MAX_STRAIN:g}): a sheet that stretches, or tracks that slip"
+    if found:  # the costliest gate last (nine programs): on a sheet that stretches the strain has said no already
+        try:
+            contrast = estimate_focal(xy, frame).contrast
+        except NotSolved as error:
+            return no_answer.format(error.status)
+        record.update(contrast=contrast)
+        if not contrast >= MIN_CONTRAST:
+            return f"no focal length keeps their pairs' lengths better than the others (contrast {contrast:.2f} < {MIN_CONTRAST:g}): no sheet"
     return xy, depths
 
 
