@@ -235,7 +235,10 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
     both scales). With another template, that one alone. A
     reading gives way where the video gives it nothing to read (held
     points found again in fewer point-frames than :data:`MIN_HELD`, or
-    with nothing given fewer read than :data:`MIN_READ` of those asked for,
+    with nothing given fewer read than :data:`MIN_READ` of those asked for
+    once those that do not move (:data:`MOVING_SHARE`) or strain their
+    pairs (:data:`TRIM`) are left out, or a strain that picks out no focal
+    length (:data:`MIN_CONTRAST`),
     points that move less than :data:`MIN_MOTION`, a frame with too few
     of them for its program, or a program with no answer, as through a
     focal length far too long); where every reading gives way, or the
