@@ -269,6 +269,7 @@ def main() -> None:
         xy = keep_held(xy, frames.shape[1:], lever)
         tracked = time.perf_counter()
         through = pinhole(lever["fov"], camera, xy, frames.shape[1:])
+        xy = trim_strained(xy, through, lever) if lever["trim"] else xy
         depths = isometric.mdh_depths(xy, through, keyframes=lever["keyframes"], neighbours=lever["neighbours"], every=lever["every"],
                                        each_frame=lever["each"], anchor=lever["anchor"], template=lever["template"])
         solved = time.perf_counter()

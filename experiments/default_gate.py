@@ -8,7 +8,11 @@
 2. the default: ``T`` through the 40° guess over the whole frame
    (``$T:fov=40:whole=1``) at 0.1 where the same gate holds, the network
    elsewhere, against the network alone, paired per frame, on the sheets
-   and (``--noise``) on videos that are no sheet.
+   and (``--noise``) on videos that are no sheet;
+3. (``--versus-stage HELD FLOW``) with the focal length given but no
+   sheet: the default's reading where its gate holds, the flow's points
+   (FLOW at 0.3) elsewhere, against the stage as it read such a video
+   before (HELD at 0.1 where its point-frames held and strain pass).
 
     python experiments/default_gate.py docs/reconstruction/default_below.csv docs/reconstruction/default_above.csv
     python experiments/default_gate.py docs/reconstruction/moving_below.csv docs/reconstruction/moving_above.csv --default "$T:fov=40:whole=1:moving=1" \
@@ -62,6 +66,9 @@ def main() -> None:
     parser.add_argument("--points", type=int, default=400, help="the points asked for (sheet_levers.py's points)")
     parser.add_argument("--min-contrast", type=float, default=0.0, help="also estimate_focal's contrast at least this (sheet_levers.py's contrast lever)")
     parser.add_argument("--default", default=DEFAULT, help="the default's setting (default: T through the guess over the whole frame)")
+    parser.add_argument("--versus-stage", nargs=2, metavar=("HELD", "FLOW"), default=None,
+                        help="3. a focal length given, no sheet: the default's reading at 0.1 where its gate holds, FLOW at 0.3 elsewhere, against "
+                        "the stage as it was: HELD at 0.1 where its point-frames held reach --min-held and its strain τ, FLOW at 0.3 elsewhere")
     args = parser.parse_args()
     rows = rows_of(args.csv)
     network = column(rows, "network per frame")
@@ -76,6 +83,14 @@ def main() -> None:
     default, read = default_reading(rows, args.default, args.tau, args.min_read, args.points, args.min_contrast)
     print(f"2. the default reads {read.sum()} of {len(rows)} sheets: {default.mean():.4f} against the network {paired(default, network)}; "
           f"where read, {paired(default[read], network[read])}")
+    if args.versus_stage:
+        held, flow = args.versus_stage
+        fallback = column(rows, per_frame(flow, 0.3))
+        before = (column(rows, f"{held} held") >= args.min_held) & (column(rows, f"{held} strain") <= args.tau)
+        stage = np.where(before, column(rows, per_frame(held, 0.1)), fallback)
+        proposed = np.where(read, column(rows, per_frame(args.default, 0.1)), fallback)
+        print(f"3. with the focal length: the default's reading on {read.sum()}, {flow} elsewhere, {proposed.mean():.4f}, against the stage as it was "
+              f"(held on {before.sum()}) {stage.mean():.4f}: {paired(proposed, stage)}")
     if args.noise:
         noise = rows_of(args.noise)
         default, read = default_reading(noise, args.default, args.tau, args.min_read, args.points, args.min_contrast)

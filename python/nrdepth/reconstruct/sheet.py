@@ -93,8 +93,8 @@ As many lost as the drop leaves out."""
 
 MIN_READ = 0.1
 """With nothing given (neither ``focal`` nor ``sheet``): fewer held points
-read (held in :data:`KEEP_HELD` of their frames, through ``refined`` in
-every frame, and moving at least :data:`MIN_MOTION`) than this share of
+read (held in :data:`KEEP_HELD` of their frames and in every frame, and
+moving: :data:`MIN_MOTION`, :data:`MOVING_SHARE`) than this share of
 ``isometric_points``, and the reading gives way: too faint a texture, or
 no sheet. They are counted in place of the point-frames held
 (:data:`MIN_HELD`): over a region that holds more than a sheet, the
