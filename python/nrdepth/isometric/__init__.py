@@ -42,6 +42,11 @@ away through perspective. Three steps:
   :func:`fuse` keeps the network's relief and takes the shape above a
   length scale from the isometric depth.
 
+Where the points are not cut to the sheet, :func:`moving_points` and
+:func:`unstrained_points` (:mod:`~nrdepth.isometric.found`) keep the
+sheet's: those that move, and those whose pairs keep their lengths; and
+:func:`estimate_focal` says how sharply their strain picks a focal length.
+
 Frames and units: pixel coordinates (column x, row y, pixel centres at
 integers); depth is distance along the optical axis, growing away from the
 camera, in units of the mean template distance between neighbouring points
