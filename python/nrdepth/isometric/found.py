@@ -42,7 +42,7 @@ def moving_points(xy: np.ndarray, least: float = 0.5, share: float = 0.2) -> np.
     """Bool (n,): the points of tracks ``xy`` (T, n, 2) whose farthest
     distance from where they start (over the frames they are in view) is
     at least ``least`` pixels and at least ``share`` of the median over
-    the points that reach ``least``. None where none moves."""
+    the points that reach ``least``; none kept where no point reaches it."""
     xy = np.asarray(xy, np.float64)
     if xy.ndim != 3 or xy.shape[2] != 2:
         raise ValueError(f"xy: expected tracks (T, n, 2), got shape {xy.shape}")
