@@ -12,7 +12,10 @@
 3. (``--versus-stage HELD FLOW``) with the focal length given but no
    sheet: the default's reading where its gate holds, the flow's points
    (FLOW at 0.3) elsewhere, against the stage as it read such a video
-   before (HELD at 0.1 where its point-frames held and strain pass).
+   before (HELD at 0.1 where its point-frames held and strain pass);
+4. (``--versus-default SETTING``) a lever on the default: ``--default``'s
+   reading (its own gates, the network elsewhere) against SETTING's read
+   the same way, paired per frame, on the sheets and on ``--noise``.
 
     python experiments/default_gate.py docs/reconstruction/default_below.csv docs/reconstruction/default_above.csv
     python experiments/default_gate.py docs/reconstruction/moving_below.csv docs/reconstruction/moving_above.csv --default "$T:fov=40:whole=1:moving=1" \
@@ -69,6 +72,8 @@ def main() -> None:
     parser.add_argument("--versus-stage", nargs=2, metavar=("HELD", "FLOW"), default=None,
                         help="3. a focal length given, no sheet: the default's reading at 0.1 where its gate holds, FLOW at 0.3 elsewhere, against "
                         "the stage as it was: HELD at 0.1 where its point-frames held reach --min-held and its strain τ, FLOW at 0.3 elsewhere")
+    parser.add_argument("--versus-default", metavar="SETTING", default=None,
+                        help="4. --default's reading against SETTING's, each gated as the default gates, the network elsewhere")
     args = parser.parse_args()
     rows = rows_of(args.csv)
     network = column(rows, "network per frame")
@@ -91,11 +96,19 @@ def main() -> None:
         proposed = np.where(read, column(rows, per_frame(args.default, 0.1)), fallback)
         print(f"3. with the focal length: the default's reading on {read.sum()}, {flow} elsewhere, {proposed.mean():.4f}, against the stage as it was "
               f"(held on {before.sum()}) {stage.mean():.4f}: {paired(proposed, stage)}")
+    gates = (args.tau, args.min_read, args.points, args.min_contrast)
+    if args.versus_default:
+        was, read_was = default_reading(rows, args.versus_default, *gates)
+        print(f"4. the default reads {read.sum()} (both {(read & read_was).sum()}), {args.versus_default} {read_was.sum()}: {default.mean():.4f} against "
+              f"{was.mean():.4f}, {paired(default, was)}")
     if args.noise:
         noise = rows_of(args.noise)
-        default, read = default_reading(noise, args.default, args.tau, args.min_read, args.points, args.min_contrast)
+        default, read = default_reading(noise, args.default, *gates)
         net = column(noise, "network per frame")
         print(f"   not sheets: the default reads {read.sum()} of {len(noise)}: {default.mean():.4f} against the network {net.mean():.4f}, {paired(default, net)}")
+        if args.versus_default:
+            was, read_was = default_reading(noise, args.versus_default, *gates)
+            print(f"   not sheets, against {args.versus_default} (reads {read_was.sum()}): {paired(default, was)}")
 
 
 if __name__ == "__main__":
