@@ -557,10 +557,27 @@ def test_fuse_is_gbr_invariant_and_spans_its_inputs():
 
     mask = np.ones(depth.shape, bool)
     mask[:, :6, :10] = False
+    mask[1, 20:, 25:] = False  # a frame's own mask between two that share one: each is weighed by its own
     aligned = [(gbr_design(d) @ gbr_fit(d, i, m)).reshape(d.shape) for d, i, m in zip(depth, iso, mask)]
     smooth = lambda a: gaussian_filter(a, 2.0, mode="constant", truncate=8.0)  # noqa: E731
     brute = [a + smooth(np.where(m, i - a, 0.0)) / smooth(m.astype(float)) for a, i, m in zip(aligned, iso, mask)]
     np.testing.assert_allclose(isometric.fuse(depth, iso, 2.0, mask=mask), brute, atol=1e-6)  # the FFT pads by 4σ
+
+
+def test_densify_agrees_with_brute_force():
+    from scipy.interpolate import griddata
+
+    rng = np.random.default_rng(5)
+    xy = rng.uniform(8, 40, (3, 12, 2))
+    values = rng.normal(size=(3, 12))
+    xy[1, 4] = np.nan  # out of view in one frame: no part in it
+    dense = densify(xy, values, (3, 36, 48))
+    rows, cols = np.mgrid[0:36, 0:48]
+    for t in range(3):
+        seen = np.isfinite(xy[t]).all(axis=1)
+        linear = griddata(xy[t, seen], values[t, seen], (cols, rows), method="linear")  # inside the points' hull
+        nearest = values[t, seen][np.argmin(np.linalg.norm(np.stack([cols, rows], -1)[..., None, :] - xy[t, seen], axis=-1), axis=-1)]
+        np.testing.assert_array_equal(dense[t], np.where(np.isnan(linear), nearest, linear))
 
 
 def test_neighbour_pairs_agree_with_brute_force():

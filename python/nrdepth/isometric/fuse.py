@@ -47,9 +47,11 @@ def fuse(depth: np.ndarray, isometric: np.ndarray, scale: float, mask: Optional[
             plane = gbr_design(np.zeros_like(d), m)[:, [0, 1, 3]]
             fits.append(np.insert(np.linalg.lstsq(plane, i[m] - shared * d[m], rcond=None)[0], 2, shared))
     out = np.empty_like(depth)
+    weighed, weight = None, None  # the mask last blurred: most frames share one, and its blur costs as much as the difference's
     for t, (d, i, m, fit) in enumerate(zip(depth, isometric, mask, fits)):
         aligned = (gbr_design(d, None) @ fit).reshape(d.shape)
-        weight = _blur(m.astype(np.float64), scale)
+        if weighed is None or not np.array_equal(m, weighed):
+            weighed, weight = m, _blur(m.astype(np.float64), scale)
         difference = _blur(np.where(m, i - aligned, 0.0), scale)
         out[t] = aligned + difference / np.maximum(weight, 1e-6)  # normalised: the mask's outside takes no part
     return out
@@ -66,5 +68,6 @@ def _blur(image: np.ndarray, sigma: float) -> np.ndarray:
     pad_h, pad_w = (min(int(np.ceil(4 * sigma)), n) for n in (h, w))
     padded = np.zeros((fft.next_fast_len(h + 2 * pad_h, real=True), fft.next_fast_len(w + 2 * pad_w, real=True)))
     padded[pad_h : pad_h + h, pad_w : pad_w + w] = image
-    blurred = fft.irfft2(fourier_gaussian(fft.rfft2(padded), sigma, n=padded.shape[1]), s=padded.shape)
+    # workers: the rows' and columns' transforms spread over threads, each computed as on one
+    blurred = fft.irfft2(fourier_gaussian(fft.rfft2(padded, workers=-1), sigma, n=padded.shape[1]), s=padded.shape, workers=-1)
     return blurred[pad_h : pad_h + h, pad_w : pad_w + w]
