@@ -40,7 +40,9 @@ stretch in the keyframes' ``refined`` template more than this many times
 the points' median left out, up to three times over: ``trim_strained``), ``fscale`` (the flow on frames
 shrunk by this factor, ``track_points``' ``flow_scale``), ``contrast``
 (``experiments/sheet_levers.py`` only, 1: also ``estimate_focal``'s
-contrast on the points read, recorded, not used), ``onsheet``
+contrast on the points read, recorded, not used), ``cevals`` (with
+``contrast``: its refinements' evaluations, ``estimate_focal``'s
+``evaluations``), ``onsheet``
 (``sheet_levers.py`` only, 1: of the points read, those that start on the
 sheet's true region: an oracle).
 With ``hold``, where fewer of the point-frames in view are held than the
@@ -80,7 +82,7 @@ def sgemm() -> float:
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0, "fscale": 1.0, "contrast": 0, "onsheet": 0, "relmove": 0.0, "trim": 0.0}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0, "fscale": 1.0, "contrast": 0, "cevals": 100, "onsheet": 0, "relmove": 0.0, "trim": 0.0}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
@@ -207,8 +209,8 @@ def main() -> None:
                         "nothing given but the roi, or nothing at all (module docstring)")
     args = parser.parse_args()
     for setting in args.settings.split(","):  # before the network's minutes
-        if any(parse(setting)[key] for key in ("whole", "piece", "contrast", "onsheet")):  # read by sheet_levers alone: here they would change nothing, silently
-            raise SystemExit(f"--settings {setting!r}: whole, piece, contrast and onsheet are experiments/sheet_levers.py's levers; the box here is --box")
+        if any(parse(setting)[key] for key in ("whole", "piece", "contrast", "onsheet")) or parse(setting)["cevals"] != 100:  # read by sheet_levers alone
+            raise SystemExit(f"--settings {setting!r}: whole, piece, contrast, cevals and onsheet are experiments/sheet_levers.py's levers; the box here is --box")
 
     import cv2
     import torch

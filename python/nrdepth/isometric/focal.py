@@ -73,13 +73,15 @@ class FocalEstimate:
 
 
 def estimate_focal(xy: np.ndarray, frame: Tuple[int, int], centre: Optional[Tuple[float, float]] = None, keyframes: int = 8,
-                   neighbours: int = 8, views: Tuple[float, float] = VIEWS, steps: int = STEPS, points: int = POINTS) -> FocalEstimate:
+                   neighbours: int = 8, views: Tuple[float, float] = VIEWS, steps: int = STEPS, points: int = POINTS,
+                   evaluations: int = 100) -> FocalEstimate:
     """The focal length (pixels) through which tracks ``xy`` (T, n, 2),
     finite in every frame, of a sheet in frames of ``frame`` (H, W) keep
     their pairs' lengths best (module docstring): ``keyframes`` frames
     spread over the video, each point tied to its ``neighbours`` nearest,
     ``steps`` focal lengths over pinholes seeing ``views`` degrees, at
-    most ``points`` points; ``centre``: the principal point (default: the
+    most ``points`` points, each refinement at most ``evaluations``
+    evaluations (``solve_template``'s); ``centre``: the principal point (default: the
     frame's centre). Each focal length's programs run in a thread of
     their own; the answer is the same at any thread count."""
     from threadpoolctl import threadpool_limits
@@ -89,7 +91,8 @@ def estimate_focal(xy: np.ndarray, frame: Tuple[int, int], centre: Optional[Tupl
         raise ValueError(f"xy: expected tracks (T, n, 2) with T >= 2 and n >= 3, finite in every frame, got shape {xy.shape}")
     if not (len(views) == 2 and all(is_number(v) for v in views) and 0 < views[0] < views[1] < 180):
         raise ValueError(f"views: expected (narrowest, widest) degrees across the frame, 0 < narrowest < widest < 180, got {views!r}")
-    for name, value, least in (("keyframes", keyframes, 2), ("neighbours", neighbours, 1), ("steps", steps, 3), ("points", points, 3)):
+    for name, value, least in (("keyframes", keyframes, 2), ("neighbours", neighbours, 1), ("steps", steps, 3), ("points", points, 3),
+                               ("evaluations", evaluations, 1)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
             raise ValueError(f"{name}: expected an int >= {least}, got {value!r}")
     if len(frame) != 2 or min(frame) < 1:
@@ -105,7 +108,7 @@ def estimate_focal(xy: np.ndarray, frame: Tuple[int, int], centre: Optional[Tupl
     def strain(focal: float) -> float:
         camera = Camera(float(focal), centre).at(tuple(frame))
         rays = camera.rays(tracks)
-        depths, distances = solve_template(rays, pairs, refined=True)
+        depths, distances = solve_template(rays, pairs, refined=True, evaluations=evaluations)
         return pair_strain(tracks, depths, camera, pairs, distances)
 
     # One BLAS thread around the whole pool (threadpoolctl's limits are the process's): the same rounding in any thread.
