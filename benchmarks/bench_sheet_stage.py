@@ -197,7 +197,7 @@ def box_check(frames: np.ndarray, box: np.ndarray) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--threads", type=int, default=2)
-    parser.add_argument("--settings", default="margin=none,margin=48", help="comma-separated settings (module docstring)")
+    parser.add_argument("--settings", default="margin=none,margin=48", help="comma-separated settings (module docstring); \"\": none, the job alone")
     parser.add_argument("--scales", default=None, help="comma-separated fusion scales (fractions of the roi's shorter side) each "
                         "setting's whole sheet is read at (default: the stage's)")
     parser.add_argument("--box", choices=("print", "sheet"), default="print",
@@ -208,7 +208,7 @@ def main() -> None:
                         help="also the whole job with the sheet stage at its defaults: through the true camera or the guessed one over the box, "
                         "nothing given but the roi, or nothing at all (module docstring)")
     args = parser.parse_args()
-    for setting in args.settings.split(","):  # before the network's minutes
+    for setting in filter(None, args.settings.split(",")):  # before the network's minutes
         if any(parse(setting)[key] for key in ("whole", "piece", "contrast", "onsheet")) or parse(setting)["cevals"] != 100:  # read by sheet_levers alone
             raise SystemExit(f"--settings {setting!r}: whole, piece, contrast, cevals and onsheet are experiments/sheet_levers.py's levers; the box here is --box")
 
@@ -258,7 +258,7 @@ def main() -> None:
         print(f"the job with the sheet stage's defaults ({args.job}): {whole:.1f} s (the stage {whole - rest:.1f} s, {(whole - rest) / rest:.2f}× the rest"
               f"{'' if 'roi' in given else ', the rest over the roi'}): {kinect_score(job, truth, roi=read):.2f} mm (the fixed bowl over the same frame "
               f"{kinect_references(truth, read)['bowl']:.2f} mm); {decisions[0].line()}", flush=True)
-    for setting in args.settings.split(","):
+    for setting in filter(None, args.settings.split(",")):
         lever = parse(setting)
         start = time.perf_counter()
         xy = isometric.track_grid(frames, inset_region(box, lever["inset"]), points=lever["points"], drop=lever["drop"], flow=lever["flow"], margin=lever["margin"],

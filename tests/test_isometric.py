@@ -815,6 +815,8 @@ def test_the_focal_length_whose_refined_template_keeps_the_lengths_best_is_the_c
         isometric.estimate_focal(xy, (300, 300), views=(90.0, 30.0))
     with pytest.raises(ValueError, match="steps"):
         isometric.estimate_focal(xy, (300, 300), steps=2)
+    with pytest.raises(ValueError, match="evaluations"):
+        isometric.estimate_focal(xy, (300, 300), evaluations=0)
 
 
 def test_the_points_that_move_are_kept_and_the_backdrops_by_the_sheets_edge_left_out():
