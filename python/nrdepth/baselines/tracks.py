@@ -101,23 +101,20 @@ def densify(xy: np.ndarray, values: np.ndarray, shape: tuple) -> np.ndarray:
     row): linear over the points' Delaunay triangles, nearest outside their
     convex hull. A point whose value or position is NaN in a frame (out of
     view) takes no part in it; each frame needs 3 points that do."""
-    from scipy.interpolate import LinearNDInterpolator
-    from scipy.spatial import cKDTree
+    from scipy.interpolate import griddata
 
     T, H, W = shape
     rows, cols = np.mgrid[0:H, 0:W]
-    pixels = np.column_stack([cols.ravel(), rows.ravel()]).astype(np.float64)  # once: every frame asks at the same places
     out = np.empty(shape)
     for t in range(T):
         seen = np.isfinite(values[t]) & np.isfinite(xy[t]).all(axis=1)
         if np.count_nonzero(seen) < 3:
             raise ValueError(f"values: expected at least 3 points with a value in every frame, got {np.count_nonzero(seen)} in frame {t}")
-        points, known = xy[t, seen].astype(np.float64), values[t, seen].astype(np.float64)
-        linear = LinearNDInterpolator(points, known)(pixels)
+        linear = griddata(xy[t, seen], values[t, seen], (cols, rows), method="linear")
         hole = np.isnan(linear)
-        if hole.any():  # each pixel's nearest point on its own: the same answer on any number of threads
-            linear[hole] = known[cKDTree(points).query(pixels[hole], workers=-1)[1]]
-        out[t] = linear.reshape(H, W)
+        if hole.any():
+            linear[hole] = griddata(xy[t, seen], values[t, seen], (cols[hole], rows[hole]), method="nearest")
+        out[t] = linear
     return out
 
 
