@@ -16,8 +16,11 @@ its two neighbours (in the logarithm). On ``kinect_paper``'s held
 points the strain is least at the Kinect's focal length and twice as
 large at 0.7× or 1.4× it; on the cloth, which stretches, it barely
 changes (docs/campaign.md, "The focal length from the strain"). The
-sheet stage does not use it: on generated sheets filmed at 40–80° it
-read them no better than a guessed 40° pinhole (docs/findings.md).
+sheet stage reads through a guessed 40° pinhole, not the estimate (on
+generated sheets filmed at 40–80° the estimate read them no better:
+docs/findings.md); with nothing given it keeps only the estimate's
+:attr:`FocalEstimate.contrast`, as the gate that tells a sheet from a
+surface that keeps its lengths through any camera.
 
 Frames and units: pixel coordinates (column x, row y); focal lengths in
 pixels; the principal point at the frame's centre unless given.
