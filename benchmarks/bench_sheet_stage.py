@@ -49,7 +49,8 @@ With ``hold``, where fewer of the point-frames in view are held than the
 stage's ``MIN_HELD``, the stage steps aside, as it does in the job.
 ``--job true``: also the whole job with the sheet stage at its defaults
 (``reconstruct(roi=..., focal=..., sheet=box)``), timed, with its log
-line and its whole-sheet error; ``--job guessed``: the same without the
+line, its whole-sheet error and the seconds each of the stage's parts
+takes (:func:`stage_parts`); ``--job guessed``: the same without the
 focal length (the stage's guessed pinhole); ``--job default``: nothing
 given but the roi (``reconstruct(roi=...)``, the stage by default);
 ``--job whole``: nothing given at all, the whole 640×480 frame, scored on
@@ -194,6 +195,26 @@ def box_check(frames: np.ndarray, box: np.ndarray) -> None:
           f"{np.nanpercentile(shift, 95):.3f}, largest {np.nanmax(shift):.2f}) in {end - middle:.1f} s against {middle - start:.1f} s", flush=True)
 
 
+def stage_parts(sheet) -> dict:
+    """The seconds the sheet stage's parts take, summed as they run: its
+    module's functions wrapped in timers (the stage's own names for them)."""
+    import functools
+
+    names = {"track_grid": "points followed", "unstrained_points": "trim", "mdh_depths": "programs", "estimate_focal": "contrast",
+             "densify": "fusion: interpolation", "fuse": "fusion: fits and blurs"}
+    seconds = dict.fromkeys(names.values(), 0.0)
+    for function, name in names.items():
+        def timed(*args, _run=getattr(sheet, function), _name=name, **kwargs):
+            start = time.perf_counter()
+            try:
+                return _run(*args, **kwargs)
+            finally:
+                seconds[_name] += time.perf_counter() - start
+
+        setattr(sheet, function, functools.wraps(getattr(sheet, function))(timed))
+    return seconds
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--threads", type=int, default=2)
@@ -247,6 +268,7 @@ def main() -> None:
         api = importlib.import_module("nrdepth.reconstruct.api")  # nrdepth.reconstruct is also the function
         decisions, decide = [], api.sheet_depth
         api.sheet_depth = lambda *a, **k: decisions.append(decide(*a, **k)) or decisions[-1]  # the stage's decision, to print
+        parts = stage_parts(importlib.import_module("nrdepth.reconstruct.sheet"))
         start = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # a fallback is printed below
@@ -258,6 +280,7 @@ def main() -> None:
         print(f"the job with the sheet stage's defaults ({args.job}): {whole:.1f} s (the stage {whole - rest:.1f} s, {(whole - rest) / rest:.2f}× the rest"
               f"{'' if 'roi' in given else ', the rest over the roi'}): {kinect_score(job, truth, roi=read):.2f} mm (the fixed bowl over the same frame "
               f"{kinect_references(truth, read)['bowl']:.2f} mm); {decisions[0].line()}", flush=True)
+        print("  inside the stage: " + ", ".join(f"{name} {seconds:.1f} s" for name, seconds in parts.items()), flush=True)
     for setting in filter(None, args.settings.split(",")):
         lever = parse(setting)
         start = time.perf_counter()
