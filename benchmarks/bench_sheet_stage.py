@@ -51,7 +51,8 @@ stage's ``MIN_HELD``, the stage steps aside, as it does in the job.
 (``reconstruct(roi=..., focal=..., sheet=box)``), timed, with its log
 line, its whole-sheet error and the seconds each of the stage's parts
 takes (:func:`stage_parts`); ``--job guessed``: the same without the
-focal length (the stage's guessed pinhole); ``--job default``: nothing
+focal length (the stage's guessed pinhole); ``--job focal``: the roi
+and the true focal length, no box; ``--job default``: nothing
 given but the roi (``reconstruct(roi=...)``, the stage by default);
 ``--job whole``: nothing given at all, the whole 640×480 frame, scored on
 the sheet's points. The rest of the job is ``reconstruct(roi=...,
@@ -225,9 +226,9 @@ def main() -> None:
                         help="the points over the print (KINECT_INNER) or the whole sheet's box (KINECT_ROI)")
     parser.add_argument("--min-held", type=float, default=None, help="the held gate on the point-frames (default: the stage's MIN_HELD; 0: none)")
     parser.add_argument("--no-box-check", action="store_true", help="skip following every point with and without the box first")
-    parser.add_argument("--job", choices=("true", "guessed", "default", "whole"), default=None,
+    parser.add_argument("--job", choices=("true", "guessed", "focal", "default", "whole"), default=None,
                         help="also the whole job with the sheet stage at its defaults: through the true camera or the guessed one over the box, "
-                        "nothing given but the roi, or nothing at all (module docstring)")
+                        "the roi and the true focal length, nothing given but the roi, or nothing at all (module docstring)")
     args = parser.parse_args()
     for setting in filter(None, args.settings.split(",")):  # before the network's minutes
         if any(parse(setting)[key] for key in ("whole", "piece", "contrast", "onsheet")) or parse(setting)["cevals"] != 100:  # read by sheet_levers alone
@@ -273,7 +274,7 @@ def main() -> None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # a fallback is printed below
             given = {"true": dict(roi=KINECT_ROI, focal=camera, sheet=(x, y, w, h)), "guessed": dict(roi=KINECT_ROI, sheet=(x, y, w, h)),
-                     "default": dict(roi=KINECT_ROI), "whole": {}}[args.job]
+                     "focal": dict(roi=KINECT_ROI, focal=camera), "default": dict(roi=KINECT_ROI), "whole": {}}[args.job]
             job = nrdepth.reconstruct(frames, **given).astype(np.float64)
         whole = time.perf_counter() - start
         read = given.get("roi", (0, 0, frames.shape[2], frames.shape[1]))
