@@ -87,7 +87,8 @@ def test_a_folder_with_another_config_is_refused(tmp_path):
     [({"loss": "l2"}, "loss"), ({"batch_size": 0}, "batch_size"), ({"lr": -1.0}, "lr"), ({"device": "tpu"}, "device"),
      ({"target": "truth"}, "target"), ({"init": "no/such/model.safetensors"}, "init"), ({"real": "no/such/video.npz"}, "real"),
      ({"keep_every": -1}, "keep_every"), ({"ema": 1.0}, "ema"), ({"anchor": -1.0}, "anchor"),
-     ({"anchor": 1e3, "init": str(DEFAULT_MODEL)}, "anchor")],  # lr · anchor = 3: past the start
+     ({"anchor": 1e3, "init": str(DEFAULT_MODEL)}, "anchor"), ({"rehearsal": 1.0}, "rehearsal"), ({"rehearsal": 0.1}, "rehearsal"),  # 0.2 of a clip
+     ({"rehearsal": 0.5, "batch_size": 1}, "rehearsal"), ({"rehearsal": True}, "rehearsal")],  # lr · anchor = 3: past the start
 )
 def test_bad_train_config_is_named(changes, name):
     with pytest.raises(ValueError) as info:
@@ -350,3 +351,31 @@ def test_an_amplitude_run_trains_on_window_widths_and_its_warm_start_is_calibrat
     assert summary["relief_ratio"]["geometric_mean"] > 0 and "relief_ratio" not in nrdepth.learning.evaluate.evaluate(tmp_path / "first", clips=2, config=generator, device="cpu")
     with pytest.raises(ValueError, match="^amplitude:"):
         TrainConfig(amplitude=-1.0)
+
+
+def test_rehearsed_clips_join_each_batch_from_the_default_generators_own_run(tmp_path):
+    from nrdepth.learning.train import REHEARSAL_SEED_OFFSET, OnlineBatches, targets, to_tensors
+
+    recipe = nrdepth.GeneratorConfig(frames=4, size=16, grid=16, texture_size=32, texture_families=("print",), camera_fov=(0.7, 1.4))
+    default = nrdepth.GeneratorConfig(frames=4, size=16, grid=16)
+    config = TrainConfig(loss="aligned", rehearsal=0.25, **{**TINY, "batch_size": 4, "generator": recipe})
+    assert config.rehearsed_clips == 1
+    batches = OnlineBatches(recipe, 7, 4, "observable", rehearsed=config.rehearsed_clips)
+    for k in (0, 5):  # batch k: the recipe's clips 3k .. 3k+2, then the default generator's clip k of its own run
+        fresh = nrdepth.generate_clips(3, seed=7, config=recipe, start=3 * k)
+        old = nrdepth.generate_clips(1, seed=7 + REHEARSAL_SEED_OFFSET, config=default, start=k)
+        video, depth = batches[k]
+        expected = [to_tensors(c.video, targets("observable", c.depth, c.params)) for c in (fresh, old)]
+        assert torch.equal(video, torch.cat([e[0] for e in expected])) and torch.equal(depth, torch.cat([e[1] for e in expected]))
+    # Without rehearsal a batch is the recipe's clips alone, as before the option.
+    video, _ = OnlineBatches(recipe, 7, 4, "observable")[2]
+    assert torch.equal(video, to_tensors(nrdepth.generate_clips(4, seed=7, config=recipe, start=8).video, np.zeros((4, 4, 16, 16)))[0])
+    # A rehearsing run resumes to the same bytes, and a run saved before the option resumes as one without it.
+    train(tmp_path / "straight", config, progress=False)
+    train(tmp_path / "resumed", config, progress=False, max_epochs=1)
+    train(tmp_path / "resumed", config, progress=False)
+    a, b = (torch.load(tmp_path / d / "last.pt", weights_only=False)["model"] for d in ("straight", "resumed"))
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    saved = TrainConfig(loss="aligned", **TINY).as_dict()
+    del saved["rehearsal"]
+    assert TrainConfig(loss="aligned", **TINY).resumable_as(saved) and not config.resumable_as(saved)

@@ -21,7 +21,7 @@ def _train(args: argparse.Namespace) -> int:
         seed=args.seed, data=args.data, generator=generator_config(args),
         validation_clips=args.validation_clips, workers=args.workers, device=args.device, compile=args.compile,
         real=(args.real[0] if len(args.real) == 1 else args.real) if args.real else None, keep_every=args.keep_every, ema=args.ema,
-        anchor=args.anchor,
+        anchor=args.anchor, rehearsal=args.rehearse,
     )
     summary = train(args.out, config, progress=not args.quiet, max_epochs=args.max_epochs)
     if summary:
@@ -96,6 +96,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--anchor", type=float, default=0.0, metavar="RATE",
                    help="with --init: after every step pull the weights back toward the warm start's by lr × RATE of the way "
                         "(L2-SP, decoupled; e.g. 100 at lr 5e-5 is 0.5 %% a step; default: 0, no pull)")
+    p.add_argument("--rehearse", type=float, default=0.0, metavar="SHARE",
+                   help="share of each batch drawn by the default generator (orthographic coloured noise, the clips the cloth was learnt on), "
+                        "the rest by the options below; e.g. 0.5 (default: 0, none)")
     p.add_argument("--keep-every", type=int, default=0, metavar="N",
                    help="also keep every N-th epoch's weights as epochs/epoch_E.safetensors (default: 0, none)")
     p.add_argument("--workers", type=int, default=2, help="DataLoader worker processes")

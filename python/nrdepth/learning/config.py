@@ -107,6 +107,15 @@ class TrainConfig:
     and ``epochs/`` hold (``last.pt`` keeps both). 0.999 averages over about
     the last 1,000 steps: it smooths the step-to-step noise that a constant
     learning rate leaves in the weights."""
+    rehearsal: float = 0.0
+    """Share of each batch's clips drawn by the default generator
+    (``GeneratorConfig()`` at ``generator``'s frames, size and grid:
+    orthographic coloured noise, the recipe the CPU line learnt the real
+    cloth on), the rest by ``generator``. A warm start that learns a new
+    kind of clip forgets what its start read well (docs/campaign.md, "the
+    cloth at scale"); rehearsal keeps the old clips in view. The share
+    times ``batch_size`` is rounded to whole clips, at least one where the
+    share is above 0; online clips only (not with ``data``)."""
     keep_every: int = 0
     """Also keep every N-th epoch's weights (``epochs/epoch_E.safetensors``
     and ``.json``), so that checkpoints along a curve can be scored later;
@@ -169,11 +178,24 @@ class TrainConfig:
         if self.generator.backdrop_probability > 0 and (self.loss not in MASKED_LOSSES or self.amplitude > 0):
             raise ValueError(f"loss: backdrop clips have no depth off the sheet; they need a loss of {', '.join(MASKED_LOSSES)} "
                              f"and no amplitude term, got {self.loss!r} with amplitude {self.amplitude}")
+        if isinstance(self.rehearsal, bool) or not (isinstance(self.rehearsal, (int, float, np.floating)) and 0.0 <= self.rehearsal < 1.0):
+            raise ValueError(f"rehearsal: expected a share of each batch in [0, 1) (0: none), got {self.rehearsal!r}")
+        self.rehearsal = float(self.rehearsal)
+        if self.rehearsal > 0 and not 1 <= self.rehearsed_clips < self.batch_size:
+            raise ValueError(f"rehearsal: {self.rehearsal:g} of batch_size {self.batch_size} rounds to {self.rehearsed_clips} clips; "
+                             f"expected between 1 and {self.batch_size - 1}")
+        if self.rehearsal > 0 and self.data is not None:
+            raise ValueError("rehearsal: draws clips online; it cannot join a dataset (data)")
         if self.data is not None:
             self.data = os.fspath(self.data)
             if not os.path.isdir(self.data):
                 raise ValueError(f"data: not a dataset folder: {self.data}")
         resolve_device(self.device)
+
+    @property
+    def rehearsed_clips(self) -> int:
+        """Clips of each batch drawn by the default generator (:attr:`rehearsal`)."""
+        return int(round(self.rehearsal * self.batch_size))
 
     def model_config(self) -> Dict[str, Any]:
         """The constructor arguments of this run's network."""
@@ -196,7 +218,7 @@ class TrainConfig:
         campaign steps it down by hand)."""
         free = ("workers", "device", "init", "real", "keep_every") + (("epochs", "lr") if self.schedule == "constant" else ())
         mine = json.loads(json.dumps(self.as_dict()))
-        saved = {"target": "depth", "amplitude": 0.0, "ema": 0.0, "anchor": 0.0, **saved}  # runs saved before these options had their defaults
+        saved = {"target": "depth", "amplitude": 0.0, "ema": 0.0, "anchor": 0.0, "rehearsal": 0.0, **saved}  # runs saved before these options had their defaults
         try:  # generator fields added since take their defaults
             saved["generator"] = json.loads(json.dumps(GeneratorConfig.from_dict(saved["generator"]).as_dict()))
         except (KeyError, TypeError, ValueError):

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import copy
 import csv
+import dataclasses
 import hashlib
 import json
 import math
@@ -45,6 +46,9 @@ __all__ = ["train", "targets", "validation_set", "evaluate_depth"]
 
 VALIDATION_SEED_OFFSET = 1_000_003
 
+REHEARSAL_SEED_OFFSET = 2_000_003
+"""The rehearsed clips' run is the run's seed plus this: apart from its own clips and its validation clips."""
+
 CALIBRATION_CLIPS = 32
 
 
@@ -65,17 +69,28 @@ def to_tensors(video: np.ndarray, depth: np.ndarray) -> Tuple[torch.Tensor, torc
 
 
 class OnlineBatches(torch.utils.data.Dataset):
-    """Batch k: clips k·B .. (k+1)·B of the generator run (config, seed)."""
+    """Batch k: clips k·B .. (k+1)·B of the generator run (config, seed);
+    with ``rehearsed`` = R clips of each batch rehearsed, clips k·(B − R) ..
+    (k+1)·(B − R) of that run, then clips k·R .. (k+1)·R of the default
+    generator's run (seed + :data:`REHEARSAL_SEED_OFFSET`) at the same
+    frames, size and grid."""
 
-    def __init__(self, config: GeneratorConfig, seed: int, batch_size: int, target: str = "depth", window_units: bool = False) -> None:
+    def __init__(self, config: GeneratorConfig, seed: int, batch_size: int, target: str = "depth", window_units: bool = False,
+                 rehearsed: int = 0) -> None:
         self.config, self.seed, self.batch_size, self.target, self.window_units = config, seed, batch_size, target, window_units
+        self.rehearsed = rehearsed
+        self.rehearsal = dataclasses.replace(GeneratorConfig(), frames=config.frames, size=config.size, grid=config.grid)
 
     def __len__(self) -> int:
         return 2**40
 
     def __getitem__(self, k: int):
-        clips = generate_clips(self.batch_size, seed=self.seed, config=self.config, start=k * self.batch_size)
-        return to_tensors(clips.video, targets(self.target, clips.depth, clips.params, self.window_units))
+        fresh = self.batch_size - self.rehearsed
+        clips = [generate_clips(fresh, seed=self.seed, config=self.config, start=k * fresh)]
+        if self.rehearsed:
+            clips.append(generate_clips(self.rehearsed, seed=self.seed + REHEARSAL_SEED_OFFSET, config=self.rehearsal, start=k * self.rehearsed))
+        depth = np.concatenate([targets(self.target, c.depth, c.params, self.window_units) for c in clips])
+        return to_tensors(np.concatenate([c.video for c in clips]), depth)
 
 
 class StoredBatches(torch.utils.data.Dataset):
@@ -165,7 +180,7 @@ def train(out: Union[str, os.PathLike], config: Optional[TrainConfig] = None, pr
     # The data is opened (and refused if bad) before anything is written.
     window_units = config.amplitude > 0
     data = (StoredBatches(config.data, config.seed, config.batch_size, config.target, window_units) if config.data
-            else OnlineBatches(config.generator, config.seed, config.batch_size, config.target, window_units))
+            else OnlineBatches(config.generator, config.seed, config.batch_size, config.target, window_units, config.rehearsed_clips))
     video_val, depth_val, widths_val = validation_set(config) if leader else (None, None, None)
     warm_start = _warm_start(config) if config.init is not None and (config.anchor > 0 or not (out / "last.pt").exists()) else None
     depth_val_half = torch.nn.functional.avg_pool2d(torch.from_numpy(depth_val).float(), 2).numpy() if leader else None
