@@ -48,9 +48,11 @@ from nrdepth.learning.evaluate import TEST_SEED  # noqa: E402
 from nrdepth.engine.generate import observable_depth  # noqa: E402
 from nrdepth.scores.metrics import mae_sn  # noqa: E402
 from nrdepth.io import read_video  # noqa: E402
+from nrdepth.reconstruct import inference_model  # noqa: E402
 
-pipeline = sys.modules["nrdepth.reconstruct"]  # the module: nrdepth.reconstruct is the function
-original_coarse_half, original_field_windows = pipeline.coarse_half, pipeline.field_windows
+# The stand-ins go into the modules that call the two passes (the package's names are only re-exports).
+pipeline, stitching = sys.modules["nrdepth.reconstruct.pipeline"], sys.modules["nrdepth.reconstruct.stitching"]
+original_coarse_half, original_field_windows = pipeline.coarse_half, stitching.field_windows
 
 
 def coarse_reading(coarse_net, other=None, weight: float = 0.0):
@@ -108,14 +110,14 @@ def generated_scores(readings: dict, fine_model, videos: int, cameras: tuple, ag
         scores = {label: [] for label in readings}
         for video, depth, params in zip(clips.video, clips.depth, clips.params):
             truth = observable_depth(depth, params)
-            pipeline.field_windows = fine_pass_once()
+            stitching.field_windows = fine_pass_once()
             try:
                 for label, coarse in readings.items():
                     pipeline.coarse_half = coarse
                     reading = nrdepth.reconstruct(video, fine_model, sheet_stage=False)
                     scores[label].append([mae_sn(reading, truth, a) for a in ("frame", "first")])
             finally:
-                pipeline.coarse_half, pipeline.field_windows = original_coarse_half, original_field_windows
+                pipeline.coarse_half, stitching.field_windows = original_coarse_half, original_field_windows
         scores = {label: np.array(s) for label, s in scores.items()}
         print(f"{videos} generated 256²×48 videos, {camera}: per frame / from the first frame, paired against {against}")
         for label, s in scores.items():
@@ -136,7 +138,7 @@ def main() -> None:
         parser.error("name two or more models")
     cpu = torch.device("cpu")
     path = {m: None if m == "default" else m for m in args.models}
-    nets = {m: pipeline.inference_model(path[m], cpu) for m in args.models}
+    nets = {m: inference_model(path[m], cpu) for m in args.models}
     for net in nets.values():  # each network's own coarse pass: --mix names the companion
         net.coarse_companion = None
     first, second = args.models[:2]
@@ -151,7 +153,7 @@ def main() -> None:
             weight = math.nan
         if not os.path.isfile(companion) or not 0 < weight <= 1:
             parser.error(f"--reference: expected COMPANION:W, an existing file and a weight in (0, 1], got {args.reference!r}")
-        reference = pipeline.inference_model(companion, cpu)
+        reference = inference_model(companion, cpu)
         reference.coarse_companion = None
         mixes[f"reference: {weight:g} × {companion[-22:]}"] = coarse_reading(nets[first], reference, weight)
     if args.mix is not None:
