@@ -114,8 +114,9 @@ class TrainConfig:
     cloth on), the rest by ``generator``. A warm start that learns a new
     kind of clip forgets what its start read well (docs/campaign.md, "the
     cloth at scale"); rehearsal keeps the old clips in view. The share
-    times ``batch_size`` is rounded to whole clips, at least one where the
-    share is above 0; online clips only (not with ``data``)."""
+    times ``batch_size`` is rounded to whole clips (a share that rounds to
+    none, or to the whole batch, is refused); online clips only (not with
+    ``data``)."""
     keep_every: int = 0
     """Also keep every N-th epoch's weights (``epochs/epoch_E.safetensors``
     and ``.json``), so that checkpoints along a curve can be scored later;
