@@ -15,6 +15,7 @@ pub mod params;
 pub mod raster;
 pub mod rng;
 pub mod sheet;
+pub mod spread;
 pub mod joint;
 pub mod stitch;
 pub mod synthesis;

@@ -11,7 +11,7 @@ use std::sync::mpsc::{self, RecvTimeoutError};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
@@ -823,6 +823,21 @@ fn temporal_align<'py>(py: Python<'py>, depth: PyReadonlyArray3<'py, f32>) -> Py
     Ok(PyArray1::from_vec(py, data).reshape([s[0], s[1], s[2]])?.into_any())
 }
 
+/// Values at scattered points (column, row) spread over an (H, W) frame:
+/// linear over the given triangles, the nearest point's value elsewhere.
+#[pyfunction]
+fn spread<'py>(py: Python<'py>, points: PyReadonlyArray2<'py, f64>, values: PyReadonlyArray1<'py, f64>, triangles: PyReadonlyArray2<'py, u32>,
+               size: (i64, i64)) -> PyResult<Bound<'py, PyAny>> {
+    let (h, w) = size;
+    if h < 1 || w < 1 {
+        return Err(PyValueError::new_err(format!("size: expected (H, W) >= 1, got ({h}, {w})")));
+    }
+    let (p, t) = (rows::<f64, 2>("points", &points)?, rows::<u32, 3>("triangles", &triangles)?);
+    let v = values.as_slice().map_err(|_| PyValueError::new_err("values: expected a C-contiguous array"))?;
+    let out = parallel(py, || crate::spread::spread(p, v, t, [h as usize, w as usize]))?.map_err(value_error)?;
+    array2(py, out, h as usize, w as usize)
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(default_surface_config, m)?)?;
@@ -844,6 +859,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(patch_layout, m)?)?;
     m.add_class::<PyStitcher>()?;
     m.add_function(wrap_pyfunction!(temporal_align, m)?)?;
+    m.add_function(wrap_pyfunction!(spread, m)?)?;
     m.add("CAMERA_Z", crate::geometry::CAMERA_Z)?;
     m.add("FFT_PERIOD", synthesis::PERIOD)?;
     m.add("W_RADIUS", synthesis::W_RADIUS)?;

@@ -568,16 +568,20 @@ def test_densify_agrees_with_brute_force():
     from scipy.interpolate import griddata
 
     rng = np.random.default_rng(5)
-    xy = rng.uniform(8, 40, (3, 12, 2))
-    values = rng.normal(size=(3, 12))
-    xy[1, 4] = np.nan  # out of view in one frame: no part in it
-    dense = densify(xy, values, (3, 36, 48))
-    rows, cols = np.mgrid[0:36, 0:48]
-    for t in range(3):
-        seen = np.isfinite(xy[t]).all(axis=1)
-        linear = griddata(xy[t, seen], values[t, seen], (cols, rows), method="linear")  # inside the points' hull
-        nearest = values[t, seen][np.argmin(np.linalg.norm(np.stack([cols, rows], -1)[..., None, :] - xy[t, seen], axis=-1), axis=-1)]
-        np.testing.assert_array_equal(dense[t], np.where(np.isnan(linear), nearest, linear))
+    for n, frame in ((12, (36, 48)), (300, (90, 70))):  # a few points, and more than the pixels of a row
+        xy = rng.uniform(8, 40, (3, n, 2)) * np.array(frame[::-1]) / 48
+        values = rng.normal(size=(3, n))
+        xy[1, 4] = np.nan  # out of view in one frame: no part in it
+        dense = densify(xy, values, (3,) + frame)
+        rows, cols = np.mgrid[0 : frame[0], 0 : frame[1]]
+        for t in range(3):
+            seen = np.isfinite(xy[t]).all(axis=1)
+            linear = griddata(xy[t, seen], values[t, seen], (cols, rows), method="linear")  # inside the points' hull
+            nearest = values[t, seen][np.argmin(np.linalg.norm(np.stack([cols, rows], -1)[..., None, :] - xy[t, seen], axis=-1), axis=-1)]
+            np.testing.assert_allclose(dense[t], np.where(np.isnan(linear), nearest, linear), rtol=0, atol=1e-12)
+    line = np.stack([np.linspace(5, 30, 6), np.linspace(2, 12, 6)], axis=1)[None]
+    with pytest.raises(ValueError, match="xy: expected points in frame 0 that span the plane"):
+        densify(line, np.ones((1, 6)), (1, 20, 20))
 
 
 def test_neighbour_pairs_agree_with_brute_force():

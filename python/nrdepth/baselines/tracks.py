@@ -11,7 +11,8 @@ dense depth from sparse points: what the paper's comparison with CSF2 needs.
   each frame's camera, ``r_1 × r_2``, applied to the centred shape.
 - :func:`densify`: dense depth (T, H, W) from depths at scattered image
   points by linear interpolation over their Delaunay triangulation
-  (``scipy.interpolate.griddata``), nearest-neighbour outside their hull.
+  (SciPy's), nearest-neighbour outside their hull: what
+  ``scipy.interpolate.griddata`` gives, spread by the Rust core.
 - :func:`track_video`: tracks of a real video, as NRSfM users make them:
   Shi–Tomasi corners in the first frame followed frame to frame by OpenCV's
   pyramidal Lucas–Kanade, keeping only points that every step tracks and
@@ -24,6 +25,7 @@ from typing import Any, Dict, NamedTuple, Optional
 
 import numpy as np
 
+from .._core import spread
 from ..engine.generate import GeneratorConfig
 from ..engine.render import CAMERA_Z
 from ..engine.surface import SurfaceParams, synthesize_surface
@@ -99,22 +101,25 @@ def nrsfm_depth(shapes: np.ndarray, cameras: np.ndarray) -> np.ndarray:
 def densify(xy: np.ndarray, values: np.ndarray, shape: tuple) -> np.ndarray:
     """Dense (T, H, W) from values (T, n) at points xy (T, n, 2) (column,
     row): linear over the points' Delaunay triangles, nearest outside their
-    convex hull. A point whose value or position is NaN in a frame (out of
-    view) takes no part in it; each frame needs 3 points that do."""
-    from scipy.interpolate import griddata
+    convex hull, as ``scipy.interpolate.griddata``'s "linear" and then
+    "nearest" give it (to rounding: ``tests/test_baselines.py``), a frame in
+    a few milliseconds (``nrdepth._core.spread``). A point whose value or
+    position is NaN in a frame (out of view) takes no part in it; each frame
+    needs 3 points that do, not all on one line."""
+    from scipy.spatial import Delaunay, QhullError
 
     T, H, W = shape
-    rows, cols = np.mgrid[0:H, 0:W]
     out = np.empty(shape)
     for t in range(T):
         seen = np.isfinite(values[t]) & np.isfinite(xy[t]).all(axis=1)
         if np.count_nonzero(seen) < 3:
             raise ValueError(f"values: expected at least 3 points with a value in every frame, got {np.count_nonzero(seen)} in frame {t}")
-        linear = griddata(xy[t, seen], values[t, seen], (cols, rows), method="linear")
-        hole = np.isnan(linear)
-        if hole.any():
-            linear[hole] = griddata(xy[t, seen], values[t, seen], (cols[hole], rows[hole]), method="nearest")
-        out[t] = linear
+        points = np.ascontiguousarray(xy[t, seen], np.float64)
+        try:
+            triangles = Delaunay(points).simplices  # griddata's own triangulation
+        except QhullError:
+            raise ValueError(f"xy: expected points in frame {t} that span the plane, got {len(points)} on one line or fewer") from None
+        out[t] = spread(points, np.ascontiguousarray(values[t, seen], np.float64), np.ascontiguousarray(triangles, np.uint32), (H, W))
     return out
 
 

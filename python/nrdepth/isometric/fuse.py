@@ -48,8 +48,9 @@ def fuse(depth: np.ndarray, isometric: np.ndarray, scale: float, mask: Optional[
             fits.append(np.insert(np.linalg.lstsq(plane, i[m] - shared * d[m], rcond=None)[0], 2, shared))
     out = np.empty_like(depth)
     weighed, weight = None, None  # the mask last blurred: most frames share one, and its blur costs as much as the difference's
+    rows, cols = np.mgrid[0 : depth.shape[1], 0 : depth.shape[2]]
     for t, (d, i, m, fit) in enumerate(zip(depth, isometric, mask, fits)):
-        aligned = (gbr_design(d, None) @ fit).reshape(d.shape)
+        aligned = fit[0] * cols + fit[1] * rows + fit[2] * d + fit[3]  # gbr_design's columns x, y, depth, 1, without building them
         if weighed is None or not np.array_equal(m, weighed):
             weighed, weight = m, _blur(m.astype(np.float64), scale)
         difference = _blur(np.where(m, i - aligned, 0.0), scale)
