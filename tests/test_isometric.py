@@ -372,6 +372,26 @@ def test_the_warp_fitted_to_held_points_on_one_line_falls_back_to_every_point_no
     np.testing.assert_array_equal(anchor.fitted, some)
 
 
+def test_the_warp_gives_an_affine_map_of_its_points_back_even_where_only_one_point_reaches_a_node():
+    """Four points held, one alone and three far off on a line (a coloured-noise video once held just these): at a node by the lone
+    point the moments are singular in rounding, and solving them gave numpy's LinAlgError, or nearby a warp that moved a
+    translation's nodes 0.3 px wrong. There the node takes its points' mean displacement: every translation comes back at every
+    node, and an affine map wherever the moments are well conditioned."""
+    from nrdepth.isometric.hold import AFFINE_KEPT, _mls, _weights
+
+    anchors = np.array([[224, 236.8], [44.8, 249.6], [57.6, 249.6], [70.4, 249.6]])
+    nodes = np.array([[224.0, 200.0], [60.0, 240.0], [120.0, 230.0], [224.0, 236.8]])
+    shift, turn = np.array([3.0, -2.0]), np.array([[np.cos(0.2), -np.sin(0.2)], [np.sin(0.2), np.cos(0.2)]])
+    alone = np.array([[1.0, 0.0, 0.0, 0.0]])  # one point's weight alone: moments of rank 1, which numpy refuses to solve
+    for at, weights in ((nodes[:1], alone), (nodes, _weights(nodes, anchors, 18.2))):
+        matrix, offset = _mls(at, anchors, weights)
+        assert np.isfinite(matrix).all() and np.isfinite(offset).all()
+        np.testing.assert_allclose(matrix @ (anchors + shift) + offset, at + shift, atol=1e-9)
+    kept = (offset == 0).all(axis=1)
+    assert kept[2] and not kept[0]  # the node among the points keeps the affine deformation, the one by the lone point does not
+    np.testing.assert_allclose((matrix @ (anchors @ turn.T))[kept], (nodes @ turn.T)[kept], atol=AFFINE_KEPT * 10)
+
+
 def test_points_placed_by_texture_go_on_the_print_with_their_windows_on_the_mask_and_follow_it():
     from nrdepth.isometric import start_texture
 

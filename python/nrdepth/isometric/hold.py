@@ -30,7 +30,7 @@ from typing import Tuple
 
 import numpy as np
 
-__all__ = ["Anchor", "SPREAD", "STEP", "HOLD_FB", "HOLD_NCC", "HOLD_WINDOW", "HOLD_LEVELS", "OUTLIER", "CONTRAST"]
+__all__ = ["Anchor", "SPREAD", "STEP", "HOLD_FB", "HOLD_NCC", "HOLD_WINDOW", "HOLD_LEVELS", "OUTLIER", "CONTRAST", "AFFINE_KEPT"]
 
 SPREAD = 1.5
 """The warp's Gaussian weights' width in the points' spacings: wide enough
@@ -57,6 +57,11 @@ OUTLIER = 3.0
 """Pixels: a prediction this far from the warp fitted to all of them is
 replaced by the warp's before the warp is fitted again (one point
 dragged by the flow would bend the warp around it)."""
+
+AFFINE_KEPT = 1e-6
+"""Pixels: the warp at a node must give an affine map of its anchors back
+to this (it does, to rounding, wherever its moments are well
+conditioned); elsewhere the node takes a translation (:func:`_mls`)."""
 
 CONTRAST = 5.0
 """Pixels: the Gaussian over which each frame's local mean and contrast
@@ -94,14 +99,29 @@ def _weights(nodes: np.ndarray, anchors: np.ndarray, sigma: float) -> np.ndarray
     return np.exp(-((nodes[:, None, :] - anchors[None]) ** 2).sum(-1) / (2 * sigma**2)) + 1e-12  # + 1e-12: far nodes stay defined
 
 
-def _mls(nodes: np.ndarray, anchors: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """(m, n): where the affine moving-least-squares deformation takes ``nodes``
-    (m, 2) is this matrix times where it takes ``anchors`` (n, 2), given
-    their :func:`_weights` (m, n)."""
+def _mls(nodes: np.ndarray, anchors: np.ndarray, weights: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """(m, n) and (m, 2): where the affine moving-least-squares deformation
+    takes ``nodes`` (m, 2) is this matrix times where it takes ``anchors``
+    (n, 2), plus the offset, given their :func:`_weights` (m, n). The
+    offset is zero, as the deformation needs none, but at a node whose
+    moments are singular in rounding (one anchor near it, the rest far off
+    and on a line), where the solve would not give an affine map of the
+    anchors back; such a node moves by its anchors' weighted mean
+    displacement instead."""
     A = np.column_stack([anchors, np.ones(len(anchors))])
     G = np.column_stack([nodes, np.ones(len(nodes))])
     moments = np.einsum("mi,iab->mab", weights, A[:, :, None] * A[:, None, :])  # two operands: twice as fast as three
-    return weights * (A @ np.linalg.solve(moments, G[:, :, None])[..., 0].T).T
+    try:
+        solved = np.linalg.solve(moments, G[:, :, None])[..., 0]
+    except np.linalg.LinAlgError:  # a node's moments exactly singular: found below with the others that are nearly so
+        solved = (np.linalg.pinv(moments) @ G[:, :, None])[..., 0]
+    matrix = weights * (A @ solved.T).T
+    offset = np.zeros((len(nodes), 2))
+    broken = np.abs(matrix @ A - G).max(axis=1) > AFFINE_KEPT
+    if broken.any():
+        mean = weights[broken] / weights[broken].sum(axis=1, keepdims=True)
+        matrix[broken], offset[broken] = mean, nodes[broken] - mean @ anchors
+    return matrix, offset
 
 
 class Anchor:
@@ -138,12 +158,12 @@ class Anchor:
             fitted = np.ones(len(self.start), bool)
         if self.fitted is None or not np.array_equal(fitted, self.fitted):
             self.fitted, anchors = fitted.copy(), self.start[fitted]
-            self.to_nodes = _mls(self.nodes, anchors, self.node_weights[:, fitted])
-            self.to_points = _mls(self.start, anchors, self.point_weights[:, fitted])
+            self.to_nodes, self.node_offset = _mls(self.nodes, anchors, self.node_weights[:, fitted])
+            self.to_points, self.point_offset = _mls(self.start, anchors, self.point_weights[:, fitted])
 
     def _warp(self, predicted: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """The warp's maps over the first frame's box: where each of its pixels is in the current frame."""
-        cv2, at_nodes = self.cv2, self.to_nodes @ predicted[self.fitted]
+        cv2, at_nodes = self.cv2, self.to_nodes @ predicted[self.fitted] + self.node_offset
         maps = []
         for c in (0, 1):
             coarse = at_nodes[:, c].reshape(self.nodes_shape).astype(np.float32)
@@ -160,7 +180,7 @@ class Anchor:
         from scipy.ndimage import map_coordinates
 
         cv2 = self.cv2
-        smooth = self.to_points @ predicted[self.fitted]
+        smooth = self.to_points @ predicted[self.fitted] + self.point_offset
         predicted = np.where((np.linalg.norm(smooth - predicted, axis=1) > OUTLIER)[:, None], smooth, predicted)
         map_x, map_y = self._warp(predicted)
         # Only the part of the frame the warp reads is normalised: its box grown by the two blurs' reach (OpenCV's
