@@ -102,7 +102,7 @@ def densify(xy: np.ndarray, values: np.ndarray, shape: tuple) -> np.ndarray:
     """Dense (T, H, W) from values (T, n) at points xy (T, n, 2) (column,
     row): linear over the points' Delaunay triangles, nearest outside their
     convex hull, as ``scipy.interpolate.griddata``'s "linear" and then
-    "nearest" give it (to rounding: ``tests/test_baselines.py``), a frame in
+    "nearest" give it (to rounding: ``tests/test_isometric.py``), a frame in
     a few milliseconds (``nrdepth._core.spread``). A point whose value or
     position is NaN in a frame (out of view) takes no part in it; each frame
     needs 3 points that do, not all on one line."""
