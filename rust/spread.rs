@@ -24,6 +24,9 @@ use crate::error::{InvalidArgument, Result};
 /// triangle (SciPy's `find_simplex` tolerance, 100 × f64's epsilon).
 pub const INSIDE: f64 = 100.0 * f64::EPSILON;
 
+/// The most pixels one frame may have (2^31): a larger size is refused, not allocated.
+pub const MAX_PIXELS: usize = 1 << 31;
+
 /// A triangle's barycentric map, as SciPy's `Delaunay.transform` holds it:
 /// `c0, c1 = T (p − v2)`, `c2 = 1 − c0 − c1`.
 struct Barycentric {
@@ -89,8 +92,8 @@ impl Barycentric {
 /// `points`), the nearest point's value elsewhere (module header).
 pub fn spread(points: &[[f64; 2]], values: &[f64], triangles: &[[u32; 3]], size: [usize; 2]) -> Result<Vec<f64>> {
     let [height, width] = size;
-    if height == 0 || width == 0 {
-        return Err(InvalidArgument::new("size", format!("expected (H, W) >= 1, got ({height}, {width})")));
+    if height == 0 || width == 0 || height.checked_mul(width).is_none_or(|n| n > MAX_PIXELS) {
+        return Err(InvalidArgument::new("size", format!("expected (H, W) >= 1 with at most {MAX_PIXELS} pixels, got ({height}, {width})")));
     }
     if points.is_empty() || values.len() != points.len() {
         return Err(InvalidArgument::new("values", format!("expected one value for each of at least 1 point, got {} values for {} points", values.len(), points.len())));
@@ -281,6 +284,8 @@ mod tests {
         assert!(spread(&p, &[1.0, 2.0, f64::NAN], &[], [4, 4]).is_err());
         assert!(spread(&p, &[1.0, 2.0, 3.0], &[[0, 1, 3]], [4, 4]).is_err());
         assert!(spread(&p, &[1.0, 2.0, 3.0], &[], [0, 4]).is_err());
+        assert!(spread(&p, &[1.0, 2.0, 3.0], &[], [usize::MAX / 2, 4]).is_err());  // overflows H × W
+        assert!(spread(&p, &[1.0, 2.0, 3.0], &[], [1 << 20, 1 << 12]).is_err());  // over MAX_PIXELS
         assert!(spread(&[], &[], &[], [4, 4]).is_err());
     }
 }
