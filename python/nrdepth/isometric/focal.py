@@ -29,8 +29,6 @@ pixels; the principal point at the frame's centre unless given.
 from __future__ import annotations
 
 import math
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Optional, Tuple
 
@@ -85,8 +83,10 @@ def estimate_focal(xy: np.ndarray, frame: Tuple[int, int], centre: Optional[Tupl
     ``steps`` focal lengths over pinholes seeing ``views`` degrees, at
     most ``points`` points, each refinement at most ``evaluations``
     evaluations (``solve_template``'s); ``centre``: the principal point (default: the
-    frame's centre). Each focal length's programs run in a thread of
-    their own; the answer is the same at any thread count."""
+    frame's centre). The focal lengths are read one after another, on
+    one BLAS thread: their refinements are bound by Python (SciPy's
+    LSMR), and in two threads they contend for the GIL (on
+    ``kinect_paper``'s held points 10.1 s against 7.3, the same answer)."""
     from threadpoolctl import threadpool_limits
 
     xy = np.asarray(xy, np.float64)
@@ -114,9 +114,9 @@ def estimate_focal(xy: np.ndarray, frame: Tuple[int, int], centre: Optional[Tupl
         depths, distances = solve_template(rays, pairs, refined=True, evaluations=evaluations)
         return pair_strain(tracks, depths, camera, pairs, distances)
 
-    # One BLAS thread around the whole pool (threadpoolctl's limits are the process's): the same rounding in any thread.
-    with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(max_workers=max(1, min(steps, os.cpu_count() or 1))) as pool:
-        strains = np.array(list(pool.map(strain, focals)))
+    # One BLAS thread: the same rounding on any machine, and no BLAS threads spinning beside Python-bound work.
+    with threadpool_limits(limits=1, user_api="blas"):
+        strains = np.array([strain(focal) for focal in focals])
     k = int(np.argmin(strains))
     focal = float(focals[k])
     if 0 < k < steps - 1:  # the parabola's vertex through the least and its neighbours, in the logarithm (even steps)

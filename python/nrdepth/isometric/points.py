@@ -219,6 +219,7 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
     area, and held points are found again at the frames' own size."""
     import cv2  # imported here: `import nrdepth` stays light
     from scipy.ndimage import map_coordinates
+    from threadpoolctl import threadpool_limits
 
     first, rest = frames_of(video)
     start = np.asarray(start, np.float64)
@@ -251,8 +252,10 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
     apart, steps = np.zeros(len(start)), np.zeros(len(start))
     previous = first
     # The backward flow in a second thread while this one computes the forward flow (OpenCV releases the GIL, and
-    # one Farneback call gains nothing from a second core): the same numbers in less time on two cores.
-    with ThreadPoolExecutor(1) if backward else nullcontext() as helper:
+    # one Farneback call gains nothing from a second core): the same numbers in less time on two cores. One BLAS
+    # thread: the hold's small products gain nothing from more, whose threads spin after each call and take the
+    # cores from the flows (kinect_paper's held points: 16.0 s against 25.8, the same tracks).
+    with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(1) if backward else nullcontext() as helper:
         for frame in rest:  # two frames held at a time: a stream is read once
             now_xy = np.full_like(start, np.nan)
             if len(alive):
