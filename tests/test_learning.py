@@ -448,3 +448,26 @@ def test_upmerge_projects_before_upsampling_as_if_after():
     x, skip = torch.randn(2, 8, 3, 5, 6), torch.randn(2, 4, 3, 10, 12)
     after = merge.block(merge.project(torch.nn.functional.interpolate(x, size=skip.shape[2:], mode="nearest")) + skip)
     torch.testing.assert_close(merge(x, skip), after, rtol=1e-6, atol=1e-6)
+
+
+@pytest.mark.parametrize("architecture", ["unet2p1d", "unet2p1d_global", "unet2p1d_deep"])
+@pytest.mark.parametrize("layout", [torch.contiguous_format, torch.channels_last_3d])
+def test_inference_writes_over_its_activations_and_gives_the_same_bits(architecture, layout):
+    """Without gradients the (2+1)D networks add residuals and skips in the
+    memory of a layer's new output: the same bits as with gradients, where
+    every sum is a new tensor, and the input is left as it was."""
+    from nrdepth.model.io import build_model
+
+    torch.manual_seed(0)
+    net = build_model(architecture, width=8, stem_width=4).eval().to(memory_format=layout)
+    with torch.no_grad():
+        for parameter in net.parameters():  # the modules that start as the identity too
+            parameter.normal_(0.0, 0.2)
+    video = torch.rand(2, 1, 5, 32, 40).contiguous(memory_format=layout)
+    given = video.clone()
+    with torch.enable_grad():
+        summed = net(video).detach()
+    with torch.inference_mode():
+        written_over = net(video)
+    assert torch.equal(video, given)
+    assert torch.equal(summed, written_over)

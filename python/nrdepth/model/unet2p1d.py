@@ -49,6 +49,17 @@ STD_FLOOR = 1e-3
 """Added to the input's standard deviation before dividing by it (a flat clip stays finite)."""
 
 
+def _plus(fresh: torch.Tensor, other: torch.Tensor) -> torch.Tensor:
+    """``other + fresh``, written over ``fresh`` (a layer's new output)
+    where no gradient is kept and the two are laid out alike: inference
+    then allocates no new activation, whose page faults cost more than
+    the sum (the CPU's fine pass: 16 % of its time in these sums). The
+    same bits either way: addition commutes."""
+    if torch.is_grad_enabled() or fresh.dtype != other.dtype or fresh.shape != other.shape or fresh.stride() != other.stride():
+        return other + fresh
+    return fresh.add_(other)
+
+
 def _act() -> nn.Module:
     return nn.LeakyReLU(NEGATIVE_SLOPE, inplace=True)
 
@@ -71,7 +82,7 @@ class Block(nn.Module):
         self.spatial, self.temporal, self.act = spatial(width, width), temporal(width, width), _act()
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.act(x + self.temporal(self.act(self.spatial(x))))
+        return self.act(_plus(self.temporal(self.act(self.spatial(x))), x))
 
 
 class SpatialContext(nn.Module):
@@ -89,7 +100,7 @@ class SpatialContext(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         reduced = self.reduce(x)
-        return self.act(x + self.fuse(torch.cat([branch(reduced) for branch in self.branches], dim=1)))
+        return self.act(_plus(self.fuse(torch.cat([branch(reduced) for branch in self.branches], dim=1)), x))
 
 
 class TemporalContext(nn.Module):
@@ -114,7 +125,7 @@ class TemporalContext(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         reduced = self.reduce(x)
-        return x + self.fuse(torch.cat([branch(reduced) for branch in self.branches], dim=1))
+        return _plus(self.fuse(torch.cat([branch(reduced) for branch in self.branches], dim=1)), x)
 
 
 class IdentityStartBlock(nn.Module):
@@ -133,7 +144,7 @@ class IdentityStartBlock(nn.Module):
         nn.init.zeros_(self.temporal.bias)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return x + self.temporal(self.act(self.spatial(x)))
+        return _plus(self.temporal(self.act(self.spatial(x))), x)
 
 
 class UpMerge(nn.Module):
@@ -142,15 +153,23 @@ class UpMerge(nn.Module):
     before the upsampling, which it commutes with (a pointwise map of
     replicated voxels): the same output, at a quarter of its work and half
     the upsampled tensor (the tiled fine pass: 193 → 172 bytes of
-    activations per input voxel)."""
+    activations per input voxel). Where no gradient is kept, the
+    projection is added to the skip in its own memory, each voxel to the
+    2 × 2 it stands for, the skip being used nowhere after: the same bits,
+    and no upsampled tensor at all."""
 
     def __init__(self, cin: int, cout: int) -> None:
         super().__init__()
         self.project, self.block = nn.Conv3d(cin, cout, 1), Block(cout)
 
     def forward(self, x: torch.Tensor, skip: torch.Tensor) -> torch.Tensor:
-        x = nn.functional.interpolate(self.project(x), size=skip.shape[2:], mode="nearest")
-        return self.block(x + skip)
+        x = self.project(x)
+        n, c, t, h, w = skip.shape
+        if (not torch.is_grad_enabled() and x.dtype == skip.dtype and x.shape == (n, c, t, h // 2, w // 2) and h % 2 == w % 2 == 0
+                and (skip.is_contiguous() or skip.is_contiguous(memory_format=torch.channels_last_3d))):
+            skip.view(n, c, t, h // 2, 2, w // 2, 2).add_(x[:, :, :, :, None, :, None])
+            return self.block(skip)
+        return self.block(_plus(nn.functional.interpolate(x, size=skip.shape[2:], mode="nearest"), skip))
 
 
 def _check_rates(name: str, rates: Sequence[int]) -> tuple:
