@@ -128,7 +128,10 @@ def reconstruct(video: np.ndarray, model: Model = None, options: Optional[Recons
     if region is not None:
         _said(sheet_depth(raw, pipeline.work, options, options.sheet_camera(gray.shape[1:3]), region, lambda: iter(select(gray, options.frames, None))), options)
     offset, scale = units_of(pipeline, raw, options.temporal, options.units)
-    return final(pipeline, raw, 0, len(raw), offset, -scale if options.flip else scale)
+    depth = np.empty((len(raw), *pipeline.full), np.float32)
+    for a in range(0, len(raw), CHUNK):  # a chunk at a time: the float64 working copy stays small (the same bits)
+        depth[a : a + CHUNK] = final(pipeline, raw, a, min(a + CHUNK, len(raw)), offset, -scale if options.flip else scale)
+    return depth
 
 
 @sigint_remembered()
