@@ -452,10 +452,12 @@ def test_upmerge_projects_before_upsampling_as_if_after():
 
 @pytest.mark.parametrize("architecture", ["unet2p1d", "unet2p1d_global", "unet2p1d_deep"])
 @pytest.mark.parametrize("layout", [torch.contiguous_format, torch.channels_last_3d])
-def test_inference_writes_over_its_activations_and_gives_the_same_bits(architecture, layout):
+def test_inference_writes_over_its_activations_and_gives_the_same_bits(monkeypatch, architecture, layout):
     """Without gradients the (2+1)D networks add residuals and skips in the
-    memory of a layer's new output: the same bits as with gradients, where
-    every sum is a new tensor, and the input is left as it was."""
+    memory of a layer's new output: the same bits as with gradients and as
+    with every sum a new tensor (``WRITE_OVER`` off), and the input is left
+    as it was."""
+    from nrdepth.model import unet2p1d
     from nrdepth.model.io import build_model
 
     torch.manual_seed(0)
@@ -469,5 +471,7 @@ def test_inference_writes_over_its_activations_and_gives_the_same_bits(architect
         summed = net(video).detach()
     with torch.inference_mode():
         written_over = net(video)
+        monkeypatch.setattr(unet2p1d, "WRITE_OVER", False)
+        new_tensors = net(video)
     assert torch.equal(video, given)
-    assert torch.equal(summed, written_over)
+    assert torch.equal(summed, written_over) and torch.equal(new_tensors, written_over)

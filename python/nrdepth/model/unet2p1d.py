@@ -49,13 +49,24 @@ STD_FLOOR = 1e-3
 """Added to the input's standard deviation before dividing by it (a flat clip stays finite)."""
 
 
+WRITE_OVER = True
+"""Without gradients, sums are written over a layer's new output
+(:class:`Block`'s residual, :class:`UpMerge`'s skip): the same bits, no
+new activations. False: every sum a new tensor, as with gradients (the
+reference ``benchmarks/bench_inference.py`` times against)."""
+
+
+def _written_over() -> bool:
+    return WRITE_OVER and not torch.is_grad_enabled()
+
+
 def _plus(fresh: torch.Tensor, other: torch.Tensor) -> torch.Tensor:
     """``other + fresh``, written over ``fresh`` (a layer's new output)
     where no gradient is kept and the two are laid out alike: inference
     then allocates no new activation, whose page faults cost more than
-    the sum (the CPU's fine pass: 16 % of its time in these sums). The
+    the sum (a quarter of the CPU's fine pass went to these sums). The
     same bits either way: addition commutes."""
-    if torch.is_grad_enabled() or fresh.dtype != other.dtype or fresh.shape != other.shape or fresh.stride() != other.stride():
+    if not _written_over() or fresh.dtype != other.dtype or fresh.shape != other.shape or fresh.stride() != other.stride():
         return other + fresh
     return fresh.add_(other)
 
@@ -165,7 +176,7 @@ class UpMerge(nn.Module):
     def forward(self, x: torch.Tensor, skip: torch.Tensor) -> torch.Tensor:
         x = self.project(x)
         n, c, t, h, w = skip.shape
-        if (not torch.is_grad_enabled() and x.dtype == skip.dtype and x.shape == (n, c, t, h // 2, w // 2) and h % 2 == w % 2 == 0
+        if (_written_over() and x.dtype == skip.dtype and x.shape == (n, c, t, h // 2, w // 2) and h % 2 == w % 2 == 0
                 and (skip.is_contiguous() or skip.is_contiguous(memory_format=torch.channels_last_3d))):
             skip.view(n, c, t, h // 2, 2, w // 2, 2).add_(x[:, :, :, :, None, :, None])
             return self.block(skip)
