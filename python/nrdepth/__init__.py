@@ -26,6 +26,7 @@ from .engine.surface import (
     synthesize_surface,
     synthesize_surfaces,
 )
+from . import memory  # nrdepth.memory.keep_freed_memory: the CLI's heap, for a caller's own process
 from .io import view
 from .reconstruct import ReconstructOptions, reconstruct, reconstruct_file, reconstruct_many
 from .reconstruct.stitch import PatchLayout, patch_layout, stitch, temporal_align

@@ -31,6 +31,7 @@ from typing import Callable, Iterable, Iterator, List, Optional, Sequence, Tuple
 from ..checks import option_error
 from ..io.decode import IMAGE_SUFFIXES, PathLike, npz_header
 from ..io.folder import check_complete
+from ..memory import keep_freed_memory
 from .api import reconstruct_file
 from .options import ReconstructOptions
 
@@ -128,6 +129,7 @@ def _run_one(video: str, folder: str, model: Optional[str], options: Reconstruct
     import torch
 
     torch.set_num_threads(threads)
+    keep_freed_memory()  # the worker's process is the batch's own
     row = BatchRow(video, folder)
     start = time.perf_counter()
     try:
