@@ -313,8 +313,9 @@ def rate(device: str) -> None:
 
 
 def file_job(source: Path, out: Path, threads: int, device: str, max_side: int) -> tuple:
-    """``nrdepth.reconstruct_file`` in a process of its own: (seconds, peak RSS in MB, frames)."""
-    code = PEAK_MB + ("import sys, time, torch; torch.set_num_threads(int(sys.argv[3])); import nrdepth; "
+    """``nrdepth.reconstruct_file`` in a process of its own, its heap kept as
+    the ``nrdepth`` command keeps it: (seconds, peak RSS in MB, frames)."""
+    code = PEAK_MB + ("import sys, time, torch; torch.set_num_threads(int(sys.argv[3])); import nrdepth; nrdepth.memory.keep_freed_memory(); "
                       "start = time.perf_counter(); nrdepth.reconstruct_file(sys.argv[1], sys.argv[2], device=sys.argv[4], max_side=int(sys.argv[5]) or None); "
                       "print(time.perf_counter() - start, peak_mb())")
     run = subprocess.run([sys.executable, "-c", code, str(source), str(out), str(threads), device, str(max_side)], check=True, capture_output=True, text=True)
@@ -325,8 +326,10 @@ def file_job(source: Path, out: Path, threads: int, device: str, max_side: int) 
 
 
 def memory_job(source: Path, threads: int, device: str) -> tuple:
-    """``nrdepth.reconstruct`` of a video read into memory first, in a process of its own: (seconds, peak RSS in MB, frames)."""
-    code = PEAK_MB + ("import sys, time, torch; torch.set_num_threads(int(sys.argv[2])); import nrdepth; from nrdepth.io import read_video; "
+    """``nrdepth.reconstruct`` of a video read into memory first, in a process of its own, its heap kept as the
+    ``nrdepth`` command keeps it: (seconds, peak RSS in MB, frames)."""
+    code = PEAK_MB + ("import sys, time, torch; torch.set_num_threads(int(sys.argv[2])); import nrdepth; nrdepth.memory.keep_freed_memory(); "
+                      "from nrdepth.io import read_video; "
                       "video = read_video(sys.argv[1]).frames; start = time.perf_counter(); nrdepth.reconstruct(video, device=sys.argv[3]); "
                       "print(time.perf_counter() - start, peak_mb(), len(video))")
     run = subprocess.run([sys.executable, "-c", code, str(source), str(threads), device], check=True, capture_output=True, text=True)
