@@ -5,9 +5,9 @@ again.
 Why: the CPU's fine pass allocates and frees activations of tens to
 hundreds of megabytes many times a second. glibc serves any block over
 its mmap threshold (at most 32 MB) from a fresh mapping and unmaps it when
-freed, so every new activation is faulted in and zeroed by the kernel: on
-``kinect_paper`` a third of the job's CPU time went to zeroing pages
-(``perf``), and the fine pass ran 1.55× faster with mmap off and the heap
+freed, so every new activation is faulted in and zeroed by the kernel: a
+third of the CPU time of the job's network pass over ``kinect_paper``
+went to zeroing pages (``perf``), and the fine pass ran 1.55× faster with mmap off and the heap
 never trimmed (``benchmarks/bench_inference.py`` under
 ``MALLOC_MMAP_MAX_=0``; docs/benchmarks.md). The price: the process keeps
 its peak heap until it exits.
