@@ -12,26 +12,17 @@ from __future__ import annotations
 
 import argparse
 import statistics
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).parent))
+from bench_video import sgemm_rate  # noqa: E402
+
 KINECT = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "kinect_paper"
 ROI = (64, 24, 528, 416)
-
-
-def sgemm() -> float:
-    """GFLOP/s of a 2048² float32 matrix product, over about a second."""
-    import torch
-
-    a = torch.randn(2048, 2048)
-    a @ a
-    start, n = time.perf_counter(), 0
-    while time.perf_counter() - start < 1.0:
-        a @ a
-        n += 1
-    return 2 * 2048**3 * n / (time.perf_counter() - start) / 1e9
 
 
 def main() -> None:
@@ -59,7 +50,7 @@ def main() -> None:
     def depth() -> np.ndarray:
         return np.concatenate([d for _, d in field_frames(video, net, device, statistic=statistic)])
 
-    print(f"sgemm 2048²: {sgemm():.0f} GFLOP/s, {args.threads} threads; {len(video)} frames of {w}×{h}")
+    print(f"sgemm 2048²: {sgemm_rate():.0f} GFLOP/s, {args.threads} threads; {len(video)} frames of {w}×{h}")
     depth()  # untimed: the first tiles' kernels chosen
     seconds = {True: [], False: []}
     outputs = {}
@@ -74,7 +65,7 @@ def main() -> None:
     print(f"every sum a new tensor (reference): {new:.2f} s (rounds {', '.join(f'{s:.2f}' for s in seconds[False])})")
     print(f"sums written over (default):       {over:.2f} s (rounds {', '.join(f'{s:.2f}' for s in seconds[True])}); "
           f"{new / over:.2f}× faster; the same bytes: {outputs[True].tobytes() == outputs[False].tobytes()}")
-    print(f"sgemm 2048²: {sgemm():.0f} GFLOP/s")
+    print(f"sgemm 2048²: {sgemm_rate():.0f} GFLOP/s")
 
 
 if __name__ == "__main__":
