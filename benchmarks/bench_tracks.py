@@ -26,7 +26,7 @@ tracker, on three kinds of truth:
 Each line: median, 95th percentile and largest distance, the share of
 point-frames lost (NaN), and the seconds; for the sheets, the videos'
 95th percentiles' median. A tracker is ``key=value`` pairs joined by ``:``
-(``track_points``' ``hold``, ``backward``, ``flow``, ``margin``; an empty one
+(``track_points``' ``hold``, ``backward``, ``flow``, ``margin``; ``ncc`` and ``fb``: the held tracker's thresholds; an empty one
 is its defaults).
 
     python benchmarks/bench_tracks.py [--trackers ",margin=48:hold=1"] [--videos 16] [--start 96] [--skip generated] [--lights below] [--set FIELD=V]
@@ -41,6 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
+from nrdepth.isometric import hold, track_points
 from nrdepth.isometric.hold import HOLD_NCC
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "experiments"))
@@ -56,9 +57,27 @@ def parse(tracker: str) -> dict:
             out[key] = value
         elif key == "margin":
             out[key] = None if value == "none" else int(value)
+        elif key in ("ncc", "fb"):
+            out[key] = float(value)
         else:
-            raise SystemExit(f"--trackers: unknown key {key!r} (hold, backward, flow, margin)")
+            raise SystemExit(f"--trackers: unknown key {key!r} (hold, backward, flow, margin, ncc, fb)")
     return out
+
+
+def track(video, start: np.ndarray, tracker: str) -> np.ndarray:
+    """``track_points`` with ``tracker``'s settings; ``ncc`` and ``fb`` stand
+    in for the held tracker's thresholds (``hold.HOLD_NCC``, ``hold.HOLD_FB``)
+    during the call."""
+    settings = parse(tracker)
+    thresholds = {name: settings.pop(key) for key, name in (("ncc", "HOLD_NCC"), ("fb", "HOLD_FB")) if key in settings}
+    saved = {name: getattr(hold, name) for name in thresholds}
+    try:
+        for name, value in thresholds.items():
+            setattr(hold, name, value)
+        return track_points(video, start, **settings)
+    finally:
+        for name, value in saved.items():
+            setattr(hold, name, value)
 
 
 def summary(errors: np.ndarray) -> str:
@@ -69,7 +88,6 @@ def summary(errors: np.ndarray) -> str:
 
 
 def kinect(trackers: list) -> None:
-    from nrdepth.isometric import track_points
     from nrdepth.scores.real import kinect_truth, kinect_video
 
     frames, truth = kinect_video(), kinect_truth()
@@ -77,7 +95,7 @@ def kinect(trackers: list) -> None:
     looks = truth_looks(frames[truth["frames"]], uv)[1:] >= HOLD_NCC
     for name in trackers:
         start = time.perf_counter()
-        xy = track_points(frames[first:], uv[0], **parse(name))
+        xy = track(frames[first:], uv[0], name)
         seconds = time.perf_counter() - start
         errors = np.linalg.norm(xy[truth["frames"] - first] - uv, axis=2)[1:]
         print(f"kinect_paper {name or 'default':32s} {summary(errors)}; {seconds:.1f} s", flush=True)
@@ -120,7 +138,7 @@ def truth_looks(frames: np.ndarray, uv: np.ndarray, neighbours: int = 12) -> np.
 def phisft(trackers: list) -> None:
     from scipy.ndimage import binary_erosion
 
-    from nrdepth.isometric import start_grid, track_points
+    from nrdepth.isometric import start_grid
     from nrdepth.scores.real import data_folder
 
     gray = np.load(data_folder("phisft_R1") / "derived_q4.npz")["gray"]
@@ -130,10 +148,10 @@ def phisft(trackers: list) -> None:
     returning = np.r_[np.arange(len(gray) - 1, 0, -2), 0]
     for name in trackers:
         start = time.perf_counter()
-        there = track_points(gray, grid, **parse(name))[-1]
+        there = track(gray, grid, name)[-1]
         kept = np.isfinite(there).all(axis=1)
         back = np.full_like(grid, np.nan)
-        back[kept] = track_points(gray[returning], there[kept], **parse(name))[-1]
+        back[kept] = track(gray[returning], there[kept], name)[-1]
         seconds = time.perf_counter() - start
         print(f"phisft_R1 closed loop {name or 'default':26s} {summary(np.linalg.norm(back - grid, axis=1))}; {seconds:.1f} s", flush=True)
 
@@ -142,7 +160,6 @@ def generated(trackers: list, videos: int, start: int, frames: int, phases: int,
     from isometric_generated import SEED, in_view, long_sheets, true_tracks
 
     from nrdepth import generate_clips
-    from nrdepth.isometric import track_points
 
     per_video = {name: [] for name in trackers}
     pooled = {name: [] for name in trackers}
@@ -156,7 +173,7 @@ def generated(trackers: list, videos: int, start: int, frames: int, phases: int,
             visible = in_view(truth, config.size)
             for name in trackers:
                 begin = time.perf_counter()
-                xy = track_points(video, truth[0], **parse(name))
+                xy = track(video, truth[0], name)
                 seconds[name] += time.perf_counter() - begin
                 errors = np.where(visible, np.linalg.norm(xy - truth, axis=2), np.inf)[1:]
                 errors = errors[np.isfinite(errors) | np.isnan(errors)]  # in view: a distance, or NaN where the tracker lost it

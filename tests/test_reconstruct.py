@@ -73,6 +73,39 @@ def test_image_folder_reads_in_name_order_as_luma(tmp_path):
     assert np.abs(back.frames.astype(int) - frames).max() <= 1
 
 
+def test_a_source_decodes_its_selection_once_where_it_fits_and_gives_the_same_frames(tmp_path, monkeypatch):
+    from nrdepth.io import decode
+
+    frames = moving_texture(t=6)
+    for k in range(6):
+        save_png(tmp_path / f"frame_{k:03d}.png", np.repeat(frames[k][..., None], 3, axis=-1))
+    opened = []
+    real = decode._decoded
+    monkeypatch.setattr(decode, "_decoded", lambda path, name: (opened.append(path), real(path, name))[1])
+
+    def reads(source, roi=True):
+        return np.concatenate(list(source.chunks(4, roi=roi)))
+
+    source = decode.open_video(tmp_path, frames=slice(1, 5), roi=(2, 3, 20, 10))
+    first = reads(source)
+    opened.clear()
+    # Read again, cut or whole: nothing decoded, the same bytes; the kept frames cannot be written over.
+    assert np.array_equal(reads(source), first) and not opened
+    assert np.array_equal(reads(source, roi=False)[:, 3:13, 2:22], first) and not opened
+    with pytest.raises(ValueError):
+        source._kept[0][0, 0] = 0
+    # A read stopped early keeps nothing; past the budget every read decodes.
+    stopped = decode.open_video(tmp_path)
+    next(stopped.chunks(2))
+    opened.clear()
+    assert len(reads(stopped)) == 6 and len(opened) == 6
+    monkeypatch.setattr(decode, "KEEP_DECODED", frames[0].nbytes * 3)
+    large = decode.open_video(tmp_path)
+    whole = reads(large)
+    opened.clear()
+    assert np.array_equal(reads(large), whole) and len(opened) == 6
+
+
 def test_arrays_colour_and_float_inputs(tmp_path):
     frames = moving_texture(t=4)
     np.savez(tmp_path / "v.npz", video=np.repeat(frames[..., None], 3, axis=-1))

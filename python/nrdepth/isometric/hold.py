@@ -76,22 +76,19 @@ def _normalised(cv2, frame: np.ndarray) -> np.ndarray:
     return np.clip(128 + 40 * (f - mean) / spread, 0, 255).astype(np.uint8)
 
 
-def _correlation(a: np.ndarray, at_a: np.ndarray, b: np.ndarray, at_b: np.ndarray) -> np.ndarray:
-    """(n,): the zero-mean normalised correlation of the :data:`HOLD_WINDOW`-pixel
-    windows of image ``a`` around ``at_a`` (n, 2) and of ``b`` around ``at_b``."""
+def _windows(image: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """(n, window²): the :data:`HOLD_WINDOW`-pixel windows of ``image``
+    around ``at`` (n, 2), bilinear, each of zero mean and unit norm; the
+    zero-mean normalised correlation of two windows is their dot product."""
     from scipy.ndimage import map_coordinates
 
     offsets = np.arange(HOLD_WINDOW) - (HOLD_WINDOW - 1) / 2
     shape = (HOLD_WINDOW, HOLD_WINDOW)
-
-    def windows(image: np.ndarray, at: np.ndarray) -> np.ndarray:  # (n, window²), zero mean, unit norm
-        rows = np.broadcast_to(at[:, 1, None, None] + offsets[:, None], (len(at),) + shape)
-        cols = np.broadcast_to(at[:, 0, None, None] + offsets[None, :], (len(at),) + shape)
-        w = map_coordinates(image.astype(np.float32), [rows.ravel(), cols.ravel()], order=1, mode="nearest").reshape(len(at), -1)
-        w -= w.mean(axis=1, keepdims=True)
-        return w / (np.linalg.norm(w, axis=1, keepdims=True) + 1e-6)
-
-    return (windows(a, at_a) * windows(b, at_b)).sum(axis=1)
+    rows = np.broadcast_to(at[:, 1, None, None] + offsets[:, None], (len(at),) + shape)
+    cols = np.broadcast_to(at[:, 0, None, None] + offsets[None, :], (len(at),) + shape)
+    w = map_coordinates(image.astype(np.float32), [rows.ravel(), cols.ravel()], order=1, mode="nearest").reshape(len(at), -1)
+    w -= w.mean(axis=1, keepdims=True)
+    return w / (np.linalg.norm(w, axis=1, keepdims=True) + 1e-6)
 
 
 def _weights(nodes: np.ndarray, anchors: np.ndarray, sigma: float) -> np.ndarray:
@@ -137,6 +134,9 @@ class Anchor:
         nodes_y, nodes_x = np.mgrid[y0 : y1 + STEP : STEP, x0 : x1 + STEP : STEP].astype(np.float64)
         self.nodes_shape = nodes_x.shape
         self.look = np.ascontiguousarray(_normalised(cv2, first)[y0:y1, x0:x1])
+        # Where the points are in the box, and their first look's windows, once: every frame compares against them.
+        self.origin = (self.start - self.corner).astype(np.float32).reshape(-1, 1, 2)
+        self.first_windows = _windows(self.look, self.origin.reshape(-1, 2))
         hull = cv2.contourArea(cv2.convexHull(self.start.astype(np.float32))) if len(self.start) >= 3 else 0.0
         self.sigma = SPREAD * max(np.sqrt(hull / len(self.start)), 1.0)
         self.nodes = np.column_stack([nodes_x.ravel(), nodes_y.ravel()])
@@ -194,14 +194,14 @@ class Anchor:
                                borderMode=cv2.BORDER_CONSTANT, borderValue=128)
         else:  # the warp has left the frame: nothing to find
             pulled = np.full(map_x.shape, 128, np.uint8)
-        origin = (self.start - self.corner).astype(np.float32).reshape(-1, 1, 2)
+        origin = self.origin
         found, ok, _ = cv2.calcOpticalFlowPyrLK(self.look, pulled, origin, origin.copy(), **self.lk)
         back, ok_back, _ = cv2.calcOpticalFlowPyrLK(pulled, self.look, found, origin.copy(), **self.lk)
         found = found.reshape(-1, 2).astype(np.float64)
         h, w = self.look.shape
         held = ((ok.ravel() == 1) & (ok_back.ravel() == 1) & (np.linalg.norm(back.reshape(-1, 2) - origin.reshape(-1, 2), axis=1) < HOLD_FB)
                 & (found[:, 0] >= 0) & (found[:, 1] >= 0) & (found[:, 0] <= w - 1) & (found[:, 1] <= h - 1))
-        held &= _correlation(self.look, origin.reshape(-1, 2), pulled, found) >= HOLD_NCC
+        held &= (self.first_windows * _windows(pulled, found)).sum(axis=1) >= HOLD_NCC
         position = np.stack([map_coordinates(m, [found[:, 1], found[:, 0]], order=1, mode="nearest") for m in (map_x, map_y)], axis=1).astype(np.float64)
         self._fit(held)
         return position, held, predicted

@@ -146,10 +146,12 @@ def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.
     :func:`reconstruct`'s.
 
     Streaming: the video is read a few frames at a time (three times:
-    statistic and coarse pass, fine pass, writing), the stitched depth
-    waits on disk in the output's temporary folder at the working
-    resolution, and memory does not grow with the video's length, except
-    by the coarse pass's 20 kB a frame and, in sheet mode, the sheet's
+    statistic and coarse pass, fine pass, writing; four with the sheet
+    stage), the stitched depth waits on disk in the output's temporary
+    folder at the working resolution, and memory does not grow with the
+    video's length, except by its decoded frames up to
+    :data:`~nrdepth.io.decode.KEEP_DECODED` (decoded once where they fit),
+    the coarse pass's 20 kB a frame and, in sheet mode, the sheet's
     points' 6 kB a frame (and with ``temporal``, which aligns the whole
     video in memory, or ``fine="patches"``, which holds it). ``mask``
     may also be a file: one image (for every frame) or a video, image
@@ -175,7 +177,7 @@ def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.
         for chunk in stitched(pipeline, progress):
             raw.append(chunk)
         if region is not None:
-            whole = lambda: (frame for chunk in open_video(input, "input", options.frames, None).chunks(CHUNK) for frame in chunk)  # noqa: E731 (streamed)
+            whole = lambda: (frame for chunk in source.chunks(CHUNK, roi=False) for frame in chunk)  # noqa: E731 (streamed)
             writer.set_metadata("sheet", _said(sheet_depth(raw, pipeline.work, options, options.sheet_camera(source.raw_size), region, whole), options).as_dict())
         offset, scale = units_of(pipeline, raw, options.temporal, options.units)
         scale = -scale if options.flip else scale
