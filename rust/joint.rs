@@ -745,6 +745,22 @@ impl Pixels<'_> {
     }
 }
 
+/// Σ_l G_kl x_l over a row of blocks: each product's components summed
+/// over the columns in order, the products in the row's order from zero, as
+/// nalgebra's `m * x` and `Sum` give them (the same bits), in plain loops
+/// the compiler keeps in registers.
+#[inline]
+fn row_times(row: &[(usize, Matrix4<f64>)], x: &[Vector4<f64>]) -> Vector4<f64> {
+    let mut sum = [0.0f64; 4];
+    for (l, m) in row {
+        let v = &x[*l];
+        for (i, s) in sum.iter_mut().enumerate() {
+            *s += ((m[(i, 0)] * v[0] + m[(i, 1)] * v[1]) + m[(i, 2)] * v[2]) + m[(i, 3)] * v[3];
+        }
+    }
+    Vector4::from(sum)
+}
+
 /// Pixel `i` of a patch `l` pixels wide: its centre in patch widths from the
 /// patch's centre, in [−½, ½] (the u and v of a_k).
 #[inline]
@@ -787,7 +803,7 @@ fn conjugate_gradients(blocks: &[Vec<(usize, Matrix4<f64>)>], chains: &[Vec<(usi
     let n = b.len();
     let precondition = ChainPreconditioner::new(blocks, chains);
     let apply = |x: &[Vector4<f64>], out: &mut [Vector4<f64>]| {
-        out.par_iter_mut().zip(blocks).with_min_len(256).for_each(|(o, row)| *o = row.iter().map(|(l, m)| m * x[*l]).sum());
+        out.par_iter_mut().zip(blocks).with_min_len(256).for_each(|(o, row)| *o = row_times(row, x));
     };
     let dot = |a: &[Vector4<f64>], c: &[Vector4<f64>]| a.iter().zip(c).map(|(u, v)| u.dot(v)).sum::<f64>();
     let mut x = start;
