@@ -430,7 +430,7 @@ impl JointStitcher {
         let coarse = self.coarse_frame(t);
         let masked = coarse.iter().any(|v| v.is_nan());
         let (wy, wx) = (&self.windows[1], &self.windows[2]);
-        // u of each column of a patch, once: a division per pixel and pair was a fifth of the stitch.
+        // u of each column of a patch, once, not a division for each pixel of each pair.
         let us: Vec<f64> = (0..lx).map(|px| coordinate(px, lx)).collect();
         let diagonal: Vec<(Matrix4<f64>, Vector4<f64>)> = frames
             .par_iter()
@@ -684,8 +684,9 @@ impl JointStitcher {
 /// A patch-frame's pixels in the video, rows `rows` and columns `cols` (video
 /// coordinates), less those off the surface (NaN in `coarse` or in `before`,
 /// frames of width `ww`, where given), visited in row-major order as indices
-/// into the patch's frame (top-left `corner`, `lx` wide). Plain loops: an
-/// iterator chain of `flat_map` and `filter` here took a third of the stitch.
+/// into the patch's frame (top-left `corner`, `lx` wide): plain loops in the
+/// order the iterator chain of `flat_map` and `filter` they replace took,
+/// so its sums keep their bits.
 struct Pixels<'a> {
     rows: (usize, usize),
     cols: (usize, usize),
@@ -731,8 +732,8 @@ impl Pixels<'_> {
         total
     }
 
-    /// Σ v and Σ v² of `values` over the pixels, in one pass: two sums that
-    /// each wait on its last addition go twice as fast side by side.
+    /// Σ v and Σ v² of `values` over the pixels, in one pass: the two sums
+    /// do not wait on each other.
     #[inline]
     fn moments(&self, values: &[f32]) -> (f64, f64) {
         let (mut sum, mut sum2) = (-0.0, -0.0);
@@ -900,6 +901,43 @@ mod tests {
     fn pseudo(i: usize) -> f32 {
         let x = (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40;
         x as f32 / (1u64 << 24) as f32 - 0.5
+    }
+
+    /// The plain loops give the bits of the iterator chains they replaced:
+    /// pixels off the surface in either frame left out, a patch hanging over
+    /// the video's corner, sums from −0.0, block products through nalgebra.
+    #[test]
+    fn plain_loops_sum_as_the_iterators_did() {
+        let (hh, ww, lx) = (40, 50, 16);
+        let values: Vec<f32> = (0..lx * lx).map(|i| 3.0 * pseudo(i) + 0.25).collect();
+        let frame = |seed: usize| -> Vec<f32> { (0..hh * ww).map(|i| if pseudo(i * 7 + seed) > 0.3 { f32::NAN } else { pseudo(i + seed) }).collect() };
+        let (coarse, before) = (frame(1), frame(2));
+        for corner in [[-5isize, -3isize], [10, 20], [30, 40]] {
+            let span = |c: isize, n: usize| (c.clamp(0, n as isize) as usize, (c + lx as isize).clamp(0, n as isize) as usize);
+            let (rows, cols) = (span(corner[0], hh), span(corner[1], ww));
+            for (on_coarse, on_before) in [(false, false), (true, false), (false, true), (true, true)] {
+                let pixels = Pixels { rows, cols, corner, lx, ww, coarse: on_coarse.then_some(&coarse[..]), before: on_before.then_some(&before[..]) };
+                let chain = || {
+                    (rows.0..rows.1)
+                        .flat_map(|y| (cols.0..cols.1).map(move |x| (y, x)))
+                        .filter(|&(y, x)| !(on_coarse && coarse[y * ww + x].is_nan() || on_before && before[y * ww + x].is_nan()))
+                        .map(|(y, x)| (y as isize - corner[0]) as usize * lx + (x as isize - corner[1]) as usize)
+                };
+                let sum: f64 = chain().map(|i| values[i] as f64).sum();
+                let sum2: f64 = chain().map(|i| (values[i] as f64).powi(2)).sum();
+                let (s, s2) = pixels.moments(&values);
+                assert_eq!((s.to_bits(), s2.to_bits()), (sum.to_bits(), sum2.to_bits()));
+                let term = |i: usize| (values[i] as f64 - 0.1) * 1.7;
+                assert_eq!(pixels.sum(term).to_bits(), chain().map(term).sum::<f64>().to_bits());
+                assert_eq!(pixels.count(), chain().count());
+            }
+        }
+        let x: Vec<Vector4<f64>> = (0..6).map(|k| Vector4::from_fn(|i, _| pseudo(10 * k + i) as f64 * 1e3)).collect();
+        for n in [0, 1, 5, 17] {
+            let row: Vec<(usize, Matrix4<f64>)> = (0..n).map(|k| ((k * 5) % 6, Matrix4::from_fn(|i, j| pseudo(100 * k + 4 * i + j) as f64 / 3.0))).collect();
+            let by_nalgebra: Vector4<f64> = row.iter().map(|(l, m)| m * x[*l]).sum();
+            assert_eq!(row_times(&row, &x).map(f64::to_bits), by_nalgebra.map(f64::to_bits));
+        }
     }
 
     /// A smooth depth video and its patches (over the video padded by
