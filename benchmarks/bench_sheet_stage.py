@@ -38,7 +38,9 @@ those, only the points that move at least this share of their median
 motion too), ``trim`` (of the points read, those whose pairs
 stretch in the keyframes' ``refined`` template more than this many times
 the points' median left out, up to three times over: ``trim_strained``), ``fscale`` (the flow on frames
-shrunk by this factor, ``track_points``' ``flow_scale``), ``contrast``
+shrunk by this factor, ``track_points``' ``flow_scale``), ``fb`` (the
+held tracker's way back, ``hold.HOLD_FB``, px; ``sheet_levers.py``
+only: :func:`held_thresholds`), ``contrast``
 (``experiments/sheet_levers.py`` only, 1: also ``estimate_focal``'s
 contrast on the points read, recorded, not used), ``cevals`` (with
 ``contrast``: its refinements' evaluations, ``estimate_focal``'s
@@ -65,6 +67,8 @@ from __future__ import annotations
 
 import argparse
 import time
+from contextlib import contextmanager
+from typing import Iterator, Optional
 
 import numpy as np
 
@@ -81,16 +85,34 @@ def sgemm() -> float:
     return 2 * 2048**3 * n / (time.perf_counter() - start) / 1e9
 
 
+@contextmanager
+def held_thresholds(fb: Optional[float] = None, ncc: Optional[float] = None) -> Iterator[None]:
+    """The held tracker's thresholds set for the block where given (its way
+    back ``hold.HOLD_FB``, px; its correlation ``hold.HOLD_NCC``): levers to
+    read, not options."""
+    from nrdepth.isometric import hold
+
+    given = {name: value for name, value in (("HOLD_FB", fb), ("HOLD_NCC", ncc)) if value is not None}
+    saved = {name: getattr(hold, name) for name in given}
+    try:
+        for name, value in given.items():
+            setattr(hold, name, value)
+        yield
+    finally:
+        for name, value in saved.items():
+            setattr(hold, name, value)
+
+
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0, "fscale": 1.0, "contrast": 0, "cevals": 100, "onsheet": 0, "relmove": 0.0, "trim": 0.0}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0, "fscale": 1.0, "contrast": 0, "cevals": 100, "onsheet": 0, "relmove": 0.0, "trim": 0.0, "fb": None}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
             raise SystemExit(f"--settings: unknown lever {key!r} (known: {', '.join(out)})")
         out[key] = value if key in ("flow", "each", "place", "template") or (key == "fov" and value in ("strain", "held")) else \
-            float(value) if key in ("drop", "keep", "anchor", "fov", "fscale", "relmove", "trim") else (None if value == "none" else int(value))
+            float(value) if key in ("drop", "keep", "anchor", "fov", "fscale", "relmove", "trim", "fb") else (None if value == "none" else int(value))
     if out["keep"] and not out["hold"]:
         raise SystemExit(f"--settings {setting!r}: keep needs hold=1")
     if out["template"] not in ("joint", "refined"):

@@ -41,10 +41,12 @@ from pathlib import Path
 
 import numpy as np
 
-from nrdepth.isometric import hold, track_points
+from nrdepth.isometric import track_points
 from nrdepth.isometric.hold import HOLD_NCC
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "experiments"))
+sys.path.insert(0, str(Path(__file__).parent))
+from bench_sheet_stage import held_thresholds  # noqa: E402
 
 
 def parse(tracker: str) -> dict:
@@ -65,19 +67,11 @@ def parse(tracker: str) -> dict:
 
 
 def track(video, start: np.ndarray, tracker: str) -> np.ndarray:
-    """``track_points`` with ``tracker``'s settings; ``ncc`` and ``fb`` stand
-    in for the held tracker's thresholds (``hold.HOLD_NCC``, ``hold.HOLD_FB``)
-    during the call."""
+    """``track_points`` with ``tracker``'s settings, its ``ncc`` and ``fb``
+    the held tracker's thresholds during the call."""
     settings = parse(tracker)
-    thresholds = {name: settings.pop(key) for key, name in (("ncc", "HOLD_NCC"), ("fb", "HOLD_FB")) if key in settings}
-    saved = {name: getattr(hold, name) for name in thresholds}
-    try:
-        for name, value in thresholds.items():
-            setattr(hold, name, value)
+    with held_thresholds(fb=settings.pop("fb", None), ncc=settings.pop("ncc", None)):
         return track_points(video, start, **settings)
-    finally:
-        for name, value in saved.items():
-            setattr(hold, name, value)
 
 
 def summary(errors: np.ndarray) -> str:
