@@ -94,6 +94,8 @@ def test_a_source_decodes_its_selection_once_where_it_fits_and_gives_the_same_fr
     assert np.array_equal(reads(source, roi=False)[:, 3:13, 2:22], first) and not opened
     with pytest.raises(ValueError):
         source._kept[0][0, 0] = 0
+    with pytest.raises(TypeError, match="roi"):
+        next(source.chunks(4, roi=(0, 0, 8, 8)))
     # A read stopped early keeps nothing; past the budget every read decodes.
     stopped = decode.open_video(tmp_path)
     next(stopped.chunks(2))

@@ -210,7 +210,10 @@ class VideoSource:
 
     def chunks(self, size: int = 16, roi: bool = True) -> Iterator[np.ndarray]:
         """The selected frames, uint8 (n, H, W), ``size`` at a time, in
-        order; cut to ``roi`` unless ``roi`` is False."""
+        order; cut to the source's ``roi`` unless ``roi`` is False (a region
+        is given when the source is opened)."""
+        if not isinstance(roi, bool):
+            raise option_error("roi", f"expected True (the source's region) or False (whole frames), got {roi!r}", TypeError)
         region = self.roi if roi else None
         chunk: list = []
         for frame in self._selected():
