@@ -238,9 +238,13 @@ def main() -> None:
                     if n > 1 and len(everies) > 1:
                         anchors = solved_frames(len(xy), keyframe_indices(len(xy), lever["keyframes"]), n)
                         _between(kept, anchors, np.isfinite(xy).all(axis=2))
-                    dense = densify(xy, kept, video.shape)
+                    try:
+                        dense = densify(xy, kept, video.shape)
+                    except ValueError as error:  # points on one line or fewer (the stage's MIN_READ turns such a video away): the network's depth
+                        print(f"  {name}: steps aside ({error})", flush=True)
+                        dense = None
                     for scale in scales:
-                        fused = isometric.fuse(network, dense, scale * config.size)
+                        fused = network if dense is None else isometric.fuse(network, dense, scale * config.size)
                         row[f"{label(name, n, scale)} per frame"] = mae_sn(fused, truth, mask=on)
                         if score is not None:
                             row[f"{label(name, n, scale)} sparse"] = score(fused)
