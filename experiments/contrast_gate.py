@@ -16,10 +16,13 @@ with it, that candidate alone (the rule's checks).
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
 import numpy as np
+
+from nrdepth.isometric import FocalEstimate
 
 sys.path.insert(0, str(Path(__file__).parent))
 from default_gate import MIN_READ, holds, rows_of  # noqa: E402
@@ -32,9 +35,8 @@ NOISE_BOUND = 0.005
 
 
 def least(strains: np.ndarray) -> float:
-    """Today's contrast (``FocalEstimate.contrast``): the smaller strain two steps either side of the least, over it."""
-    k = int(np.argmin(strains))
-    return float(min(strains[i] for i in (k - 2, k + 2) if 0 <= i < len(strains)) / strains[k])
+    """Today's contrast: the smaller strain two steps either side of the least, over it."""
+    return FocalEstimate(math.nan, float(strains.min()), tuple(range(len(strains))), tuple(map(float, strains))).contrast
 
 
 def interior(strains: np.ndarray) -> float:
