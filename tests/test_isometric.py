@@ -16,6 +16,7 @@ import pytest
 import nrdepth
 from nrdepth import isometric
 from nrdepth.isometric import least_disagreeing
+from nrdepth.isometric.hold import HOLD_WINDOW
 from nrdepth.isometric.mdh import _refine, _socp
 from nrdepth.baselines.tracks import densify
 
@@ -304,7 +305,10 @@ def test_a_held_point_hidden_is_lost_not_dragged_and_found_again():
         assert behind.any() and np.isnan(held[t, behind]).all()  # hidden: NaN, not dragged
         assert clear.any()
         np.testing.assert_allclose(held[t, clear], truth[t, clear], atol=0.25)
-    np.testing.assert_allclose(held[6:], truth[6:], atol=0.25)  # the card gone, every point is found again
+    np.testing.assert_allclose(held[6], truth[6], atol=0.25)  # the card gone, every point is found again
+    after = np.isfinite(held[6:, :, 0])  # later, a point whose way back misses by more than HOLD_FB is lost there, not dragged
+    assert after.mean() >= 0.95
+    np.testing.assert_allclose(held[6:][after], truth[6:][after], atol=0.25)
     chained = isometric.track_points(video, start)
     assert np.isfinite(chained[3:6]).all() and np.abs(chained[6:] - truth[6:]).max() > 1.0  # the flow alone drags them
 
@@ -324,7 +328,6 @@ def test_the_held_share_counts_points_gone_from_view_apart_from_points_lost():
 
 def test_points_on_blank_paper_are_rarely_held_and_points_on_print_always():
     from nrdepth.isometric import held_share, point_held_shares
-    from nrdepth.isometric.hold import HOLD_WINDOW
 
     video = shifted_texture(frames=9, window=140, blank=60)  # the sheet's left 60 columns blank, the rest textured, moving together
     xy = isometric.track_grid(video, points=49, hold=True)
@@ -348,7 +351,8 @@ def test_held_points_beside_blank_paper_are_not_pulled_by_its_flow():
     held = isometric.track_points(video, start, hold=True)
     beside = start[:, 0] >= 60  # windows at least half on the print, the nearest 10 px from the blank paper
     found = np.isfinite(held[:, beside]).all(axis=2)
-    assert found[1:].mean() > 0.8
+    in_view = np.stack([isometric.inside(frame, video.shape[1:], HOLD_WINDOW) for frame in truth[:, beside]])
+    assert found[in_view].all()  # every point whose window is in view is found (near the edge a point may be lost)
     assert np.linalg.norm(held[:, beside] - truth[:, beside], axis=2)[found].max() < 0.5
 
 
