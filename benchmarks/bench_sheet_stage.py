@@ -10,7 +10,7 @@ the job (``reconstruct`` without ``focal``) timed in the same run, beside a
 
 A setting is ``key=value`` pairs joined by ``:``: ``margin`` (the flow over
 the points' box and this many pixels, or ``none``: the whole frame),
-``flow`` (farneback, dis), ``keyframes``, ``neighbours``, ``every`` (only every
+``flow`` (farneback, farneback2, dis), ``keyframes``, ``neighbours``, ``every`` (only every
 n-th frame's program solved, the rest linear in time), ``points``, ``hold``
 (1: each point found again by its look in the first frame), ``backward``
 (0: the forward flow alone), ``drop`` (the share of points left out; 0 with
