@@ -303,7 +303,7 @@ def main() -> None:
         print(f"the job with the sheet stage's defaults ({args.job}): {whole:.1f} s (the stage {whole - rest:.1f} s, {(whole - rest) / rest:.2f}× the rest"
               f"{'' if 'roi' in given else ', the rest over the roi'}): {kinect_score(job, truth, roi=read):.2f} mm (the fixed bowl over the same frame "
               f"{kinect_references(truth, read)['bowl']:.2f} mm); {decisions[0].line()}", flush=True)
-        print("  inside the stage: " + ", ".join(f"{name} {seconds:.1f} s" for name, seconds in parts.items()), flush=True)
+        print("  inside the stage (its reading in a thread of its own beside the network's passes, then the fusion): " + ", ".join(f"{name} {seconds:.1f} s" for name, seconds in parts.items()), flush=True)
     for setting in filter(None, args.settings.split(",")):
         lever = parse(setting)
         start = time.perf_counter()

@@ -289,3 +289,44 @@ def test_points_are_followed_in_frames_shrunk_to_the_tracking_side_and_come_back
     assert seen == [(96, 96)] * 8 + [(48, 48)] * 8
     np.testing.assert_allclose(np.nanmedian(shrunk[-1] - shrunk[0], axis=0), [14.0, 0.0], atol=0.3)  # in the video's pixels
     assert shrunk.shape == native.shape and np.abs(shrunk[0] - native[0]).max() <= 0.5  # the same grid, within half a video pixel
+
+
+def test_the_reading_beside_the_network_gives_the_bytes_read_in_turn_passes_on_its_errors_and_stops_with_the_job(model, bending):
+    import importlib
+    import time
+    from concurrent.futures import CancelledError
+
+    stage = importlib.import_module("nrdepth.reconstruct.sheet")
+    options = nrdepth.ReconstructOptions.of(**OPTIONS)
+    region, camera = stage.sheet_region(options, bending.shape[1:]), options.sheet_camera(bending.shape[1:])
+    raw = network_alone(bending, model)  # the working resolution's depth, (37, 32, 32)
+    frames = lambda: iter(bending)  # noqa: E731
+    in_turn = raw.copy()
+    decision = stage.sheet_depth(in_turn, raw.shape[1:], options, camera, region, frames)
+    beside = raw.copy()
+    with stage.read_beside(len(bending), options, camera, region, frames) as reading:
+        assert stage.sheet_depth(beside, raw.shape[1:], options, camera, region, frames, reading) == decision
+    assert decision.used and np.array_equal(in_turn, beside) and not np.array_equal(in_turn, raw)
+
+    def failing():
+        yield from bending[:20]
+        raise ValueError("video: frame 20 is broken")
+
+    with pytest.raises(ValueError, match="frame 20 is broken"), stage.read_beside(len(bending), options, camera, region, failing) as reading:
+        stage.sheet_depth(raw.copy(), raw.shape[1:], options, camera, region, failing, reading)
+
+    pulled = []
+
+    def endless():  # a stream that never ends: only the job's end stops the reading
+        while True:
+            pulled.append(1)
+            yield bending[len(pulled) % len(bending)]
+
+    with pytest.raises(KeyboardInterrupt), stage.read_beside(10**6, options, camera, region, endless) as reading:
+        while len(pulled) < 5:
+            time.sleep(0.01)
+        raise KeyboardInterrupt  # the job interrupted while the reading is under way
+    assert reading.done() and isinstance(reading.exception(), CancelledError)  # stopped and waited for: no thread runs on
+    stopped_at = len(pulled)
+    time.sleep(0.2)
+    assert len(pulled) == stopped_at  # nothing read after it stopped

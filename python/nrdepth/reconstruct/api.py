@@ -3,7 +3,8 @@ depth out) and :func:`reconstruct_file` (a file to a folder, streamed).
 Each checks everything it can before any work, then chains the stages:
 :class:`~.pipeline.Pipeline` (reading, statistic, coarse pass),
 :func:`~.stitching.stitched` (fine pass and stitch), the sheet stage
-(:mod:`.sheet`: a sheet's shape where the video shows one) and :mod:`.export` (units, resolution).
+(:mod:`.sheet`: a sheet's shape where the video shows one, its points
+read in a second thread beside the fine pass) and :mod:`.export` (units, resolution).
 """
 
 from __future__ import annotations
@@ -11,11 +12,13 @@ from __future__ import annotations
 import math
 import os
 import warnings
+from contextlib import nullcontext
 from pathlib import Path
-from typing import Any, Callable, Optional, Tuple, Union
+from typing import Any, Callable, ContextManager, Iterable, Optional, Tuple, Union
 
 import numpy as np
 
+from ..camera import Camera
 from ..checks import option_error
 from ..interrupt import sigint_remembered
 from ..io.decode import open_video, select, to_gray
@@ -27,7 +30,7 @@ from .mask import file_mask, video_mask
 from .network import load_net
 from .options import FILE_ONLY, ReconstructOptions
 from .pipeline import Pipeline
-from .sheet import SheetDecision, sheet_depth, sheet_region
+from .sheet import SheetDecision, read_beside, sheet_depth, sheet_region
 from .stitching import stitched
 
 __all__ = ["reconstruct", "reconstruct_file", "SheetFallback"]
@@ -69,6 +72,12 @@ def _region(options: ReconstructOptions, frame: Tuple[int, int]) -> Optional[np.
         if options.sheet_given:
             raise
         return None
+
+
+def _sheet_beside(pipeline: Pipeline, options: ReconstructOptions, camera: Camera, region: Optional[np.ndarray],
+                  whole: Callable[[], Iterable[np.ndarray]]) -> ContextManager:
+    """The sheet stage's reading (:func:`~.sheet.read_beside`) while the fine pass runs, where the stage runs; else nothing."""
+    return nullcontext() if region is None else read_beside(pipeline.shape[0], options, camera, region, whole)
 
 
 class SheetFallback(UserWarning):
@@ -124,9 +133,11 @@ def reconstruct(video: np.ndarray, model: Model = None, options: Optional[Recons
     device, net = _network(model, options)
     chunks = lambda: (video[a : a + CHUNK] for a in range(0, len(video), CHUNK))  # noqa: E731
     pipeline = Pipeline(video.shape[1:], chunks, net, device, options, mask)
-    raw = np.concatenate(list(stitched(pipeline, progress)))
-    if region is not None:
-        _said(sheet_depth(raw, pipeline.work, options, options.sheet_camera(gray.shape[1:3]), region, lambda: iter(select(gray, options.frames, None))), options)
+    camera, whole = options.sheet_camera(gray.shape[1:3]), lambda: iter(select(gray, options.frames, None))
+    with _sheet_beside(pipeline, options, camera, region, whole) as reading:
+        raw = np.concatenate(list(stitched(pipeline, progress)))
+        if region is not None:
+            _said(sheet_depth(raw, pipeline.work, options, camera, region, whole, reading), options)
     offset, scale = units_of(pipeline, raw, options.temporal, options.units)
     depth = np.empty((len(raw), *pipeline.full), np.float32)
     for a in range(0, len(raw), CHUNK):  # a chunk at a time: the float64 working copy stays small (the same bits)
@@ -174,11 +185,13 @@ def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.
     with ReconstructionWriter(out, (t, *source.frame_size), source.fps, png16=options.png16, ply=options.ply, ply_relief=ply_relief,
                               overwrite=options.overwrite, viewer=options.viewer) as writer:
         raw = DiskFrames(writer.scratch("stitched.f32"), pipeline.shape[1:])
-        for chunk in stitched(pipeline, progress):
-            raw.append(chunk)
-        if region is not None:
-            whole = lambda: (frame for chunk in source.chunks(CHUNK, roi=False) for frame in chunk)  # noqa: E731 (streamed)
-            writer.set_metadata("sheet", _said(sheet_depth(raw, pipeline.work, options, options.sheet_camera(source.raw_size), region, whole), options).as_dict())
+        camera = options.sheet_camera(source.raw_size)
+        whole = lambda: (frame for chunk in source.chunks(CHUNK, roi=False) for frame in chunk)  # noqa: E731 (streamed)
+        with _sheet_beside(pipeline, options, camera, region, whole) as reading:
+            for chunk in stitched(pipeline, progress):
+                raw.append(chunk)
+            if region is not None:
+                writer.set_metadata("sheet", _said(sheet_depth(raw, pipeline.work, options, camera, region, whole, reading), options).as_dict())
         offset, scale = units_of(pipeline, raw, options.temporal, options.units)
         scale = -scale if options.flip else scale
         # The ranges from the working resolution (bilinear resizing makes no new extremes), a chunk at a time.

@@ -13,14 +13,20 @@ do not, the flow's points through the joint template.
 With neither given the stage runs over the roi (or the whole frame)
 through a guessed pinhole, and a video that is no sheet, or gives the
 shape nothing to read, keeps the network's depth; either way the stage
-returns what it did (:class:`SheetDecision`).
+returns what it did (:class:`SheetDecision`). The reading
+(:func:`read_sheet`) needs the frames alone, and the main job runs it in
+a second thread beside the network's passes (:func:`read_beside`); only
+the fusion (:func:`sheet_depth`) waits for the stitched depth.
 """
 
 from __future__ import annotations
 
 import itertools
+import threading
+from concurrent.futures import CancelledError, Future
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass
-from typing import Callable, Iterable, List, Optional, Tuple, Union
+from typing import Callable, Iterable, Iterator, List, Optional, Tuple, Union
 
 import numpy as np
 
@@ -32,7 +38,7 @@ from ..isometric import (NotSolved, TooFewPoints, estimate_focal, fuse, held_sha
 from .frames import CHUNK, as_uint8, as_unit_float, resize, working_shape
 from .options import ISOMETRIC_SCALE, REFINED_SCALE, ReconstructOptions
 
-__all__ = ["sheet_region", "sheet_depth", "SheetDecision", "FLOW_MARGIN", "KEYFRAMES", "EVERY", "NEIGHBOURS", "TRACK_SIDE", "MIN_FRAMES", "MIN_FRAMES_BY_DEFAULT", "MIN_TEXTURE", "MIN_MOTION", "MIN_HELD", "MIN_READ", "MOVING_SHARE", "TRIM", "MIN_CONTRAST", "KEEP_HELD", "MAX_STRAIN"]
+__all__ = ["sheet_region", "sheet_depth", "read_sheet", "read_beside", "SheetReading", "SheetDecision", "FLOW_MARGIN", "KEYFRAMES", "EVERY", "NEIGHBOURS", "TRACK_SIDE", "MIN_FRAMES", "MIN_FRAMES_BY_DEFAULT", "MIN_TEXTURE", "MIN_MOTION", "MIN_HELD", "MIN_READ", "MOVING_SHARE", "TRIM", "MIN_CONTRAST", "KEEP_HELD", "MAX_STRAIN"]
 
 FLOW_MARGIN = 48
 """The sheet's points are followed by the flow over their box and this
@@ -217,16 +223,73 @@ def sheet_region(options: ReconstructOptions, frame: Tuple[int, int]) -> np.ndar
 
 
 def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera: Camera, region: np.ndarray,
-                frames: Callable[[], Iterable[np.ndarray]]) -> SheetDecision:
+                frames: Callable[[], Iterable[np.ndarray]], reading: Optional["Future[SheetReading]"] = None) -> SheetDecision:
     """Gives the stitched depth ``raw`` (T, h, w; an array or
     :class:`~.frames.DiskFrames`, changed in place, a chunk at a time) at
     the working resolution ``work`` its shape above the fusion's scale
-    from the sheet's inextensibility: points over ``region``
-    (:func:`sheet_region`, bool (H, W)) followed through ``frames()`` (a
-    fresh stream of the selected frames whole, each (H, W), read as they
-    come: two are held at a time; a second stream where the first reading
-    gives way) and their depths through ``camera``, spread over the
-    region's working frame.
+    from the sheet's inextensibility, as :func:`read_sheet` reads it from
+    ``frames()`` (or as ``reading``, :func:`read_beside`'s, has read it
+    meanwhile): the points' depths spread over the region's working frame
+    and fused with the network's. Returns what it did."""
+    read = read_sheet(len(raw), options, camera, region, frames) if reading is None else reading.result()
+    if read.decision.used:
+        _fused(raw, work, options, region, read.xy, read.depths, float(read.decision.scale))
+    return read.decision
+
+
+@dataclass(frozen=True)
+class SheetReading:
+    """What :func:`read_sheet` read: its ``decision`` and, where it used the
+    sheet's shape, the points read ``xy`` (T, n, 2) and their ``depths`` (T, n)."""
+
+    decision: SheetDecision
+    xy: Optional[np.ndarray] = None
+    depths: Optional[np.ndarray] = None
+
+
+@contextmanager
+def read_beside(frame_count: int, options: ReconstructOptions, camera: Camera, region: np.ndarray,
+                frames: Callable[[], Iterable[np.ndarray]]) -> Iterator["Future[SheetReading]"]:
+    """:func:`read_sheet` in a second thread while the caller works (the
+    network's passes): the sheet's points need the frames alone, and the
+    two leave each other's cores idle less than either alone (kinect_paper:
+    docs/reconstruction.md). The same bytes as read in turn. Yields its
+    future; on leaving (an interrupted job), a reading not yet done stops
+    at its next frame or step and is waited for: no thread runs on into
+    the interpreter's exit, where a library's C++ threads abort it."""
+    stop = threading.Event()
+
+    def check() -> None:
+        if stop.is_set():
+            raise CancelledError("the job that started the sheet's reading has ended")
+
+    future: "Future[SheetReading]" = Future()
+
+    def run() -> None:
+        try:
+            future.set_result(read_sheet(frame_count, options, camera, region, frames, check))
+        except BaseException as error:  # noqa: B036 (handed to the caller, who re-raises it)
+            future.set_exception(error)
+
+    thread = threading.Thread(target=run, name="nrdepth sheet reading")
+    thread.start()
+    try:
+        yield future
+    finally:
+        stop.set()
+        thread.join()
+
+
+def read_sheet(frame_count: int, options: ReconstructOptions, camera: Camera, region: np.ndarray,
+               frames: Callable[[], Iterable[np.ndarray]], check: Callable[[], None] = lambda: None) -> SheetReading:
+    """The sheet's points and their depths from its inextensibility, or
+    why not: points over ``region`` (:func:`sheet_region`, bool (H, W))
+    followed through ``frames()`` (a fresh stream of the ``frame_count``
+    selected frames whole, each (H, W), read as they come: two are held
+    at a time; a second stream where the first reading gives way) and
+    their depths through ``camera``, for :func:`sheet_depth` to fuse.
+    ``check()`` is called at each frame and between the steps: it may
+    raise to stop the reading (:func:`read_beside`).
 
     The readings tried, in order: with ``isometric_template`` "auto",
     points held to the first frame, of them those found in every frame,
@@ -246,16 +309,16 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
     of them for its program, or a program with no answer, as through a
     focal length far too long); where every reading gives way, or the
     video has fewer than :data:`MIN_FRAMES` frames or a region with less
-    texture than :data:`MIN_TEXTURE`, ``raw`` is left alone. Held, only
-    the points found again in :data:`KEEP_HELD` of their frames are read.
-    Returns what it did, with each reading's reason for giving way."""
+    texture than :data:`MIN_TEXTURE`, the network's depth is left alone.
+    Held, only the points found again in :data:`KEEP_HELD` of their frames
+    are read. The decision says each reading's reason for giving way."""
     camera = camera.at(region.shape)
-    T = len(raw)
+    T = frame_count
     record = dict(focal=tuple(map(float, camera.focal)), centre=tuple(map(float, camera.centre)), frames=T, guessed=options.focal is None)
     if T < MIN_FRAMES:
-        return SheetDecision(False, f"{T} frames, fewer than the {MIN_FRAMES} the sheet's shape needs", **record)
+        return SheetReading(SheetDecision(False, f"{T} frames, fewer than the {MIN_FRAMES} the sheet's shape needs", **record))
     if not options.sheet_given and T < MIN_FRAMES_BY_DEFAULT:
-        return SheetDecision(False, f"{T} frames, fewer than the {MIN_FRAMES_BY_DEFAULT} a sheet found by default needs", **record)
+        return SheetReading(SheetDecision(False, f"{T} frames, fewer than the {MIN_FRAMES_BY_DEFAULT} a sheet found by default needs", **record))
     auto = options.isometric_template == "auto"
     if auto:  # nothing given, a region that may be no sheet: the held reading alone, which says whether it is one
         readings = [("refined", True)] + ([("joint", bool(options.isometric_hold))] if options.sheet_given else [])
@@ -265,24 +328,23 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
     tracked = {}  # hold: the tracks, followed once for every reading that reads them
     for template, hold in readings:
         if hold not in tracked:
-            stream = iter(frames())
+            stream = _checked(frames(), check)
             first = as_uint8(next(stream))
             if not tracked:
                 texture = _texture(first, region)
                 record.update(texture=texture)
                 if texture < MIN_TEXTURE:
-                    return SheetDecision(False, f"the sheet's region has no texture for the flow to follow ({texture:.2f} < {MIN_TEXTURE:g})", **record)
+                    return SheetReading(SheetDecision(False, f"the sheet's region has no texture for the flow to follow ({texture:.2f} < {MIN_TEXTURE:g})", **record))
             tracked[hold] = _tracked(itertools.chain([first], stream), region, options, hold)
         through = auto and template == "refined"  # the points found in every frame: the setting its rule read
-        read = _read(tracked[hold], region.shape, hold, through, template, options, camera, record)
+        read = _read(tracked[hold], region.shape, hold, through, template, options, camera, record, check)
         if isinstance(read, str):
             passed.append(f"{_named(template, hold)}: {read}" if len(readings) > 1 else read)
             continue
         scale = options.isometric_scale if options.isometric_scale is not None else (REFINED_SCALE if through else ISOMETRIC_SCALE)
-        _fused(raw, work, options, region, *read, float(scale))
         why = "the video moves the textured sheet" + (f" (not {'; not '.join(passed)})" if passed else "")
-        return SheetDecision(True, why, scale=float(scale), **record)
-    return SheetDecision(False, "; ".join(passed), **record)
+        return SheetReading(SheetDecision(True, why, scale=float(scale), **record), *read)
+    return SheetReading(SheetDecision(False, "; ".join(passed), **record))
 
 
 def _tracked(frames: Iterable[np.ndarray], region: np.ndarray, options: ReconstructOptions, hold: bool) -> np.ndarray:
@@ -304,13 +366,20 @@ def _tracked(frames: Iterable[np.ndarray], region: np.ndarray, options: Reconstr
     return (xy + 0.5) * np.array([W / w, H / h]) - 0.5  # pixel centres to the video's
 
 
+def _checked(frames: Iterable[np.ndarray], check: Callable[[], None]) -> Iterator[np.ndarray]:
+    """``frames``, ``check()`` called before each."""
+    for frame in frames:
+        check()
+        yield frame
+
+
 def _named(template: str, hold: bool) -> str:
     """A reading's name in the log line: whose points, through which template."""
     return ("held" if hold else "the flow's") + f" points through {template}"
 
 
 def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, through: bool, template: str, options: ReconstructOptions, camera: Camera,
-          record: dict) -> Union[Tuple[np.ndarray, np.ndarray], str]:
+          record: dict, check: Callable[[], None]) -> Union[Tuple[np.ndarray, np.ndarray], str]:
     """The points read and their depths ((T, n, 2), (T, n)) of ``xy`` (T, n, 2) tracked over
     frames of ``frame`` (H, W), ``hold`` (found again by their look in the
     first frame), of them ``through``: only those found in every frame,
@@ -321,7 +390,8 @@ def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, through: bool, tem
     those that move (:data:`MOVING_SHARE`) and whose pairs keep their
     lengths (:data:`TRIM`) are read, they are counted (:data:`MIN_READ`)
     in place of the point-frames held (:data:`MIN_HELD`), and their strain
-    must pick a focal length (:data:`MIN_CONTRAST`). ``record`` takes what the checks measured."""
+    must pick a focal length (:data:`MIN_CONTRAST`). ``record`` takes what the checks measured;
+    ``check()`` is called before each program."""
     held = held_share(xy, frame) if hold else None
     farthest = np.nanmax(np.linalg.norm(xy - xy[:1], axis=2), axis=0)
     motion = float(np.median(farthest))
@@ -348,6 +418,7 @@ def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, through: bool, tem
         if read.sum() < need:
             return still.format(motion) if motion < MIN_MOTION else \
                 f"{read.sum()} points {held_in} move, fewer than {MIN_READ:.0%} of the {options.isometric_points} asked for: no sheet that bends"
+        check()
         try:
             read[read] = unstrained_points(xy[:, read], camera, KEYFRAMES, NEIGHBOURS, TRIM)
             record.update(points=int(read.sum()))
@@ -362,6 +433,7 @@ def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, through: bool, tem
     if xy.shape[1] < 3:
         return f"{xy.shape[1]} points held in every frame, fewer than the 3 a program needs"
     cheaper = {"keyframes": KEYFRAMES, "every": EVERY, "neighbours": NEIGHBOURS} if template == "joint" or through else {}  # what the rules read
+    check()
     try:
         depths, distances = mdh_depths(xy, camera, template=template, each_frame=options.isometric_each_frame, with_distances=True, **cheaper)
     except TooFewPoints as error:
@@ -374,6 +446,7 @@ def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, through: bool, tem
         if strain > MAX_STRAIN:
             return f"their pairs do not keep their lengths (strain {strain:.4f} > {MAX_STRAIN:g}): a sheet that stretches, or tracks that slip"
     if found:  # the costliest gate last (nine programs): on a sheet that stretches the strain has said no already
+        check()
         try:
             contrast = estimate_focal(xy, frame).contrast
         except NotSolved as error:
