@@ -28,6 +28,7 @@ import numpy as np
 
 from ..checks import option_error
 from .frames import Statistic, resize
+from .network import fine_precision
 from .stitch import PATCH, PatchLayout
 
 __all__ = ["TILE", "GPU_TILE", "MARGIN", "patch_depths", "field_frames", "field_windows", "tile_plan", "check_tile", "check_sizes", "counted"]
@@ -111,6 +112,7 @@ def field_frames(
     tile: Optional[Tuple[int, int, int]] = None,
     margin: Tuple[int, int, int] = MARGIN,
     statistic: Optional[Tuple[float, float]] = None,
+    precision: str = "auto",
 ) -> Iterator[Tuple[int, np.ndarray]]:
     """The network's depth of a video, computed in overlapping tiles, one
     span of frames at a time: pairs (t0, depth) of the span's first frame
@@ -124,7 +126,9 @@ def field_frames(
     deviation) the input is standardised with (default: the array's own;
     required with chunks). ``tile``: a tile's core (frames, rows, columns;
     :data:`TILE`, or :data:`GPU_TILE` on CUDA); ``margin``: its overlap on
-    each side, discarded (:data:`MARGIN`)."""
+    each side, discarded (:data:`MARGIN`). ``precision``: the network's
+    arithmetic (:func:`~.network.fine_precision`: by default bfloat16
+    autocast where ``device`` computes it in hardware)."""
     import torch
 
     from ..model.unet2p1d import STD_FLOOR
@@ -150,7 +154,8 @@ def field_frames(
     size = network_size(shape, net)
     frame_of = np.pad(np.arange(t), (0, size[0] - t), mode="symmetric")
     standardised = getattr(net, "forward_standardised", None)
-    autocast = torch.autocast("cuda", dtype=torch.bfloat16) if device.type == "cuda" else nullcontext()
+    bfloat16 = fine_precision(precision, device) == "bfloat16"
+    autocast = torch.autocast(device.type, dtype=torch.bfloat16) if bfloat16 else nullcontext()
     rows = axis_spans(size[1], tile[1], margin[1], 8)
     cols = axis_spans(size[2], tile[2], margin[2], 8)
     spans = axis_spans(size[0], tile[0], margin[0], tm)

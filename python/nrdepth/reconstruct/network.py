@@ -8,7 +8,10 @@ from typing import Any, Union
 
 from ..checks import option_error
 
-__all__ = ["inference_model", "networks", "load_net"]
+__all__ = ["inference_model", "networks", "load_net", "native_bfloat16", "fine_precision", "PRECISIONS"]
+
+PRECISIONS = ("auto", "float32", "bfloat16")
+"""The fine pass's arithmetic (:func:`fine_precision`)."""
 
 
 def inference_model(model: Union[None, str, "os.PathLike[str]"], device: "torch.device") -> "torch.nn.Module":  # noqa: F821
@@ -56,3 +59,23 @@ def load_net(model: Any, units: str, dev: Any) -> Any:
         raise option_error("units", "'pixels' needs a model that learnt the relief's scale (model.json's depth_units 'window', "
                            "nrdepth train --amplitude); this one gives depth up to scale: use units='standard'")
     return net
+
+
+def native_bfloat16(device: "torch.device") -> bool:  # noqa: F821
+    """Whether ``device`` computes bfloat16 in hardware: CUDA, or a CPU with
+    AVX512-BF16 or AMX (elsewhere oneDNN emulates it, no faster than float32)."""
+    import torch
+
+    if device.type == "cuda":
+        return True
+    probes = (getattr(torch.cpu, name, None) for name in ("_is_avx512_bf16_supported", "_is_amx_tile_supported"))
+    return device.type == "cpu" and any(probe is not None and probe() for probe in probes)
+
+
+def fine_precision(precision: str, device: "torch.device") -> str:  # noqa: F821
+    """``precision`` (:data:`PRECISIONS`) on ``device``: "auto" resolved by :func:`native_bfloat16`."""
+    if precision not in PRECISIONS:
+        raise option_error("precision", f"expected one of {PRECISIONS}, got {precision!r}")
+    if precision == "auto":
+        return "bfloat16" if native_bfloat16(device) else "float32"
+    return precision

@@ -26,9 +26,10 @@ from ..camera import GUESSED_VIEW, Camera
 from ..checks import is_number, option_error
 from ..isometric import DROP, EACH_FRAME, TEMPLATES
 from .fine import check_tile
+from .network import PRECISIONS
 from .stitch import ALIGNMENTS, COARSE_WEIGHT, TEMPORAL_WEIGHT, WINDOWS, check_stitching
 
-__all__ = ["ReconstructOptions", "MAX_SIDE", "FINE_PASSES", "ISOMETRIC_SCALE", "REFINED_SCALE", "STAGE_TEMPLATES", "ISOMETRIC_DROP", "ISOMETRIC_HOLD", "ISOMETRIC_EACH_FRAME", "UNITS", "add_flags", "options_from_flags"]
+__all__ = ["ReconstructOptions", "MAX_SIDE", "FINE_PASSES", "ISOMETRIC_SCALE", "REFINED_SCALE", "STAGE_TEMPLATES", "ISOMETRIC_DROP", "ISOMETRIC_HOLD", "ISOMETRIC_EACH_FRAME", "UNITS", "PRECISIONS", "add_flags", "options_from_flags"]
 
 MAX_SIDE = 480
 """Default working resolution: a frame's longer side, in pixels. The real
@@ -153,7 +154,9 @@ class ReconstructOptions:
         "is NaN (black in the videos, 0 in the PNGs, no PLY point, a hole in the viewer) and takes no part in the alignments: for a "
         "background that moves on its own")
     # The network.
-    device: str = _option("auto", "auto | cpu | cuda | cuda:N (on CUDA the network runs in bfloat16)")
+    device: str = _option("auto", "auto | cpu | cuda | cuda:N")
+    precision: str = _option(PRECISIONS[0], "the fine pass's arithmetic: float32, bfloat16 (autocast), or auto: bfloat16 on CUDA "
+                             "and on CPUs that compute it (AVX512-BF16 or AMX), float32 elsewhere", choices=PRECISIONS)
     batch_size: int = _option(8, "clips per network call in the coarse pass (and with fine='patches')", type=int)
     fine: str = _option(FINE_PASSES[0], "the fine pass: field (the network once over the video, in tiles) or patches (every 64×64×16 "
                         "window on its own, as the paper: 8× the work)", choices=FINE_PASSES)
@@ -301,6 +304,8 @@ def _check(o: ReconstructOptions) -> None:
         raise option_error("units", f"expected 'standard' or 'pixels', got {o.units!r}")
     if o.fine not in FINE_PASSES:
         raise option_error("fine", f"expected one of {FINE_PASSES}, got {o.fine!r}")
+    if o.precision not in PRECISIONS:
+        raise option_error("precision", f"expected one of {PRECISIONS}, got {o.precision!r}")
     if o.tile is not None:
         set_("tile", check_tile(o.tile))
     check_stitching(o.alignment, o.coarse_weight, o.window, o.temporal_weight)

@@ -29,7 +29,8 @@ def stitched(pipeline: Pipeline, progress: Optional[Callable[[int, int], None]] 
     given = 0 if alignment == "joint" else t
     stitcher = make_stitcher(pipeline.coarse(0, given), layout.patch, alignment, options.coarse_weight, options.window, options.temporal_weight, frames=t)
     if options.fine == "field":
-        frames = field_frames((pipeline.shape, pipeline.working()), pipeline.net, pipeline.device, options.tile, statistic=pipeline.statistic)
+        frames = field_frames((pipeline.shape, pipeline.working()), pipeline.net, pipeline.device, options.tile, statistic=pipeline.statistic,
+                              precision=options.precision)
         windows = field_windows(layout, frames, progress=progress)
     else:
         video = np.concatenate(list(pipeline.working()))
