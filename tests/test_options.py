@@ -21,6 +21,7 @@ FLAGS = [
     (["--max-side", "96"], {"max_side": 96}),
     (["--mask", "mask.png"], {"mask": "mask.png"}),
     (["--device", "cpu"], {"device": "cpu"}),
+    (["--precision", "float32"], {"precision": "float32"}),
     (["--batch-size", "3"], {"batch_size": 3}),
     (["--fine", "patches"], {"fine": "patches"}),
     (["--units", "pixels"], {"units": "pixels"}),

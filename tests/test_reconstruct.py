@@ -121,10 +121,11 @@ def test_cli_reconstructs_an_mp4_into_every_output(tmp_path, tiny_model):
     write_mp4(tmp_path / "in.mp4", np.repeat(frames[..., None], 3, axis=-1), fps=10)
     out = tmp_path / "out"
     code = main(["reconstruct", str(tmp_path / "in.mp4"), "-o", str(out), "--model", str(tiny_model),
-                 "--device", "cpu", "--png16", "--ply", "--quiet", "--frames", "1:9", "--roi", "4,2,30,40"])
+                 "--device", "cpu", "--png16", "--ply", "--quiet", "--frames", "1:9", "--roi", "4,2,30,40", "--precision", "float32"])
     assert code == 0
     with np.load(out / "depth.npz") as saved:
         depth, (lo, hi), png16_range = saved["depth"], saved["range"], saved["png16_range"]
+        assert json.loads(str(saved["network"])) == {"device": "cpu", "precision": "float32"}
     assert tuple(png16_range) == (depth.min(), depth.max())
     assert depth.shape == (8, 40, 30) and depth.dtype == np.float32 and np.isfinite(depth).all()
     assert depth.mean() == pytest.approx(0, abs=1e-5) and depth.std() == pytest.approx(1, rel=1e-4)
@@ -311,11 +312,13 @@ def test_cli_stitching_options_reach_reconstruct(tmp_path, tiny_model, flags, op
     frames = moving_texture(t=16 if "--focal" in flags else 12, h=40, w=72)
     np.save(tmp_path / "clip.npy", frames)
     out = tmp_path / "out"
-    assert main(["reconstruct", str(tmp_path / "clip.npy"), "-o", str(out), "--model", str(tiny_model), "--device", "cpu", "--quiet", *flags]) == 0
+    # float32: the options' effects as measured, apart from bfloat16's rounding.
+    assert main(["reconstruct", str(tmp_path / "clip.npy"), "-o", str(out), "--model", str(tiny_model), "--device", "cpu", "--precision", "float32",
+                 "--quiet", *flags]) == 0
     with np.load(out / "depth.npz") as saved:
         cli = saved["depth"]
-    chosen = nrdepth.reconstruct(frames, str(tiny_model), device="cpu", **options)
-    default = nrdepth.reconstruct(frames, str(tiny_model), device="cpu")
+    chosen = nrdepth.reconstruct(frames, str(tiny_model), device="cpu", precision="float32", **options)
+    default = nrdepth.reconstruct(frames, str(tiny_model), device="cpu", precision="float32")
     # The CLI and the API may run the network in different layouts (channels-last or not): float rounding apart, which the
     # joint alignment at a small coarse weight, tied over time, amplifies (measured: up to 0.0039 at μ = 0.001).
     np.testing.assert_allclose(cli, chosen, atol=6e-3)

@@ -24,7 +24,6 @@ __all__ = ["add_commands"]
 
 
 def _reconstruct(args: argparse.Namespace) -> int:
-    from ..model.io import resolve_device
     out = Path(args.out) if args.out is not None else Path(Path(args.input).stem + "_depth")
     bar = None
 
@@ -55,7 +54,8 @@ def _reconstruct(args: argparse.Namespace) -> int:
     with np.load(out / "depth.npz") as saved:  # the sheet stage's decision, in one line (depth.npz keeps it as "sheet")
         if "sheet" in saved:
             print(SheetDecision(**json.loads(str(saved["sheet"]))).line())
-    print(f"wrote {out}: depth of {t} frames of {w}×{h} in {seconds:.1f} s on {resolve_device(options.device)} "
+        network = json.loads(str(saved["network"]))
+    print(f"wrote {out}: depth of {t} frames of {w}×{h} in {seconds:.1f} s on {network['device']} ({network['precision']}) "
           f"(depth.npz, depth.mp4, side_by_side.mp4{', viewer.html' if options.viewer else ''}{', png16/' if options.png16 else ''}{', ply/' if options.ply else ''})")
     return 0
 

@@ -27,7 +27,7 @@ from ..io.writers import PLY_RELIEF
 from .export import final, units_of
 from .frames import CHUNK, DiskFrames
 from .mask import file_mask, video_mask
-from .network import load_net
+from .network import fine_precision, load_net
 from .options import FILE_ONLY, ReconstructOptions
 from .pipeline import Pipeline
 from .sheet import SheetDecision, read_beside, sheet_depth, sheet_region
@@ -184,6 +184,7 @@ def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.
         ply_relief = 1.0 / source.frame_size[1] if options.units == "pixels" else PLY_RELIEF  # pixels to frame widths, the PLY's x and y unit
     with ReconstructionWriter(out, (t, *source.frame_size), source.fps, png16=options.png16, ply=options.ply, ply_relief=ply_relief,
                               overwrite=options.overwrite, viewer=options.viewer) as writer:
+        writer.set_metadata("network", {"device": str(device), "precision": fine_precision(options.precision, device)})
         raw = DiskFrames(writer.scratch("stitched.f32"), pipeline.shape[1:])
         camera = options.sheet_camera(source.raw_size)
         whole = lambda: (frame for chunk in source.chunks(CHUNK, roi=False) for frame in chunk)  # noqa: E731 (streamed)

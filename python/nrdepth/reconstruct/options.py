@@ -155,8 +155,9 @@ class ReconstructOptions:
         "background that moves on its own")
     # The network.
     device: str = _option("auto", "auto | cpu | cuda | cuda:N")
-    precision: str = _option(PRECISIONS[0], "the fine pass's arithmetic: float32, bfloat16 (autocast), or auto: bfloat16 on CUDA "
-                             "and on CPUs that compute it (AVX512-BF16 or AMX), float32 elsewhere", choices=PRECISIONS)
+    precision: str = _option(PRECISIONS[0], "the fine pass's arithmetic: auto (bfloat16 autocast on CUDA and on CPUs that compute it, "
+                             "AVX512-BF16 or AMX: half the network's time on two cores, generated and real videos read as in float32 to the "
+                             "fourth decimal; float32 elsewhere), float32 or bfloat16 (docs/reconstruction.md)", choices=PRECISIONS)
     batch_size: int = _option(8, "clips per network call in the coarse pass (and with fine='patches')", type=int)
     fine: str = _option(FINE_PASSES[0], "the fine pass: field (the network once over the video, in tiles) or patches (every 64×64×16 "
                         "window on its own, as the paper: 8× the work)", choices=FINE_PASSES)
