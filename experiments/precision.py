@@ -25,8 +25,10 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import sys
 import time
 import warnings
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -37,21 +39,10 @@ from nrdepth.scores.generated import SHEET_FAMILIES, out_of_range
 from nrdepth.scores.metrics import flat_baseline, mae_sn
 from nrdepth.scores.real import DATA, KINECT_ROI, kinect_score, kinect_truth, kinect_video
 
+sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
+from bench_video import paired, sgemm_rate  # noqa: E402
+
 PRECISIONS = ("float32", "bfloat16")
-
-
-def sgemm(n: int = 2048, repeats: int = 5) -> float:
-    a, b = torch.randn(n, n), torch.randn(n, n)
-    a @ b
-    start = time.perf_counter()
-    for _ in range(repeats):
-        a @ b
-    return 2 * n**3 * repeats / (time.perf_counter() - start) / 1e9
-
-
-def paired(a: list, b: list) -> str:
-    d = np.asarray(b) - np.asarray(a)
-    return f"{np.mean(a):.4f} → {np.mean(b):.4f} ({np.mean(d):+.4f} ± {np.std(d, ddof=1) / np.sqrt(len(d)):.4f})"
 
 
 def generated(videos: int, frames: int, seed: int) -> None:
@@ -69,7 +60,7 @@ def generated(videos: int, frames: int, seed: int) -> None:
                     scores[p, a].append(mae_sn(depth, truth, a))
             for a in flat:
                 flat[a].append(flat_baseline(truth, a))
-        print(f"  {label:8s}" + "; ".join(f"{a} {paired(scores['float32', a], scores['bfloat16', a])}" for a in ("frame", "first"))
+        print(f"  {label:8s}" + "; ".join(paired(a, scores['float32', a], scores['bfloat16', a]) for a in ("frame", "first"))
               + f"; flat {np.mean(flat['frame']):.4f} / {np.mean(flat['first']):.4f}", flush=True)
 
 
@@ -86,7 +77,7 @@ def real(repeats: int) -> None:
     print(f"kinect_paper, the default job with roi {KINECT_ROI} in memory ({torch.get_num_threads()} threads), the whole sheet (mm) and time:")
     for _ in range(repeats):
         for p in PRECISIONS:
-            rate = sgemm()
+            rate = sgemm_rate()
             start = time.perf_counter()
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")

@@ -63,7 +63,8 @@ def load_net(model: Any, units: str, dev: Any) -> Any:
 
 def native_bfloat16(device: "torch.device") -> bool:  # noqa: F821
     """Whether ``device`` computes bfloat16 in hardware: CUDA, or a CPU with
-    AVX512-BF16 or AMX (elsewhere oneDNN emulates it, no faster than float32)."""
+    AVX512-BF16 or AMX (elsewhere oneDNN emulates it: float32 is kept, its
+    speed there not measured)."""
     import torch
 
     if device.type == "cuda":
