@@ -14,7 +14,8 @@ the points' box and this many pixels, or ``none``: the whole frame),
 n-th frame's program solved, the rest linear in time), ``points``, ``hold``
 (1: each point found again by its look in the first frame), ``backward``
 (0: the forward flow alone), ``drop`` (the share of points left out; 0 with
-``backward=0``), ``keep`` (with ``hold``: only the points held in at least
+``backward=0`` unless held, where the flow's guess against the hold's
+answer picks them), ``keep`` (with ``hold``: only the points held in at least
 this share of their frames in view, ``isometric.point_held_shares``),
 ``each`` (``mdh_depths``' ``each_frame``: program, lengths, mirror),
 ``anchor`` (with ``each=lengths``, ``mdh_depths``' ``anchor``), ``fov``
@@ -123,8 +124,8 @@ def parse(setting: str) -> dict:
         raise SystemExit(f"--settings {setting!r}: fov is the degrees a pinhole sees across the frame's longer side, in (0, 180), strain or held")
     if out["trim"] and not out["throughout"]:
         raise SystemExit(f"--settings {setting!r}: trim needs throughout=1 (points in every frame)")
-    if not out["backward"] and out["drop"]:
-        raise SystemExit(f"--settings {setting!r}: drop needs the flow both ways: give drop=0 with backward=0")
+    if not out["backward"] and out["drop"] and not out["hold"]:
+        raise SystemExit(f"--settings {setting!r}: drop needs the flow both ways or the hold: give drop=0 with backward=0 and hold=0")
     return out
 
 

@@ -101,13 +101,14 @@ def track_grid(video: Union[np.ndarray, Iterable[np.ndarray]], mask: Optional[np
     ``video`` ((T, H, W) uint8, or a stream of frames: :func:`frames_of`) by :func:`track_points` (``window``,
     ``backward``, ``border``, ``flow``, ``margin``, ``hold``, ``flow_scale``). ``drop``: the share of the points left out,
     those whose forward and backward flows disagree most over the video
-    (:func:`track_points`' ``disagreement``; needs ``backward``): points
-    at a boundary of the motion, where the flow bleeds from one side to
-    the other, whose tracks would read as stretch (docs/reconstruction.md)."""
+    (:func:`track_points`' ``disagreement``; needs ``backward`` or
+    ``hold``): points at a boundary of the motion, where the flow bleeds
+    from one side to the other, whose tracks would read as stretch
+    (docs/reconstruction.md)."""
     first, rest = frames_of(video)
     video = itertools.chain([first], rest)
-    if drop > 0 and not backward:
-        raise ValueError("drop: the points to leave out are found by the flow both ways: expected backward=True, or drop=0")
+    if drop > 0 and not (backward or hold):
+        raise ValueError("drop: the points to leave out are found by the flow both ways or by the hold: expected backward=True or hold=True, or drop=0")
     if place not in PLACES:
         raise ValueError(f"place: expected one of {PLACES}, got {place!r}")
     grid = start_grid(mask, first.shape, points, drop, border) if place == "grid" else start_texture(first, mask, points, window, drop, border)
@@ -201,9 +202,10 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
     from the first frame after the start where it lies within ``border``
     pixels of the frame's edge or beyond it: the flow cannot follow what
     leaves the view, and would hold it at the edge.
-    With ``disagreement`` (needs ``backward``), also (n,): each point's
-    distance between where the two flows take it, its mean over the steps
-    it stays in view (pixels; 0 for a point lost at once). ``flow``: one of
+    With ``disagreement`` (needs ``backward`` or ``hold``), also (n,): each point's
+    distance between where the two flows take it (forward alone, held:
+    between where the flow takes it and where it is found again), its
+    mean over the steps it stays in view (pixels; 0 for a point lost at once). ``flow``: one of
     :data:`FLOWS`; ``margin``: the flow is computed over the points' bounding
     box grown by this many pixels (None: over the whole frame).
 
@@ -229,8 +231,8 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
         raise ValueError(f"window: expected an int >= 3 (pixels), got {window!r}")
     if not (isinstance(border, (int, float, np.integer, np.floating)) and 0 <= border < min(first.shape) / 2):
         raise ValueError(f"border: expected pixels in [0, {min(first.shape) / 2:g}) (half the frame's shorter side), got {border!r}")
-    if disagreement and not backward:
-        raise ValueError("disagreement: the forward and backward flows' disagreement needs backward=True")
+    if disagreement and not (backward or hold):
+        raise ValueError("disagreement: the flows' disagreement needs backward=True, or hold=True (the forward flow against the hold)")
     if flow not in FLOWS:
         raise ValueError(f"flow: expected one of {FLOWS}, got {flow!r}")
     if margin is not None and not (isinstance(margin, (int, np.integer)) and margin >= 0):
@@ -283,8 +285,8 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
                     alive, now = alive[stays], now[stays]
                     now_xy[alive] = now
                     counted = alive
-                if backward:
-                    apart[counted] += np.linalg.norm(ahead[stays] - back[stays], axis=1)
+                if backward or hold:  # forward alone, held: where the flow took the point against where it is found again
+                    apart[counted] += np.linalg.norm(ahead[stays] - (back if backward else now)[stays], axis=1)
                     steps[counted] += 1
             xy.append(now_xy)
             previous = frame
