@@ -530,6 +530,13 @@ def test_track_grid_drops_the_points_where_the_motion_breaks():
     assert error[left_out].mean() > 3 * error[rows].mean()  # the points left out are the ones the flow dragged
     border = np.minimum.reduce([abs(xy[0, :, 0] - 20), abs(xy[0, :, 0] - 60), abs(xy[0, :, 1] - 28), abs(xy[0, :, 1] - 68)])
     assert border[left_out].mean() < border[rows].mean()  # near where the motion breaks
+    # Held, the forward flow alone: where it takes each point against where the hold finds it picks them instead.
+    held, guessed = isometric.track_points(video, xy[0], backward=False, hold=True, disagreement=True)
+    kept = isometric.track_grid(video, points=144, drop=0.25, hold=True, backward=False)
+    rows = [int(np.flatnonzero((held[0] == p).all(axis=1))[0]) for p in kept[0]]
+    assert np.array_equal(kept, held[:, rows], equal_nan=True)
+    left_out = np.setdiff1d(np.arange(len(held[0])), rows)
+    assert guessed[left_out].min() >= guessed[rows].max() and border[left_out].mean() < border[rows].mean()
     with pytest.raises(ValueError, match="drop"):
         isometric.track_grid(video, drop=1.0)
     with pytest.raises(ValueError, match="drop"):
