@@ -205,7 +205,7 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
     With ``disagreement`` (needs ``backward`` or ``hold``), also (n,): each point's
     distance between where the two flows take it (forward alone, held:
     between where the flow takes it and where it is found again), its
-    mean over the steps it stays in view (pixels; 0 for a point lost at once). ``flow``: one of
+    mean over the steps it stays in view (pixels; 0 for a point lost at once, or, held, never found again). ``flow``: one of
     :data:`FLOWS`; ``margin``: the flow is computed over the points' bounding
     box grown by this many pixels (None: over the whole frame).
 
