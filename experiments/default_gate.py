@@ -11,8 +11,9 @@
    and (``--noise``) on videos that are no sheet;
 3. (``--versus-stage HELD FLOW``) with the focal length given but no
    sheet: the default's reading where its gate holds, the flow's points
-   (FLOW at 0.3) elsewhere, against the stage as it read such a video
-   before (HELD at 0.1 where its point-frames held and strain pass);
+   (FLOW at 0.3) elsewhere (with ``--then-stage``, the stage as it is
+   elsewhere), against the stage as it read such a video before (HELD at
+   0.1 where its point-frames held and strain pass, FLOW at 0.3 elsewhere);
 4. (``--versus-default SETTING``) a lever on the default: ``--default``'s
    reading (its own gates, the network elsewhere) against SETTING's read
    the same way, paired per frame, on the sheets and on ``--noise``.
@@ -72,6 +73,7 @@ def main() -> None:
     parser.add_argument("--versus-stage", nargs=2, metavar=("HELD", "FLOW"), default=None,
                         help="3. a focal length given, no sheet: the default's reading at 0.1 where its gate holds, FLOW at 0.3 elsewhere, against "
                         "the stage as it was: HELD at 0.1 where its point-frames held reach --min-held and its strain τ, FLOW at 0.3 elsewhere")
+    parser.add_argument("--then-stage", action="store_true", help="3. where the default's gate does not hold, the stage as it was, not FLOW")
     parser.add_argument("--versus-default", metavar="SETTING", default=None,
                         help="4. --default's reading against SETTING's, each gated as the default gates, the network elsewhere")
     args = parser.parse_args()
@@ -93,8 +95,9 @@ def main() -> None:
         fallback = column(rows, per_frame(flow, 0.3))
         before = (column(rows, f"{held} held") >= args.min_held) & (column(rows, f"{held} strain") <= args.tau)
         stage = np.where(before, column(rows, per_frame(held, 0.1)), fallback)
-        proposed = np.where(read, column(rows, per_frame(args.default, 0.1)), fallback)
-        print(f"3. with the focal length: the default's reading on {read.sum()}, {flow} elsewhere, {proposed.mean():.4f}, against the stage as it was "
+        proposed = np.where(read, column(rows, per_frame(args.default, 0.1)), stage if args.then_stage else fallback)
+        elsewhere = "the stage" if args.then_stage else flow
+        print(f"3. with the focal length: the default's reading on {read.sum()}, {elsewhere} elsewhere, {proposed.mean():.4f}, against the stage as it was "
               f"(held on {before.sum()}) {stage.mean():.4f}: {paired(proposed, stage)}")
     gates = (args.tau, args.min_read, args.points, args.min_contrast)
     if args.versus_default:
