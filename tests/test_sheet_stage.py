@@ -154,8 +154,9 @@ def test_a_cone_program_without_an_answer_sends_the_stage_aside_with_its_status(
 
     monkeypatch.setattr(stage, "mdh_depths", unsolved)
     # every reading tried gives way, each saying why
-    with pytest.warns(SheetFallback, match=r"sheet: the network's depth alone \(held points through refined: the sheet's cone program found no answer "
-                      r"\(InsufficientProgress\).*; the flow's points through joint: the sheet's cone program found no answer \(InsufficientProgress\)"):
+    no_answer = r"the sheet's cone program found no answer \(InsufficientProgress\)"
+    with pytest.warns(SheetFallback, match=rf"sheet: the network's depth alone \(the sheet's held points through refined: {no_answer}.*; held points through refined: "
+                      rf"{no_answer}.*; the flow's points through joint: {no_answer}"):
         depth = nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS)
     np.testing.assert_array_equal(depth, network_alone(bending, model))
     with pytest.raises(ValueError, match=r"focal: f_x = 1e\+09 px sees .*° across the frame's 64 pixels; the sheet's shape needs perspective"):
@@ -267,6 +268,32 @@ def test_by_default_held_points_are_counted_where_they_are_read_so_a_frame_half_
     assert lost.used and lost.template == "refined" and MIN_READ * OPTIONS["isometric_points"] <= lost.points  # ...but the sheet's are read
     assert held.used and held.held > 0.9  # the still background's points are held in every frame...
     assert (starts[1][:, 0] < W).all()  # ...but not read: every point read starts on the sheet
+
+
+def test_with_a_focal_length_but_no_sheet_the_sheet_is_found_first_as_by_default(model, bending):
+    import importlib
+
+    api = importlib.import_module("nrdepth.reconstruct.api")
+    decisions, decide = [], api.sheet_depth
+    T, H, W = bending.shape
+    beside = np.concatenate([bending, np.random.default_rng(1).integers(0, 256, (T, H, 48), dtype=np.uint8)], axis=2)  # noise beside the sheet
+    stage = importlib.import_module("nrdepth.reconstruct.sheet")
+    starts, solve = [], stage.mdh_depths
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SheetFallback)
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(api, "sheet_depth", lambda *a, **k: decisions.append(decide(*a, **k)) or decisions[-1])
+            patch.setattr(stage, "mdh_depths", lambda xy, *a, **k: starts.append(xy[0]) or solve(xy, *a, **k))
+            patch.setattr(stage, "MIN_CONTRAST", 1.0)  # a clip too small for the strain to pick a focal length sharply
+            nrdepth.reconstruct(beside, model, device="cpu", **OPTIONS)  # the focal length alone
+            nrdepth.reconstruct(beside, model, device="cpu", **OPTIONS, sheet=(0, 0, W + 48, H))  # the same region given as the sheet
+            nrdepth.reconstruct(beside[: MIN_FRAMES_BY_DEFAULT - 1], model, device="cpu", **OPTIONS)  # too short a clip to find the sheet in
+    found, boxed, short = decisions
+    assert found.used and not found.guessed and found.focal == (OPTIONS["focal"],) * 2 and found.template == "refined"
+    assert found.held < MIN_HELD and found.contrast >= 1.0 and (starts[0][:, 0] < W).all()  # the noise's points lost, the sheet's found and read
+    assert boxed.used and boxed.template == "joint" and boxed.contrast is None  # given as the sheet: its point-frames held, no finding
+    assert "not held points through refined: the points are found again in only" in boxed.reason
+    assert "the sheet's held points" not in short.reason + boxed.reason and short.contrast is None
 
 
 def test_points_are_followed_in_frames_shrunk_to_the_tracking_side_and_come_back_in_the_videos_pixels(monkeypatch):

@@ -9,8 +9,9 @@ over the region's working frame and fused with the network's depth. By
 default, points held to the first frame are read through the ``refined``
 template, kept where enough are held and their pairs keep their lengths
 (:data:`MAX_STRAIN`); with a focal length or a sheet given, where they
-do not, the flow's points through the joint template.
-With neither given the stage runs over the roi (or the whole frame)
+do not, the flow's points through the joint template. Where no sheet is
+given, the sheet is first found among the held points (those that move
+and keep their pairs' lengths). With neither given the stage runs over the roi (or the whole frame)
 through a guessed pinhole, and a video that is no sheet, or gives the
 shape nothing to read, keeps the network's depth; either way the stage
 returns what it did (:class:`SheetDecision`). The reading
@@ -98,7 +99,7 @@ generated sheets: docs/campaign.md, "Tracks held to the first frame").
 As many lost as the drop leaves out."""
 
 MIN_READ = 0.1
-"""With nothing given (neither ``focal`` nor ``sheet``): fewer held points
+"""To find the sheet (no ``sheet`` given): fewer held points
 read (held in :data:`KEEP_HELD` of their frames and in every frame, and
 moving: :data:`MIN_MOTION`, :data:`MOVING_SHARE`) than this share of
 ``isometric_points``, and the reading gives way: too faint a texture, or
@@ -108,13 +109,13 @@ background's points are lost and the sheet's held (docs/campaign.md,
 "The sheet's shape by default"). Counted again after :data:`TRIM`."""
 
 MOVING_SHARE = 0.2
-"""With nothing given: of the points read, only those that move at least
+"""To find the sheet: of the points read, only those that move at least
 :data:`MIN_MOTION` and this share of the median such point's farthest
 motion are the sheet's (:func:`~nrdepth.isometric.moving_points`): a
 still backdrop's points by the sheet's edge move a little."""
 
 TRIM = 3.0
-"""With nothing given: of the points that move, those whose pairs stray
+"""To find the sheet: of the points that move, those whose pairs stray
 from their lengths more than this many times the points' median are left
 out (:func:`~nrdepth.isometric.unstrained_points`): a pair with one point
 off the sheet does not keep its length. With :data:`MOVING_SHARE`, the
@@ -123,7 +124,7 @@ generated paper-like sheets (docs/campaign.md, "Why the default's reading
 did not hold")."""
 
 MIN_CONTRAST = 2.0
-"""With nothing given: where the strain of the points read does not pick
+"""To find the sheet: where the strain of the points read does not pick
 out a focal length (:func:`~nrdepth.isometric.estimate_focal`'s
 ``contrast`` under this), the reading gives way: a surface that moves
 more than it stretches, such as coloured noise, keeps its lengths
@@ -291,20 +292,22 @@ def read_sheet(frame_count: int, options: ReconstructOptions, camera: Camera, re
     ``check()`` is called at each frame and between the steps: it may
     raise to stop the reading (:func:`read_beside`).
 
-    The readings tried, in order: with ``isometric_template`` "auto",
-    points held to the first frame, of them those found in every frame,
-    through the ``refined`` template, fused at ``REFINED_SCALE``, where
-    their pairs keep their lengths (strain at most :data:`MAX_STRAIN`);
-    else, with ``focal`` or ``sheet`` given (``options.sheet_given``), the
-    points of ``isometric_hold`` (the flow's by default) through the joint
-    template at ``ISOMETRIC_SCALE`` (``isometric_scale`` given replaces
-    both scales). With another template, that one alone. A
-    reading gives way where the video gives it nothing to read (held
-    points found again in fewer point-frames than :data:`MIN_HELD`, or
-    with nothing given fewer read than :data:`MIN_READ` of those asked for
-    once those that do not move (:data:`MOVING_SHARE`) or strain their
-    pairs (:data:`TRIM`) are left out, or a strain that picks out no focal
-    length (:data:`MIN_CONTRAST`),
+    The readings tried, in order, with ``isometric_template`` "auto":
+    where no sheet is given (nothing, or ``focal`` alone over at least
+    :data:`MIN_FRAMES_BY_DEFAULT` frames), the sheet found among the
+    points held to the first frame; then, with ``focal`` or ``sheet``
+    given (``options.sheet_given``), the points held, of them those found
+    in every frame; each through the ``refined`` template, fused at
+    ``REFINED_SCALE``, where their pairs keep their lengths (strain at
+    most :data:`MAX_STRAIN`); last, the points of ``isometric_hold`` (the
+    flow's by default) through the joint template at ``ISOMETRIC_SCALE``
+    (``isometric_scale`` given replaces both scales). With another
+    template, that one alone. A reading gives way where the video gives
+    it nothing to read (held points found again in fewer point-frames than
+    :data:`MIN_HELD`, or, to find the sheet, fewer read than
+    :data:`MIN_READ` of those asked for once those that do not move
+    (:data:`MOVING_SHARE`) or strain their pairs (:data:`TRIM`) are left
+    out, or a strain that picks out no focal length (:data:`MIN_CONTRAST`),
     points that move less than :data:`MIN_MOTION`, a frame with too few
     of them for its program, or a program with no answer, as through a
     focal length far too long); where every reading gives way, or the
@@ -317,16 +320,23 @@ def read_sheet(frame_count: int, options: ReconstructOptions, camera: Camera, re
     record = dict(focal=tuple(map(float, camera.focal)), centre=tuple(map(float, camera.centre)), frames=T, guessed=options.focal is None)
     if T < MIN_FRAMES:
         return SheetReading(SheetDecision(False, f"{T} frames, fewer than the {MIN_FRAMES} the sheet's shape needs", **record))
-    if not options.sheet_given and T < MIN_FRAMES_BY_DEFAULT:
+    long_enough = T >= MIN_FRAMES_BY_DEFAULT
+    if not options.sheet_given and not long_enough:
         return SheetReading(SheetDecision(False, f"{T} frames, fewer than the {MIN_FRAMES_BY_DEFAULT} a sheet found by default needs", **record))
     auto = options.isometric_template == "auto"
-    if auto:  # nothing given, a region that may be no sheet: the held reading alone, which says whether it is one
-        readings = [("refined", True)] + ([("joint", bool(options.isometric_hold))] if options.sheet_given else [])
-    else:
-        readings = [(options.isometric_template, bool(options.isometric_hold))]
+    readings: List[Tuple[str, bool, bool]]  # (template, hold, find: the sheet found among the points)
+    if not auto:
+        hold = bool(options.isometric_hold)
+        readings = [(options.isometric_template, hold, hold and not options.sheet_given)]
+    elif options.sheet is not None:
+        readings = [("refined", True, False), ("joint", bool(options.isometric_hold), False)]
+    elif options.focal is not None:  # a region that may hold more than the sheet: found first, as by default
+        readings = [("refined", True, True)] * long_enough + [("refined", True, False), ("joint", bool(options.isometric_hold), False)]
+    else:  # nothing given, a region that may be no sheet: the found reading alone, which says whether it is one
+        readings = [("refined", True, True)]
     passed: List[str] = []  # each reading's reason for giving way
     tracked = {}  # hold: the tracks, followed once for every reading that reads them
-    for template, hold in readings:
+    for template, hold, find in readings:
         if hold not in tracked:
             stream = _checked(frames(), check)
             first = as_uint8(next(stream))
@@ -337,9 +347,9 @@ def read_sheet(frame_count: int, options: ReconstructOptions, camera: Camera, re
                     return SheetReading(SheetDecision(False, f"the sheet's region has no texture for the flow to follow ({texture:.2f} < {MIN_TEXTURE:g})", **record))
             tracked[hold] = _tracked(itertools.chain([first], stream), region, options, hold)
         through = auto and template == "refined"  # the points found in every frame: the setting its rule read
-        read = _read(tracked[hold], region.shape, hold, through, template, options, camera, record, check)
+        read = _read(tracked[hold], region.shape, hold, find, through, template, options, camera, record, check)
         if isinstance(read, str):
-            passed.append(f"{_named(template, hold)}: {read}" if len(readings) > 1 else read)
+            passed.append(f"{_named(template, hold, find)}: {read}" if len(readings) > 1 else read)
             continue
         scale = options.isometric_scale if options.isometric_scale is not None else (REFINED_SCALE if through else ISOMETRIC_SCALE)
         why = "the video moves the textured sheet" + (f" (not {'; not '.join(passed)})" if passed else "")
@@ -373,20 +383,20 @@ def _checked(frames: Iterable[np.ndarray], check: Callable[[], None]) -> Iterato
         yield frame
 
 
-def _named(template: str, hold: bool) -> str:
+def _named(template: str, hold: bool, find: bool) -> str:
     """A reading's name in the log line: whose points, through which template."""
-    return ("held" if hold else "the flow's") + f" points through {template}"
+    return ("the sheet's held" if find else "held" if hold else "the flow's") + f" points through {template}"
 
 
-def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, through: bool, template: str, options: ReconstructOptions, camera: Camera,
+def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, find: bool, through: bool, template: str, options: ReconstructOptions, camera: Camera,
           record: dict, check: Callable[[], None]) -> Union[Tuple[np.ndarray, np.ndarray], str]:
     """The points read and their depths ((T, n, 2), (T, n)) of ``xy`` (T, n, 2) tracked over
     frames of ``frame`` (H, W), ``hold`` (found again by their look in the
     first frame), of them ``through``: only those found in every frame,
     and the strain of their ``refined`` template held to
     :data:`MAX_STRAIN`; or why the video gives this reading nothing to
-    read. With nothing given (``options.sheet_given`` false), the region
-    may hold more than a sheet: of the held points in every frame, only
+    read. To ``find`` the sheet (held, no sheet given: the region may hold
+    more than one), of the held points in every frame, only
     those that move (:data:`MOVING_SHARE`) and whose pairs keep their
     lengths (:data:`TRIM`) are read, they are counted (:data:`MIN_READ`)
     in place of the point-frames held (:data:`MIN_HELD`), and their strain
@@ -396,19 +406,18 @@ def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, through: bool, tem
     farthest = np.nanmax(np.linalg.norm(xy - xy[:1], axis=2), axis=0)
     motion = float(np.median(farthest))
     record.update(points=xy.shape[1], motion=motion, held=held, template=template)
-    if hold and options.sheet_given and held < MIN_HELD:  # first: the motion is measured on the points held
+    if hold and not find and held < MIN_HELD:  # first: the motion is measured on the points held
         return f"the points are found again in only {held:.0%} of the frames (< {MIN_HELD:.0%}): too faint a texture"
     read = np.ones(xy.shape[1], bool)
     if hold:
         read &= point_held_shares(xy, frame) >= KEEP_HELD
-    found = hold and not options.sheet_given  # a region that may hold more than a sheet: count the points read, read the sheet's
-    if through or found:
+    if through or find:
         read &= np.isfinite(xy).all(axis=(0, 2))
     need = MIN_READ * options.isometric_points
-    held_in = f"held in {KEEP_HELD:.0%} of their frames{' and in every frame' if through or found else ''}"
+    held_in = f"held in {KEEP_HELD:.0%} of their frames{' and in every frame' if through or find else ''}"
     still = f"the video does not move (the points {{:.2f}} px at most from where they start, < {MIN_MOTION:g})"
     no_answer = "the sheet's cone program found no answer ({}): is the focal length right?"
-    if found:  # of the points read, those that move (none on a still background) and keep their pairs' lengths, counted
+    if find:  # of the points read, those that move (none on a still background) and keep their pairs' lengths, counted
         motion = float(np.median(farthest[read])) if read.any() else 0.0  # a point lost at once never moves from where it starts
         record.update(points=int(read.sum()), motion=motion)
         if read.sum() < need:
@@ -445,7 +454,7 @@ def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, through: bool, tem
         record.update(strain=strain)
         if strain > MAX_STRAIN:
             return f"their pairs do not keep their lengths (strain {strain:.4f} > {MAX_STRAIN:g}): a sheet that stretches, or tracks that slip"
-    if found:  # the costliest gate last (nine programs): on a sheet that stretches the strain has said no already
+    if find:  # the costliest gate last (nine programs): on a sheet that stretches the strain has said no already
         check()
         try:
             contrast = estimate_focal(xy, frame).contrast
