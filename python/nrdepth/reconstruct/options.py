@@ -197,7 +197,8 @@ class ReconstructOptions:
     sheet: Union[None, np.ndarray, Tuple[int, int, int, int]] = _option(
         None, "a sheet (paper, cloth) in the video, whose shape then comes from inextensibility as with focal (without focal, through a "
         "guessed pinhole): where the points are spread in the first selected frame, on the sheet only (not the background or the hands): a "
-        "box X,Y,W,H in the video's pixels, or bool (H, W) (with focal, default: roi, or the whole frame)", type=_ROI, metavar="X,Y,W,H")
+        "box X,Y,W,H in the video's pixels, or bool (H, W). With focal and no sheet, the sheet is first looked for over the roi (the whole "
+        "frame without one) as with neither given, then the roi is read as the sheet", type=_ROI, metavar="X,Y,W,H")
     isometric_scale: Optional[float] = _option(None, "the sheet stage: the length below which the network's relief is kept, as a fraction of the "
                                                f"frame's shorter side (0: the isometric depth alone; default: {REFINED_SCALE} through the held points' refined "
                                                f"template, {ISOMETRIC_SCALE} through the others)", type=float)
