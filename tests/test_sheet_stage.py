@@ -220,6 +220,7 @@ def test_by_default_the_stage_reads_a_sheet_and_leaves_what_is_no_sheet_alone(tm
     assert not unsure.used and 1.0 <= unsure.contrast < MIN_CONTRAST and unsure.reason.startswith("no focal length keeps their pairs' lengths")
     np.testing.assert_array_equal(vague, network_alone(bending, model))
     assert read.used and read.guessed and read.template == "refined" and read.strain <= MAX_STRAIN and read.contrast == unsure.contrast
+    assert read.focal_estimate == unsure.focal_estimate > 0 and f"focal estimate px {read.focal_estimate:.1f}" in read.line()  # said, not used
     assert np.abs(sheet - network_alone(bending, model)).max() > 0.1  # the sheet's shape did change the depth
     assert not faint.used and "of the 36 asked for: too faint a texture" in faint.reason
     assert not stretched.used and stretched.strain == read.strain and stretched.reason.startswith("their pairs do not keep their lengths")
@@ -237,7 +238,8 @@ def test_by_default_the_stage_reads_a_sheet_and_leaves_what_is_no_sheet_alone(tm
     assert main([*command, "-o", str(tmp_path / "on"), "--isometric-points", "36"]) == 0
     assert f"sheet: the network's depth alone ({unsure.reason}" in capsys.readouterr().out  # by default, the stage's line
     with np.load(tmp_path / "on" / "depth.npz") as saved:
-        assert json.loads(str(saved["sheet"]))["contrast"] == unsure.contrast
+        said = json.loads(str(saved["sheet"]))
+        assert said["contrast"] == unsure.contrast and said["focal_estimate"] == unsure.focal_estimate
     assert main([*command, "-o", str(tmp_path / "off"), "--no-sheet"]) == 0
     assert "sheet:" not in capsys.readouterr().out
     with np.load(tmp_path / "off" / "depth.npz") as saved:

@@ -165,7 +165,10 @@ class SheetDecision:
     its checks measured (None where not reached), the
     ``template`` whose points were read last, with nothing given the
     ``contrast`` with which their strain picks a focal length
-    (:data:`MIN_CONTRAST`), the held points' ``strain``
+    (:data:`MIN_CONTRAST`) and the ``focal_estimate`` it picks (pixels,
+    :func:`~nrdepth.isometric.estimate_focal`: 518 px on ``kinect_paper``
+    with its roi, the Kinect's 528; the stage reads through ``focal``, not it, since on
+    generated sheets it read no better than the guess), the held points' ``strain``
     under ``refined`` (:data:`MAX_STRAIN`) and the fusion's ``scale`` (a
     fraction of the shorter side) where used. :meth:`line` is the job's log
     line; ``depth.npz`` keeps :meth:`as_dict` as JSON under ``sheet``."""
@@ -182,6 +185,7 @@ class SheetDecision:
     held: Optional[float] = None
     template: Optional[str] = None
     contrast: Optional[float] = None
+    focal_estimate: Optional[float] = None
     strain: Optional[float] = None
     scale: Optional[float] = None
 
@@ -191,7 +195,8 @@ class SheetDecision:
     def line(self) -> str:
         what = "the sheet's shape from inextensibility" if self.used else "the network's depth alone"
         measured = "".join(f", {name} {value:.{digits}f}" for name, value, digits in
-                           (("texture", self.texture, 2), ("motion px", self.motion, 2), ("held", self.held, 2), ("contrast", self.contrast, 2), ("strain", self.strain, 4), ("scale", self.scale, 2))
+                           (("texture", self.texture, 2), ("motion px", self.motion, 2), ("held", self.held, 2), ("contrast", self.contrast, 2),
+                            ("focal estimate px", self.focal_estimate, 1), ("strain", self.strain, 4), ("scale", self.scale, 2))
                            if value is not None)
         template = f", template {self.template}" if self.template else ""
         return (f"sheet: {what} ({self.reason}; focal {self.focal[0]:g},{self.focal[1]:g} px{' guessed' if self.guessed else ''}, {self.frames} frames, "
@@ -457,12 +462,12 @@ def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, find: bool, throug
     if find:  # the costliest gate last (nine programs): on a sheet that stretches the strain has said no already
         check()
         try:
-            contrast = estimate_focal(xy, frame).contrast
+            estimate = estimate_focal(xy, frame)
         except NotSolved as error:
             return no_answer.format(error.status)
-        record.update(contrast=contrast)
-        if not contrast >= MIN_CONTRAST:
-            return f"no focal length keeps their pairs' lengths better than the others (contrast {contrast:.2f} < {MIN_CONTRAST:g}): no sheet"
+        record.update(contrast=estimate.contrast, focal_estimate=estimate.focal)
+        if not estimate.contrast >= MIN_CONTRAST:
+            return f"no focal length keeps their pairs' lengths better than the others (contrast {estimate.contrast:.2f} < {MIN_CONTRAST:g}): no sheet"
     return xy, depths
 
 
