@@ -107,7 +107,7 @@ def held_thresholds(fb: Optional[float] = None, ncc: Optional[float] = None) -> 
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0, "fscale": 1.0, "contrast": 0, "cevals": 100, "onsheet": 0, "relmove": 0.0, "trim": 0.0, "fb": None}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0, "fscale": 1.0, "contrast": 0, "cevals": 100, "onsheet": 0, "relmove": 0.0, "trim": 0.0, "fb": None, "estimate": 0}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
@@ -124,6 +124,8 @@ def parse(setting: str) -> dict:
         raise SystemExit(f"--settings {setting!r}: fov is the degrees a pinhole sees across the frame's longer side, in (0, 180), strain or held")
     if out["trim"] and not out["throughout"]:
         raise SystemExit(f"--settings {setting!r}: trim needs throughout=1 (points in every frame)")
+    if out["estimate"] and not out["contrast"]:
+        raise SystemExit(f"--settings {setting!r}: estimate needs contrast=1 (the estimate is the contrast's)")
     if not out["backward"] and out["drop"] and not out["hold"]:
         raise SystemExit(f"--settings {setting!r}: drop needs the flow both ways or the hold: give drop=0 with backward=0 and hold=0")
     return out
@@ -254,8 +256,9 @@ def main() -> None:
                         "the roi and the true focal length, nothing given but the roi, or nothing at all (module docstring)")
     args = parser.parse_args()
     for setting in filter(None, args.settings.split(",")):  # before the network's minutes
-        if any(parse(setting)[key] for key in ("whole", "piece", "contrast", "onsheet")) or parse(setting)["cevals"] != 100:  # read by sheet_levers alone
-            raise SystemExit(f"--settings {setting!r}: whole, piece, contrast, cevals and onsheet are experiments/sheet_levers.py's levers; the box here is --box")
+        if any(parse(setting)[key] for key in ("whole", "piece", "contrast", "onsheet", "estimate")) or parse(setting)["cevals"] != 100:  # read by sheet_levers alone
+            raise SystemExit(f"--settings {setting!r}: whole, piece, contrast, cevals, estimate and onsheet are experiments/sheet_levers.py's levers; "
+                             "the box here is --box")
 
     import cv2
     import torch

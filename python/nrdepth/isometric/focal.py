@@ -38,7 +38,7 @@ from ..camera import Camera
 from ..checks import is_number
 from .mdh import keyframe_indices, neighbour_pairs, pair_strain, solve_template
 
-__all__ = ["estimate_focal", "FocalEstimate", "VIEWS", "STEPS", "POINTS"]
+__all__ = ["estimate_focal", "focal_grid", "least_strain", "FocalEstimate", "VIEWS", "STEPS", "POINTS"]
 
 VIEWS = (25.0, 120.0)
 """Degrees across the frame's longer side: the narrowest and the widest
@@ -104,9 +104,7 @@ def estimate_focal(xy: np.ndarray, frame: Tuple[int, int], centre: Optional[Tupl
     keys = keyframe_indices(len(xy), keyframes)
     tracks = xy[keys][:, chosen]
     pairs = neighbour_pairs(tracks[0], neighbours)
-    side = max(frame)
-    longest, shortest = (side / 2 / math.tan(math.radians(v) / 2) for v in views)
-    focals = np.exp(np.linspace(math.log(shortest), math.log(longest), steps))
+    focals = focal_grid(frame, views, steps)
 
     def strain(focal: float) -> float:
         camera = Camera(float(focal), centre).at(tuple(frame))
@@ -117,9 +115,26 @@ def estimate_focal(xy: np.ndarray, frame: Tuple[int, int], centre: Optional[Tupl
     # One BLAS thread: the same rounding on any machine, and no BLAS threads spinning beside Python-bound work.
     with threadpool_limits(limits=1, user_api="blas"):
         strains = np.array([strain(focal) for focal in focals])
+    return least_strain(focals, strains)
+
+
+def focal_grid(frame: Tuple[int, int], views: Tuple[float, float] = VIEWS, steps: int = STEPS) -> np.ndarray:
+    """The focal lengths (pixels) :func:`estimate_focal` tries for frames of
+    ``frame`` (H, W): ``steps``, even in their logarithm, from the pinhole
+    seeing ``views[1]`` degrees across the longer side to the one seeing ``views[0]``."""
+    side = max(frame)
+    longest, shortest = (side / 2 / math.tan(math.radians(v) / 2) for v in views)
+    return np.exp(np.linspace(math.log(shortest), math.log(longest), steps))
+
+
+def least_strain(focals: np.ndarray, strains: np.ndarray) -> FocalEstimate:
+    """The estimate from the ``strains`` measured through ``focals`` (even in
+    their logarithm): the least, refined by the parabola through it and its
+    two neighbours (in the logarithm)."""
+    strains = np.asarray(strains, np.float64)
     k = int(np.argmin(strains))
     focal = float(focals[k])
-    if 0 < k < steps - 1:  # the parabola's vertex through the least and its neighbours, in the logarithm (even steps)
+    if 0 < k < len(focals) - 1:
         a, b, c = strains[k - 1 : k + 2]
         curvature = a - 2 * b + c
         if curvature > 0:

@@ -1,0 +1,66 @@
+"""How near the truth the focal length the default's points pick lies on
+generated sheets (``SheetDecision.focal_estimate``): ``estimate_focal``'s
+strains over its grid (``sheet_levers.py``'s ``strains`` column, a
+setting with ``contrast=1`` read through the 40° guess) give the
+estimate, the guess's ``focal ratio`` the truth. Each sheet (light, clip)
+once, from the first CSV that has its curve; the share within 25 % of the
+truth, and the median ratio, over every sheet with a curve and over those
+whose contrast reaches each threshold.
+
+    python experiments/focal_accuracy.py docs/reconstruction/*_{below,above}*.csv
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from nrdepth import Camera, GeneratorConfig
+from nrdepth.isometric.focal import STEPS, focal_grid, least_strain
+
+sys.path.insert(0, str(Path(__file__).parent))
+from strain_gate import T  # noqa: E402
+
+D = T + ":fov=40:whole=1:moving=1:relmove=0.2:trim=3:contrast=1"
+
+
+def estimates(paths: list, setting: str) -> np.ndarray:
+    """(n, 2): each sheet's estimate over its true focal length, and its contrast."""
+    side = GeneratorConfig().size  # the ratio does not depend on it: the guess and the grid both scale with the frame
+    focals, guess = focal_grid((side, side)), Camera.guessed((side, side)).focal[0]
+    seen = {}
+    for path in paths:
+        for row in csv.DictReader(open(path, newline="")):
+            key, curve, ratio = (row.get("light"), row.get("clip")), row.get(f"{setting} strains"), row.get(f"{setting} focal ratio")
+            if key in seen or not curve or not ratio:
+                continue
+            strains = np.array([float(v) for v in curve.split()])
+            if len(strains) == STEPS:
+                estimate = least_strain(focals, strains)
+                seen[key] = (estimate.focal / (guess / float(ratio)), estimate.contrast)
+    return np.array(list(seen.values())).reshape(-1, 2)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("csv", type=Path, nargs="+", help="sheet_levers.py's CSVs of sheets through pinholes")
+    parser.add_argument("--setting", default=D, help="the setting whose strains are read (default: the default's, D)")
+    parser.add_argument("--contrasts", default="0,1.35,2,3", help="comma-separated contrast thresholds")
+    args = parser.parse_args()
+    found = estimates(args.csv, args.setting)
+    print(f"{len(found)} sheets with the strain's curve")
+    ratio, contrast = found.T
+    for threshold in map(float, args.contrasts.split(",")):
+        kept = contrast >= threshold
+        if kept.any():
+            print(f"contrast at least {threshold:g}: {kept.sum()} sheets, the estimate within 25 % of the truth on "
+                  f"{np.mean(np.abs(ratio[kept] - 1) <= 0.25):.0%}, median ratio {np.median(ratio[kept]):.3f} "
+                  f"(10th–90th percentile {np.percentile(ratio[kept], 10):.2f}–{np.percentile(ratio[kept], 90):.2f})")
+
+
+if __name__ == "__main__":
+    main()
