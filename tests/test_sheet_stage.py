@@ -7,6 +7,7 @@ by default, no sheet."""
 
 import json
 import warnings
+from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -220,7 +221,7 @@ def test_by_default_the_stage_reads_a_sheet_and_leaves_what_is_no_sheet_alone(tm
     assert not unsure.used and 1.0 <= unsure.contrast < MIN_CONTRAST and unsure.reason.startswith("no focal length keeps their pairs' lengths")
     np.testing.assert_array_equal(vague, network_alone(bending, model))
     assert read.used and read.guessed and read.template == "refined" and read.strain <= MAX_STRAIN and read.contrast == unsure.contrast
-    assert read.focal_estimate == unsure.focal_estimate > 0 and f"focal estimate px {read.focal_estimate:.1f}" in read.line()  # said, not used
+    assert read.focal_estimate == unsure.focal_estimate > 0 and f"focal estimate px {read.focal_estimate:.1f}" in read.line()  # said in the line
     assert np.abs(sheet - network_alone(bending, model)).max() > 0.1  # the sheet's shape did change the depth
     assert not faint.used and "of the 36 asked for: too faint a texture" in faint.reason
     assert not stretched.used and stretched.strain == read.strain and stretched.reason.startswith("their pairs do not keep their lengths")
@@ -246,25 +247,41 @@ def test_by_default_the_stage_reads_a_sheet_and_leaves_what_is_no_sheet_alone(tm
         assert "sheet" not in saved
 
 
-def test_by_default_held_points_are_counted_where_they_are_read_so_a_frame_half_background_still_reads_its_sheet(model, bending):
+@contextmanager
+def decided(**stage_names):
+    """The sheet stage's decisions, listed as the job makes them, with each
+    of ``stage_names`` of ``nrdepth.reconstruct.sheet`` replaced meanwhile;
+    a stage that steps aside warns (an error here) only where it was asked for."""
     import importlib
 
-    api = importlib.import_module("nrdepth.reconstruct.api")
+    api = importlib.import_module("nrdepth.reconstruct.api")  # nrdepth.reconstruct is also the function
+    stage = importlib.import_module("nrdepth.reconstruct.sheet")
     decisions, decide = [], api.sheet_depth
+    with warnings.catch_warnings(), pytest.MonkeyPatch.context() as patch:
+        warnings.simplefilter("error", SheetFallback)
+        patch.setattr(api, "sheet_depth", lambda *a, **k: decisions.append(decide(*a, **k)) or decisions[-1])
+        for name, value in stage_names.items():
+            patch.setattr(stage, name, value)
+        yield decisions
+
+
+def noise_beside(video, width=48):
+    """``video`` with a strip of coloured noise beside it, new in every frame: nothing there is held."""
+    T, H, _ = video.shape
+    return np.concatenate([video, np.random.default_rng(1).integers(0, 256, (T, H, width), dtype=np.uint8)], axis=2)
+
+
+def test_by_default_held_points_are_counted_where_they_are_read_so_a_frame_half_background_still_reads_its_sheet(model, bending):
+    from nrdepth.reconstruct.sheet import mdh_depths
+
     T, H, W = bending.shape
-    beside = np.concatenate([bending, np.random.default_rng(1).integers(0, 256, (T, H, 48), dtype=np.uint8)], axis=2)  # noise beside it: lost
     still = np.concatenate([bending, np.repeat(bending[:1, :, ::-1][:, :, :48], T, axis=0)], axis=2)  # a still background beside it: held, not moving
     options = {key: value for key, value in OPTIONS.items() if key != "focal"}
-    stage = importlib.import_module("nrdepth.reconstruct.sheet")
-    starts, solve = [], stage.mdh_depths
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", SheetFallback)
-        with pytest.MonkeyPatch.context() as patch:
-            patch.setattr(api, "sheet_depth", lambda *a, **k: decisions.append(decide(*a, **k)) or decisions[-1])
-            patch.setattr(stage, "mdh_depths", lambda xy, *a, **k: starts.append(xy[0]) or solve(xy, *a, **k))
-            patch.setattr(stage, "MIN_CONTRAST", 1.0)  # as above: a clip too small for the strain to pick a focal length
-            for video in (beside, still):
-                nrdepth.reconstruct(video, model, device="cpu", **options)
+    starts = []
+    # MIN_CONTRAST as above: a clip too small for the strain to pick a focal length sharply
+    with decided(mdh_depths=lambda xy, *a, **k: starts.append(xy[0]) or mdh_depths(xy, *a, **k), MIN_CONTRAST=1.0) as decisions:
+        for video in (noise_beside(bending), still):
+            nrdepth.reconstruct(video, model, device="cpu", **options)
     lost, held = decisions
     assert lost.held < MIN_HELD  # most of the frame's point-frames are lost, which given a sheet would send the stage aside...
     assert lost.used and lost.template == "refined" and MIN_READ * OPTIONS["isometric_points"] <= lost.points  # ...but the sheet's are read
@@ -272,24 +289,42 @@ def test_by_default_held_points_are_counted_where_they_are_read_so_a_frame_half_
     assert (starts[1][:, 0] < W).all()  # ...but not read: every point read starts on the sheet
 
 
-def test_with_a_focal_length_but_no_sheet_the_sheet_is_found_first_as_by_default(model, bending):
-    import importlib
+@pytest.mark.parametrize("least", [4, 1])
+def test_by_default_the_sheet_found_is_read_through_the_focal_length_its_strain_picks_where_its_valley_lies_inside(model, bending, least):
+    from nrdepth.isometric import FocalEstimate
+    from nrdepth.reconstruct.sheet import mdh_depths
 
-    api = importlib.import_module("nrdepth.reconstruct.api")
-    decisions, decide = [], api.sheet_depth
+    focals = tuple(40.0 * 1.3**k for k in range(9))
+    strains = tuple(0.001 * (1 + (k - least) ** 2) for k in range(9))  # a valley at `least`, contrast 5
+    picked = FocalEstimate(focals[least], strains[least], focals, strains)
+    options = {key: value for key, value in OPTIONS.items() if key != "focal"}
+    seen = []
+    with decided(mdh_depths=lambda xy, camera, *a, **k: seen.append(camera.focal) or mdh_depths(xy, camera, *a, **k),
+                 estimate_focal=lambda *a, **k: picked) as decisions:
+        nrdepth.reconstruct(bending, model, device="cpu", **options)  # nothing given
+        read_first = len(seen)
+        nrdepth.reconstruct(bending, model, device="cpu", **options, focal=picked.focal)  # the estimate given as the focal length
+    found, given = decisions
+    guess = nrdepth.Camera.guessed(bending.shape[1:]).focal
+    assert found.used and found.guessed and found.focal_estimate == picked.focal and picked.contrast >= MIN_CONTRAST
+    if picked.inside:  # the gates through the guess, the shape through the estimate
+        assert found.focal == (picked.focal,) * 2 and seen[:read_first] == [guess, found.focal] and " px estimated," in found.line()
+    else:  # a valley at the grid's edge: the guess
+        assert found.focal == guess and seen[:read_first] == [guess] and " px guessed," in found.line()
+    assert given.used and not given.guessed and set(seen[read_first:]) == {(picked.focal,) * 2}  # given, that focal length alone
+
+
+def test_with_a_focal_length_but_no_sheet_the_sheet_is_found_first_as_by_default(model, bending):
+    from nrdepth.reconstruct.sheet import mdh_depths
+
     T, H, W = bending.shape
-    beside = np.concatenate([bending, np.random.default_rng(1).integers(0, 256, (T, H, 48), dtype=np.uint8)], axis=2)  # noise beside the sheet
-    stage = importlib.import_module("nrdepth.reconstruct.sheet")
-    starts, solve = [], stage.mdh_depths
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", SheetFallback)
-        with pytest.MonkeyPatch.context() as patch:
-            patch.setattr(api, "sheet_depth", lambda *a, **k: decisions.append(decide(*a, **k)) or decisions[-1])
-            patch.setattr(stage, "mdh_depths", lambda xy, *a, **k: starts.append(xy[0]) or solve(xy, *a, **k))
-            patch.setattr(stage, "MIN_CONTRAST", 1.0)  # a clip too small for the strain to pick a focal length sharply
-            nrdepth.reconstruct(beside, model, device="cpu", **OPTIONS)  # the focal length alone
-            nrdepth.reconstruct(beside, model, device="cpu", **OPTIONS, sheet=(0, 0, W + 48, H))  # the same region given as the sheet
-            nrdepth.reconstruct(beside[: MIN_FRAMES_BY_DEFAULT - 1], model, device="cpu", **OPTIONS)  # too short a clip to find the sheet in
+    beside = noise_beside(bending)
+    starts = []
+    # MIN_CONTRAST: a clip too small for the strain to pick a focal length sharply
+    with decided(mdh_depths=lambda xy, *a, **k: starts.append(xy[0]) or mdh_depths(xy, *a, **k), MIN_CONTRAST=1.0) as decisions:
+        nrdepth.reconstruct(beside, model, device="cpu", **OPTIONS)  # the focal length alone
+        nrdepth.reconstruct(beside, model, device="cpu", **OPTIONS, sheet=(0, 0, W + 48, H))  # the same region given as the sheet
+        nrdepth.reconstruct(beside[: MIN_FRAMES_BY_DEFAULT - 1], model, device="cpu", **OPTIONS)  # too short a clip to find the sheet in
     found, boxed, short = decisions
     assert found.used and not found.guessed and found.focal == (OPTIONS["focal"],) * 2 and found.template == "refined"
     assert found.held < MIN_HELD and found.contrast >= 1.0 and (starts[0][:, 0] < W).all()  # the noise's points lost, the sheet's found and read

@@ -16,7 +16,7 @@ from ..io.decode import npz_header
 from ..io.viewer import view
 from ..reconstruct import reconstruct_file
 from ..reconstruct.api import SheetFallback
-from ..reconstruct.sheet import SheetDecision
+from ..reconstruct.decision import SheetDecision
 from ..reconstruct.batch import ENGINES, THREADS, reconstruct_many
 from ..reconstruct.options import add_flags, flag_of, options_from_flags
 

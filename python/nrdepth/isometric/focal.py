@@ -15,12 +15,15 @@ strain measured; the least is refined by the parabola through it and
 its two neighbours (in the logarithm). On ``kinect_paper``'s held
 points the strain is least at the Kinect's focal length and twice as
 large at 0.7× or 1.4× it; on the cloth, which stretches, it barely
-changes (docs/campaign.md, "The focal length from the strain"). The
-sheet stage reads through a guessed 40° pinhole, not the estimate (on
-generated sheets filmed at 40–80° the estimate read them no better:
-docs/findings.md); with nothing given it keeps only the estimate's
-:attr:`FocalEstimate.contrast`, as the gate that tells a sheet from a
-surface that keeps its lengths through any camera.
+changes (docs/campaign.md, "The focal length from the strain"). With
+nothing given, the sheet stage's gates read through a guessed 40°
+pinhole, :attr:`FocalEstimate.contrast` among them (it tells a sheet
+from a surface that keeps its lengths through any camera), and where
+they hold and the estimate is bracketed (:attr:`FocalEstimate.inside`)
+the shape is read through the estimate (docs/campaign.md, "The default
+through the focal length its points pick, where the strain's valley
+lies inside the grid"); an estimate at the grid's edge may be far too
+short, which costs more than the guess.
 
 Frames and units: pixel coordinates (column x, row y); focal lengths in
 pixels; the principal point at the frame's centre unless given.
@@ -62,6 +65,12 @@ class FocalEstimate:
     strain: float
     focals: Tuple[float, ...]
     strains: Tuple[float, ...]
+
+    @property
+    def inside(self) -> bool:
+        """Whether the least strain lies two steps inside the grid: both of
+        :attr:`contrast`'s steps on it, the valley bracketed on either side."""
+        return 2 <= int(np.argmin(self.strains)) < len(self.strains) - 2
 
     @property
     def contrast(self) -> float:

@@ -8,7 +8,7 @@ One file a stage, in the order they run:
 - :mod:`.pipeline`: the video read at the working resolution, with its coarse pass (:mod:`.coarse`);
 - :mod:`.fine`: the fine pass, one network pass over the video in tiles (or the paper's patches);
 - :mod:`.stitching`: its windows aligned and overlap-added by the streaming stitcher (:mod:`.stitch`);
-- :mod:`.sheet`: with a camera's focal length or a sheet given, the sheet's shape from inextensibility;
+- :mod:`.sheet`: the sheet's shape from inextensibility, by default where a sheet is found, and what it did (:mod:`.decision`);
 - :mod:`.export`: the depth's units and the video's resolution back;
 - :mod:`.api`: :func:`reconstruct` and :func:`reconstruct_file`, which chain them;
 - :mod:`.batch`: :func:`reconstruct_many`, many videos side by side, here or on a Ray cluster.
@@ -28,7 +28,7 @@ from .fine import GPU_TILE, MARGIN, TILE, field_frames, field_windows, patch_dep
 from .frames import Statistic, working_shape
 from .network import inference_model
 from .options import FINE_PASSES, ISOMETRIC_DROP, ISOMETRIC_SCALE, MAX_SIDE, REFINED_SCALE, ReconstructOptions
-from .sheet import SheetDecision
+from .decision import SheetDecision
 
 __all__ = ["reconstruct", "reconstruct_file", "reconstruct_many", "BatchRow", "SheetDecision", "SheetFallback", "ReconstructOptions", "Camera", "MAX_SIDE", "FINE_PASSES", "ISOMETRIC_SCALE", "REFINED_SCALE", "ISOMETRIC_DROP",
            "coarse_depth", "coarse_half", "patch_depths", "field_frames", "field_windows", "tile_plan", "inference_model", "working_shape",

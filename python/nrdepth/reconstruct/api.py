@@ -30,7 +30,8 @@ from .mask import file_mask, video_mask
 from .network import fine_precision, load_net
 from .options import FILE_ONLY, ReconstructOptions
 from .pipeline import Pipeline
-from .sheet import SheetDecision, read_beside, sheet_depth, sheet_region
+from .decision import SheetDecision
+from .sheet import read_beside, sheet_depth, sheet_region
 from .stitching import stitched
 
 __all__ = ["reconstruct", "reconstruct_file", "SheetFallback"]
@@ -82,7 +83,7 @@ def _sheet_beside(pipeline: Pipeline, options: ReconstructOptions, camera: Camer
 
 class SheetFallback(UserWarning):
     """With ``focal`` or ``sheet``, the sheet stage left the network's depth alone (the
-    warning says why: :class:`~nrdepth.reconstruct.sheet.SheetDecision`)."""
+    warning says why: :class:`~nrdepth.reconstruct.SheetDecision`)."""
 
 
 @sigint_remembered()  # a Ctrl-C that a library swallows still stops the job

@@ -181,7 +181,8 @@ class ReconstructOptions:
         True, "the sheet stage (nrdepth.reconstruct.sheet). With neither focal nor sheet given, on a video of at least 32 frames: points over "
         f"the roi (the whole frame without one) are held to their look in the first frame and seen through a pinhole guessed to see {GUESSED_VIEW:g}°; "
         "of those held in every frame, the ones that move and whose pairs keep their lengths are taken for the sheet's, and where enough are "
-        "left, their strain picks out a focal length and stays small, the shape of a sheet (paper, cloth) comes from inextensibility; "
+        "left, their strain picks out a focal length and stays small, the shape of a sheet (paper, cloth) comes from inextensibility, "
+        "through the focal length the strain picks where it lies well inside the range tried (else through the guess); "
         "elsewhere the network's depth stays (the log line and depth.npz's sheet say which, and why). Off (--no-sheet): the network's depth alone",
         flag="--no-sheet", action="store_false")
     focal: Union[None, float, Tuple[float, float], Camera] = _option(

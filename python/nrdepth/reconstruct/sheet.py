@@ -11,8 +11,10 @@ template, kept where enough are held and their pairs keep their lengths
 (:data:`MAX_STRAIN`); with a focal length or a sheet given, where they
 do not, the flow's points through the joint template. Where no sheet is
 given, the sheet is first found among the held points (those that move
-and keep their pairs' lengths). With neither given the stage runs over the roi (or the whole frame)
-through a guessed pinhole, and a video that is no sheet, or gives the
+and keep their pairs' lengths). With neither given the stage runs over
+the roi (or the whole frame) through a guessed pinhole, reads the shape
+of a sheet it finds through the focal length its points' strain picks
+(where that is bracketed), and a video that is no sheet, or gives the
 shape nothing to read, keeps the network's depth; either way the stage
 returns what it did (:class:`SheetDecision`). The reading
 (:func:`read_sheet`) needs the frames alone, and the main job runs it in
@@ -26,7 +28,7 @@ import itertools
 import threading
 from concurrent.futures import CancelledError, Future
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Callable, Iterable, Iterator, List, Optional, Tuple, Union
 
 import numpy as np
@@ -37,6 +39,7 @@ from ..checks import option_error
 from ..isometric import (NotSolved, TooFewPoints, estimate_focal, fuse, held_share, mdh_depths, moving_points, point_held_shares, start_grid, template_strain,
                          track_grid, unstrained_points)
 from .frames import CHUNK, as_uint8, as_unit_float, resize, working_shape
+from .decision import SheetDecision
 from .options import ISOMETRIC_SCALE, REFINED_SCALE, ReconstructOptions
 
 __all__ = ["sheet_region", "sheet_depth", "read_sheet", "read_beside", "SheetReading", "SheetDecision", "FLOW_MARGIN", "KEYFRAMES", "EVERY", "NEIGHBOURS", "TRACK_SIDE", "MIN_FRAMES", "MIN_FRAMES_BY_DEFAULT", "MIN_TEXTURE", "MIN_MOTION", "MIN_HELD", "MIN_READ", "MOVING_SHARE", "TRIM", "MIN_CONTRAST", "KEEP_HELD", "MAX_STRAIN"]
@@ -152,55 +155,6 @@ that stretches, or tracks that slip). By a rule fixed beforehand: the
 90th percentile of the strain over 20 generated inextensible sheets
 whose points are held (clips 902–917; the print reads 0.0031, the cloth
 0.0110: docs/campaign.md, "refined where its lengths hold")."""
-
-
-@dataclass(frozen=True)
-class SheetDecision:
-    """What the sheet stage did: ``used`` its shape, or left the network's
-    depth alone for ``reason``; the camera's ``focal`` and ``centre``
-    (pixels), ``guessed`` where no focal length was given
-    (:meth:`~nrdepth.Camera.guessed`), the ``frames`` read, the ``points`` read (after the drop and, held, :data:`KEEP_HELD`),
-    the ``texture`` (gray levels, :data:`MIN_TEXTURE`), ``motion``
-    (pixels, :data:`MIN_MOTION`) and the share of point-frames ``held``
-    its checks measured (None where not reached), the
-    ``template`` whose points were read last, with nothing given the
-    ``contrast`` with which their strain picks a focal length
-    (:data:`MIN_CONTRAST`) and the ``focal_estimate`` it picks (pixels,
-    :func:`~nrdepth.isometric.estimate_focal`: 518 px on ``kinect_paper``
-    with its roi, the Kinect's 528; the stage reads through ``focal``, not it, since on
-    generated sheets it read no better than the guess), the held points' ``strain``
-    under ``refined`` (:data:`MAX_STRAIN`) and the fusion's ``scale`` (a
-    fraction of the shorter side) where used. :meth:`line` is the job's log
-    line; ``depth.npz`` keeps :meth:`as_dict` as JSON under ``sheet``."""
-
-    used: bool
-    reason: str
-    focal: Tuple[float, float]
-    centre: Tuple[float, float]
-    frames: int
-    guessed: bool = False
-    points: int = 0
-    texture: Optional[float] = None
-    motion: Optional[float] = None
-    held: Optional[float] = None
-    template: Optional[str] = None
-    contrast: Optional[float] = None
-    focal_estimate: Optional[float] = None
-    strain: Optional[float] = None
-    scale: Optional[float] = None
-
-    def as_dict(self) -> dict:
-        return asdict(self)
-
-    def line(self) -> str:
-        what = "the sheet's shape from inextensibility" if self.used else "the network's depth alone"
-        measured = "".join(f", {name} {value:.{digits}f}" for name, value, digits in
-                           (("texture", self.texture, 2), ("motion px", self.motion, 2), ("held", self.held, 2), ("contrast", self.contrast, 2),
-                            ("focal estimate px", self.focal_estimate, 1), ("strain", self.strain, 4), ("scale", self.scale, 2))
-                           if value is not None)
-        template = f", template {self.template}" if self.template else ""
-        return (f"sheet: {what} ({self.reason}; focal {self.focal[0]:g},{self.focal[1]:g} px{' guessed' if self.guessed else ''}, {self.frames} frames, "
-                f"{self.points} points{template}{measured})")
 
 
 def sheet_region(options: ReconstructOptions, frame: Tuple[int, int]) -> np.ndarray:
@@ -401,7 +355,7 @@ def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, find: bool, throug
     and the strain of their ``refined`` template held to
     :data:`MAX_STRAIN`; or why the video gives this reading nothing to
     read. To ``find`` the sheet (held, no sheet given: the region may hold
-    more than one), of the held points in every frame, only
+    more than the sheet), of the held points in every frame, only
     those that move (:data:`MOVING_SHARE`) and whose pairs keep their
     lengths (:data:`TRIM`) are read, they are counted (:data:`MIN_READ`)
     in place of the point-frames held (:data:`MIN_HELD`), and their strain
@@ -447,13 +401,20 @@ def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, find: bool, throug
     if xy.shape[1] < 3:
         return f"{xy.shape[1]} points held in every frame, fewer than the 3 a program needs"
     cheaper = {"keyframes": KEYFRAMES, "every": EVERY, "neighbours": NEIGHBOURS} if template == "joint" or through else {}  # what the rules read
-    check()
-    try:
-        depths, distances = mdh_depths(xy, camera, template=template, each_frame=options.isometric_each_frame, with_distances=True, **cheaper)
-    except TooFewPoints as error:
-        return f"too few points held in frames {error.frames[:5]}"
-    except NotSolved as error:  # e.g. a focal length far too long: rays nearly parallel, no perspective to read the shape by
-        return no_answer.format(error.status)
+
+    def solve(seen_by: Camera) -> Union[Tuple[np.ndarray, np.ndarray], str]:
+        check()
+        try:
+            return mdh_depths(xy, seen_by, template=template, each_frame=options.isometric_each_frame, with_distances=True, **cheaper)
+        except TooFewPoints as error:
+            return f"too few points held in frames {error.frames[:5]}"
+        except NotSolved as error:  # e.g. a focal length far too long: rays nearly parallel, no perspective to read the shape by
+            return no_answer.format(error.status)
+
+    solved = solve(camera)
+    if isinstance(solved, str):
+        return solved
+    depths, distances = solved
     if through:
         strain = template_strain(xy, depths, camera, distances, KEYFRAMES, NEIGHBOURS)
         record.update(strain=strain)
@@ -468,6 +429,13 @@ def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, find: bool, throug
         record.update(contrast=estimate.contrast, focal_estimate=estimate.focal)
         if not estimate.contrast >= MIN_CONTRAST:
             return f"no focal length keeps their pairs' lengths better than the others (contrast {estimate.contrast:.2f} < {MIN_CONTRAST:g}): no sheet"
+        if options.focal is None and estimate.inside:  # the gates passed through the guess; the shape through the focal length the strain picks
+            estimated = Camera(estimate.focal, camera.centre)
+            solved = solve(estimated)
+            if isinstance(solved, str):
+                return solved
+            depths = solved[0]
+            record.update(focal=tuple(map(float, estimated.focal)))
     return xy, depths
 
 

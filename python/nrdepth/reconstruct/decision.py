@@ -1,0 +1,63 @@
+"""What the sheet stage did (:mod:`.sheet`): whether it used the sheet's
+shape or left the network's depth alone, why, and what its checks
+measured; the job's log line and ``depth.npz``'s ``sheet``."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Optional, Tuple
+
+__all__ = ["SheetDecision"]
+
+
+@dataclass(frozen=True)
+class SheetDecision:
+    """What the sheet stage did: ``used`` its shape, or left the network's
+    depth alone for ``reason``; the camera's ``focal`` and ``centre``
+    (pixels) the shape was read through, ``guessed`` where no focal length
+    was given (then ``focal`` is :meth:`~nrdepth.Camera.guessed`'s, or the
+    ``focal_estimate`` where the shape was read through it; the log line
+    says ``estimated``), the ``frames`` read, the ``points`` read (after the drop and, held, :data:`~.sheet.KEEP_HELD`),
+    the ``texture`` (gray levels, :data:`~.sheet.MIN_TEXTURE`), ``motion``
+    (pixels, :data:`~.sheet.MIN_MOTION`) and the share of point-frames ``held``
+    its checks measured (None where not reached), the
+    ``template`` whose points were read last, with nothing given the
+    ``contrast`` with which their strain picks a focal length
+    (:data:`~.sheet.MIN_CONTRAST`) and the ``focal_estimate`` it picks (pixels,
+    :func:`~nrdepth.isometric.estimate_focal`: 518 px on ``kinect_paper``
+    with its roi, the Kinect's 528; with nothing given, the shape is read
+    through it where :attr:`~nrdepth.isometric.FocalEstimate.inside`),
+    the held points' ``strain``
+    under ``refined`` (:data:`~.sheet.MAX_STRAIN`) and the fusion's ``scale`` (a
+    fraction of the shorter side) where used. :meth:`line` is the job's log
+    line; ``depth.npz`` keeps :meth:`as_dict` as JSON under ``sheet``."""
+
+    used: bool
+    reason: str
+    focal: Tuple[float, float]
+    centre: Tuple[float, float]
+    frames: int
+    guessed: bool = False
+    points: int = 0
+    texture: Optional[float] = None
+    motion: Optional[float] = None
+    held: Optional[float] = None
+    template: Optional[str] = None
+    contrast: Optional[float] = None
+    focal_estimate: Optional[float] = None
+    strain: Optional[float] = None
+    scale: Optional[float] = None
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+    def line(self) -> str:
+        what = "the sheet's shape from inextensibility" if self.used else "the network's depth alone"
+        measured = "".join(f", {name} {value:.{digits}f}" for name, value, digits in
+                           (("texture", self.texture, 2), ("motion px", self.motion, 2), ("held", self.held, 2), ("contrast", self.contrast, 2),
+                            ("focal estimate px", self.focal_estimate, 1), ("strain", self.strain, 4), ("scale", self.scale, 2))
+                           if value is not None)
+        template = f", template {self.template}" if self.template else ""
+        given = "" if not self.guessed else " estimated" if self.focal[0] == self.focal_estimate else " guessed"
+        return (f"sheet: {what} ({self.reason}; focal {self.focal[0]:g},{self.focal[1]:g} px{given}, {self.frames} frames, "
+                f"{self.points} points{template}{measured})")
