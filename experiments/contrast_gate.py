@@ -34,15 +34,20 @@ TODAY = ("least", 1.35)
 NOISE_BOUND = 0.005
 
 
+def curve(strains: np.ndarray) -> FocalEstimate:
+    """``strains`` over a grid, as ``estimate_focal`` answers (its focal lengths left out)."""
+    return FocalEstimate(math.nan, float(strains.min()), tuple(range(len(strains))), tuple(map(float, strains)))
+
+
 def least(strains: np.ndarray) -> float:
     """Today's contrast: the smaller strain two steps either side of the least, over it."""
-    return FocalEstimate(math.nan, float(strains.min()), tuple(range(len(strains))), tuple(map(float, strains))).contrast
+    return curve(strains).contrast
 
 
 def interior(strains: np.ndarray) -> float:
-    """As :func:`least`, but 0 unless the least lies two steps inside the grid (both sides there)."""
-    k = int(np.argmin(strains))
-    return float(min(strains[k - 2], strains[k + 2]) / strains[k]) if 2 <= k < len(strains) - 2 else 0.0
+    """As :func:`least`, but 0 unless the least lies two steps inside the grid (``FocalEstimate.inside``: both sides there)."""
+    estimate = curve(strains)
+    return estimate.contrast if estimate.inside else 0.0
 
 
 def fit(strains: np.ndarray) -> float:

@@ -4,8 +4,10 @@ strains over its grid (``sheet_levers.py``'s ``strains`` column, a
 setting with ``contrast=1`` read through the 40° guess) give the
 estimate, the guess's ``focal ratio`` the truth. Each sheet (light, clip)
 once, from the first CSV that has its curve; the share within 25 % of the
-truth, and the median ratio, over every sheet with a curve and over those
-whose contrast reaches each threshold.
+truth, and the median ratio, over every sheet with a curve, over those
+whose contrast reaches each threshold, and over those the default reads
+(its gates as ``default_gate.py`` reads them: the points left, τ and the
+contrast at 2).
 
     python experiments/focal_accuracy.py docs/reconstruction/*_{below,above}*.csv
 """
@@ -23,26 +25,33 @@ from nrdepth import Camera, GeneratorConfig
 from nrdepth.isometric.focal import STEPS, focal_grid, least_strain
 
 sys.path.insert(0, str(Path(__file__).parent))
+from default_gate import MIN_READ, holds  # noqa: E402
 from strain_gate import T  # noqa: E402
 
 D = T + ":fov=40:whole=1:moving=1:relmove=0.2:trim=3:contrast=1"
 
 
 def estimates(paths: list, setting: str) -> np.ndarray:
-    """(n, 2): each sheet's estimate over its true focal length, and its contrast."""
+    """(n, 3): each sheet's estimate over its true focal length, its contrast, and whether the default reads it (1 or 0)."""
+    from nrdepth.reconstruct.sheet import MAX_STRAIN, MIN_CONTRAST
+
     side = GeneratorConfig().size  # the ratio does not depend on it: the guess and the grid both scale with the frame
     focals, guess = focal_grid((side, side)), Camera.guessed((side, side)).focal[0]
     seen = {}
     for path in paths:
-        for row in csv.DictReader(open(path, newline="")):
+        rows = list(csv.DictReader(open(path, newline="")))
+        if not rows or f"{setting} strains" not in rows[0]:
+            continue
+        read = holds(rows, setting, MAX_STRAIN, MIN_READ, 400, MIN_CONTRAST)  # 400: sheet_levers.py's points
+        for row, by_default in zip(rows, read):
             key, curve, ratio = (row.get("light"), row.get("clip")), row.get(f"{setting} strains"), row.get(f"{setting} focal ratio")
             if key in seen or not curve or not ratio:
                 continue
             strains = np.array([float(v) for v in curve.split()])
             if len(strains) == STEPS:
                 estimate = least_strain(focals, strains)
-                seen[key] = (estimate.focal / (guess / float(ratio)), estimate.contrast)
-    return np.array(list(seen.values())).reshape(-1, 2)
+                seen[key] = (estimate.focal / (guess / float(ratio)), estimate.contrast, float(by_default))
+    return np.array(list(seen.values())).reshape(-1, 3)
 
 
 def main() -> None:
@@ -53,12 +62,12 @@ def main() -> None:
     args = parser.parse_args()
     found = estimates(args.csv, args.setting)
     print(f"{len(found)} sheets with the strain's curve")
-    ratio, contrast = found.T
-    for threshold in map(float, args.contrasts.split(",")):
-        kept = contrast >= threshold
+    ratio, contrast, read = found.T
+    subsets = [(f"contrast at least {threshold:g}", contrast >= threshold) for threshold in map(float, args.contrasts.split(","))]
+    for label, kept in subsets + [("read by the default", read > 0)]:
         if kept.any():
-            print(f"contrast at least {threshold:g}: {kept.sum()} sheets, the estimate within 25 % of the truth on "
-                  f"{np.mean(np.abs(ratio[kept] - 1) <= 0.25):.0%}, median ratio {np.median(ratio[kept]):.3f} "
+            print(f"{label}: {kept.sum()} sheets, the estimate within 25 % of the truth on {np.sum(np.abs(ratio[kept] - 1) <= 0.25)} "
+                  f"({np.mean(np.abs(ratio[kept] - 1) <= 0.25):.0%}), median ratio {np.median(ratio[kept]):.3f} "
                   f"(10th–90th percentile {np.percentile(ratio[kept], 10):.2f}–{np.percentile(ratio[kept], 90):.2f})")
 
 

@@ -225,8 +225,7 @@ def main() -> None:
                     estimate = isometric.estimate_focal(xy[:, np.isfinite(xy).all(axis=(0, 2))], video.shape[1:], evaluations=lever["cevals"])
                     row[f"{name} contrast"] = estimate.contrast
                     row[f"{name} strains"] = " ".join(f"{s:.6g}" for s in estimate.strains)  # the whole curve, for gates read off it later
-                    least = int(np.argmin(estimate.strains))
-                    if lever["estimate"] == 1 or (lever["estimate"] == 2 and 2 <= least < len(estimate.strains) - 2):
+                    if lever["estimate"] == 1 or (lever["estimate"] == 2 and estimate.inside):
                         # the depths through the estimate (2: where its least lies two steps inside the grid); strain and contrast as read
                         through = nrdepth.Camera(estimate.focal).at(video.shape[1:])
                         depths, distances = isometric.mdh_depths(xy, through, keyframes=lever["keyframes"], neighbours=lever["neighbours"],

@@ -58,6 +58,7 @@ class SheetDecision:
                             ("focal estimate px", self.focal_estimate, 1), ("strain", self.strain, 4), ("scale", self.scale, 2))
                            if value is not None)
         template = f", template {self.template}" if self.template else ""
+        # read through the estimate: focal was set from focal_estimate itself, so they are equal exactly
         given = "" if not self.guessed else " estimated" if self.focal[0] == self.focal_estimate else " guessed"
         return (f"sheet: {what} ({self.reason}; focal {self.focal[0]:g},{self.focal[1]:g} px{given}, {self.frames} frames, "
                 f"{self.points} points{template}{measured})")

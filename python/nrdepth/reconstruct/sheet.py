@@ -290,7 +290,7 @@ def read_sheet(frame_count: int, options: ReconstructOptions, camera: Camera, re
     elif options.sheet is not None:
         readings = [("refined", True, False), ("joint", bool(options.isometric_hold), False)]
     elif options.focal is not None:  # a region that may hold more than the sheet: found first, as by default
-        readings = [("refined", True, True)] * long_enough + [("refined", True, False), ("joint", bool(options.isometric_hold), False)]
+        readings = ([("refined", True, True)] if long_enough else []) + [("refined", True, False), ("joint", bool(options.isometric_hold), False)]
     else:  # nothing given, a region that may be no sheet: the found reading alone, which says whether it is one
         readings = [("refined", True, True)]
     passed: List[str] = []  # each reading's reason for giving way
