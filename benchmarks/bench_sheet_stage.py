@@ -107,7 +107,7 @@ def held_thresholds(fb: Optional[float] = None, ncc: Optional[float] = None) -> 
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0, "fscale": 1.0, "contrast": 0, "cevals": 100, "onsheet": 0, "relmove": 0.0, "trim": 0.0, "fb": None, "estimate": 0}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0, "fscale": 1.0, "contrast": 0, "cevals": 100, "onsheet": 0, "relmove": 0.0, "trim": 0.0, "fb": None, "estimate": 0, "stride": 1}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
@@ -116,6 +116,8 @@ def parse(setting: str) -> dict:
             float(value) if key in ("drop", "keep", "anchor", "fov", "fscale", "relmove", "trim", "fb") else (None if value == "none" else int(value))
     if out["keep"] and not out["hold"]:
         raise SystemExit(f"--settings {setting!r}: keep needs hold=1")
+    if out["stride"] < 1:
+        raise SystemExit(f"--settings {setting!r}: stride is an int >= 1")
     if out["template"] not in ("joint", "refined"):
         raise SystemExit(f"--settings {setting!r}: template is joint or refined")
     if out["anchor"] and out["each"] != "lengths":
@@ -312,7 +314,8 @@ def main() -> None:
         lever = parse(setting)
         start = time.perf_counter()
         xy = isometric.track_grid(frames, inset_region(box, lever["inset"]), points=lever["points"], drop=lever["drop"], flow=lever["flow"], margin=lever["margin"],
-                                  hold=bool(lever["hold"]), backward=bool(lever["backward"]), place=lever["place"], flow_scale=lever["fscale"])
+                                  hold=bool(lever["hold"]), backward=bool(lever["backward"]), place=lever["place"], flow_scale=lever["fscale"],
+                                  stride=lever["stride"])
         held = isometric.held_share(xy, frames.shape[1:]) if lever["hold"] else 1.0
         if held < (MIN_HELD if args.min_held is None else args.min_held):  # the stage's gate, before keep: it steps aside, the sheet reads as the network
             print(f"{setting:40s} points {time.perf_counter() - start:5.1f} s: steps aside ({held:.2f} of the point-frames held); "

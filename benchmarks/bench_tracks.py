@@ -26,7 +26,7 @@ tracker, on three kinds of truth:
 Each line: median, 95th percentile and largest distance, the share of
 point-frames lost (NaN), and the seconds; for the sheets, the videos'
 95th percentiles' median. A tracker is ``key=value`` pairs joined by ``:``
-(``track_points``' ``hold``, ``backward``, ``flow``, ``margin``; ``ncc`` and ``fb``: the held tracker's thresholds; an empty one
+(``track_points``' ``hold``, ``backward``, ``flow``, ``margin``, ``stride``; ``ncc`` and ``fb``: the held tracker's thresholds; an empty one
 is its defaults).
 
     python benchmarks/bench_tracks.py [--trackers ",margin=48:hold=1"] [--videos 16] [--start 96] [--skip generated] [--lights below] [--set FIELD=V]
@@ -59,10 +59,12 @@ def parse(tracker: str) -> dict:
             out[key] = value
         elif key == "margin":
             out[key] = None if value == "none" else int(value)
+        elif key == "stride":
+            out[key] = int(value)
         elif key in ("ncc", "fb"):
             out[key] = float(value)
         else:
-            raise SystemExit(f"--trackers: unknown key {key!r} (hold, backward, flow, margin, ncc, fb)")
+            raise SystemExit(f"--trackers: unknown key {key!r} (hold, backward, flow, margin, stride, ncc, fb)")
     return out
 
 

@@ -13,7 +13,7 @@ the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 pinhole in place of the true camera (``strain``: the focal length from the points' strain; ``held``: the one an
 earlier held setting's ``strain`` found, else the guess), ``place``: the points where the first
 frame has texture, ``inset``: the sheet's region shrunk first, ``moving``: of the points read, those that move (``relmove``: at least this share of their median motion too), ``trim``: of those,
-the points whose pairs stretch least (``bench_sheet_stage.trim_strained``), ``fscale``: the flow on frames shrunk by this factor, ``fb``: the held tracker's way back (px), ``contrast``: ``estimate_focal``'s contrast on the points read, recorded with its strains over the grid (``cevals``: its refinements' evaluations; ``estimate``: then the programs solved again through the focal length it picks, the figures before, strain and contrast, left as they were; ``estimate=2``: only where the least strain lies two steps inside the grid), ``onsheet``: of the points read, those
+the points whose pairs stretch least (``bench_sheet_stage.trim_strained``), ``fscale``: the flow on frames shrunk by this factor, ``stride``: only every n-th frame tracked, ``fb``: the held tracker's way back (px), ``contrast``: ``estimate_focal``'s contrast on the points read, recorded with its strains over the grid (``cevals``: its refinements' evaluations; ``estimate``: then the programs solved again through the focal length it picks, the figures before, strain and contrast, left as they were; ``estimate=2``: only where the least strain lies two steps inside the grid), ``onsheet``: of the points read, those
 that start on the sheet (an oracle: what the points off it cost), ``whole``: the points over
 the whole frame, backdrop and all, not over the sheet, ``piece``: of the points read, the one
 piece that moves most, as ``experiments/kinect_box_parts.py`` finds the paper); the first is the reference, each
@@ -161,7 +161,7 @@ def main() -> None:
             for name, lever in zip([s or "default" for s in settings], levers):
                 start = time.perf_counter()
                 key = (lever["flow"], lever["margin"], lever["points"], lever["hold"], lever["backward"], lever["drop"], lever["place"], lever["inset"],
-                       lever["whole"], lever["fscale"], lever["fb"])  # keep, each: after the tracks
+                       lever["whole"], lever["fscale"], lever["fb"], lever["stride"])  # keep, each: after the tracks
                 if lever.get("truth"):
                     truth_xy, _ = true_tracks(clips.vertices[k], params, config.size, points=lever["points"])
                     tracks[key + ("truth",)] = np.where(in_view(truth_xy, config.size)[..., None], truth_xy, np.nan)
@@ -175,7 +175,8 @@ def main() -> None:
                     with held_thresholds(fb=lever["fb"]):
                         tracks[key] = isometric.track_grid(video, None if lever["whole"] else inset_region(region, lever["inset"]), points=lever["points"],
                                                            drop=lever["drop"], flow=lever["flow"], margin=lever["margin"], hold=bool(lever["hold"]),
-                                                           backward=bool(lever["backward"]), place=lever["place"], flow_scale=lever["fscale"])
+                                                           backward=bool(lever["backward"]), place=lever["place"], flow_scale=lever["fscale"],
+                                                           stride=lever["stride"])
                 held = held_share(tracks[key], video.shape[1:]) if lever["hold"] else 1.0  # before keep, as the stage gates
                 xy = keep_held(tracks[key], video.shape[1:], lever)
                 if lever["onsheet"]:  # an oracle: the points that start off the sheet left out

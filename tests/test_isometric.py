@@ -162,6 +162,34 @@ def test_track_grid_follows_a_shift():
     np.testing.assert_allclose(isometric.track_points(video, anywhere)[-1] - anywhere, [[8.0, 4.0]] * 2, atol=0.15)
 
 
+@pytest.mark.parametrize("hold", [False, True])
+def test_a_stride_tracks_every_nth_frame_and_the_last_as_alone_and_is_linear_between(hold):
+    video = shifted_texture(frames=8)  # content moves +2 x, +1 y a frame: linear in time
+    mask = np.zeros(video.shape[1:], bool)
+    mask[30:70, 30:70] = True
+    every = isometric.track_grid(video, mask, points=25, drop=0.2, hold=hold)
+    strided = isometric.track_grid(video, mask, points=25, drop=0.2, hold=hold, stride=3)
+    tracked = [0, 3, 6, 7]  # every third frame and the last
+    # The tracked frames are what the tracker gives those frames alone, to the bit; the drop ranks the same steps.
+    assert strided.shape == every.shape
+    assert np.array_equal(strided[tracked], isometric.track_grid(video[tracked], mask, points=25, drop=0.2, hold=hold))
+    np.testing.assert_allclose(strided[1:3], strided[:1] + np.array([[1], [2]])[..., None] / 3 * (strided[3] - strided[0]), atol=1e-12)
+    np.testing.assert_allclose(strided - strided[:1], every - every[:1], atol=0.2)  # and they follow the shift as every frame's do
+    streamed = isometric.track_grid(iter(list(video)), mask, points=25, drop=0.2, hold=hold, stride=3)
+    assert np.array_equal(streamed, strided)
+    ending = isometric.track_grid(video[:7], mask, points=25, drop=0.2, hold=hold, stride=3)  # the last is a stride's: 0, 3, 6 alone
+    assert np.array_equal(ending[[0, 3, 6]], isometric.track_grid(video[[0, 3, 6]], mask, points=25, drop=0.2, hold=hold))
+    with pytest.raises(ValueError, match="stride"):
+        isometric.track_grid(video, mask, points=25, stride=0)
+
+
+def test_a_strided_track_is_nan_between_where_either_end_is():
+    xy = np.array([[[0.0, 0.0], [1.0, 1.0]], [[2.0, 4.0], [np.nan, np.nan]]])
+    filled = isometric.points._between(xy, [0, 2])
+    np.testing.assert_array_equal(filled[:, 0], [[0.0, 0.0], [1.0, 2.0], [2.0, 4.0]])
+    assert np.array_equal(filled[0, 1], [1.0, 1.0]) and np.isnan(filled[1:, 1]).all()
+
+
 def shifted_texture(frames: int = 5, size: int = 160, window: int = 100, blank: int = 0) -> np.ndarray:
     """A smooth random texture whose content moves +2 x, +1 y a frame, (T, window, window) uint8;
     its first ``blank`` columns (of the first frame) a flat gray, as blank paper."""

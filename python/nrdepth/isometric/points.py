@@ -93,13 +93,13 @@ to follow (:func:`start_texture`)."""
 
 def track_grid(video: Union[np.ndarray, Iterable[np.ndarray]], mask: Optional[np.ndarray] = None, points: int = 400, window: int = 21,
                backward: bool = True, drop: float = 0.0, border: float = BORDER, flow: str = "farneback",
-               margin: Optional[int] = None, hold: bool = False, place: str = "grid", flow_scale: float = 1.0) -> np.ndarray:
+               margin: Optional[int] = None, hold: bool = False, place: str = "grid", flow_scale: float = 1.0, stride: int = 1) -> np.ndarray:
     """Tracks (T, n, 2) (column, row) of about ``points`` points over
     ``mask`` (H, W) of the first frame (default: the whole frame), placed
     by ``place`` (:data:`PLACES`: on a square grid, or where the first
     frame has texture), at least ``border`` pixels inside the frame's edge, moved through
     ``video`` ((T, H, W) uint8, or a stream of frames: :func:`frames_of`) by :func:`track_points` (``window``,
-    ``backward``, ``border``, ``flow``, ``margin``, ``hold``, ``flow_scale``). ``drop``: the share of the points left out,
+    ``backward``, ``border``, ``flow``, ``margin``, ``hold``, ``flow_scale``, ``stride``). ``drop``: the share of the points left out,
     those whose forward and backward flows disagree most over the video
     (:func:`track_points`' ``disagreement``; needs ``backward`` or
     ``hold``): points at a boundary of the motion, where the flow bleeds
@@ -113,9 +113,9 @@ def track_grid(video: Union[np.ndarray, Iterable[np.ndarray]], mask: Optional[np
         raise ValueError(f"place: expected one of {PLACES}, got {place!r}")
     grid = start_grid(mask, first.shape, points, drop, border) if place == "grid" else start_texture(first, mask, points, window, drop, border)
     if drop == 0:
-        return track_points(video, grid, window, backward, border=border, flow=flow, margin=margin, hold=hold, flow_scale=flow_scale)
+        return track_points(video, grid, window, backward, border=border, flow=flow, margin=margin, hold=hold, flow_scale=flow_scale, stride=stride)
     xy, disagreement = track_points(video, grid, window, backward, disagreement=True, border=border, flow=flow, margin=margin, hold=hold,
-                                    flow_scale=flow_scale)
+                                    flow_scale=flow_scale, stride=stride)
     return xy[:, least_disagreeing(disagreement, drop)]
 
 
@@ -190,7 +190,7 @@ def least_disagreeing(disagreement: np.ndarray, drop: float) -> np.ndarray:
 
 def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarray, window: int = 21, backward: bool = True,
                  disagreement: bool = False, border: float = BORDER, flow: str = "farneback", margin: Optional[int] = None,
-                 hold: bool = False, flow_scale: float = 1.0):
+                 hold: bool = False, flow_scale: float = 1.0, stride: int = 1):
     """Tracks (T, n, 2) (column, row) of the points ``start`` (n, 2) of the
     first frame, moved through ``video`` ((T, H, W) uint8, or a stream of
     frames: :func:`frames_of`) by dense optical flow (``flow``) from each frame to the
@@ -218,7 +218,12 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
 
     ``flow_scale`` (0, 1]: the flow computed on the frames shrunk by this
     factor (area-averaged), its field scaled back: its cost goes with the
-    area, and held points are found again at the frames' own size."""
+    area, and held points are found again at the frames' own size.
+
+    ``stride``: only every ``stride``-th frame and the last are tracked
+    (each step ``stride`` frames apart: held points only need the flow to
+    land them within reach), the points in the frames between linear in
+    time (NaN where either end is): a ``stride``-th of the flows' work."""
     import cv2  # imported here: `import nrdepth` stays light
     from scipy.ndimage import map_coordinates
     from threadpoolctl import threadpool_limits
@@ -241,6 +246,8 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
         raise ValueError(f"hold: expected a bool, got {hold!r}")
     if isinstance(flow_scale, (bool, np.bool_)) or not (isinstance(flow_scale, (int, float, np.integer, np.floating)) and 0 < flow_scale <= 1):
         raise ValueError(f"flow_scale: expected a factor in (0, 1], got {flow_scale!r}")
+    if isinstance(stride, (bool, np.bool_)) or not (isinstance(stride, (int, np.integer)) and stride >= 1):
+        raise ValueError(f"stride: expected an int >= 1 (1: every frame tracked), got {stride!r}")
     dense, dense_back = _flow(cv2, flow, window, flow_scale), _flow(cv2, flow, window, flow_scale)  # one each: a DIS object is not shared between threads
     H, W = first.shape
     anchor = Anchor(cv2, first, start, max(H, W) if margin is None else margin) if hold else None
@@ -248,7 +255,7 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
     def at(field: np.ndarray, where: np.ndarray) -> np.ndarray:  # bilinear
         return np.stack([map_coordinates(field[..., c], [where[:, 1], where[:, 0]], order=1, mode="nearest") for c in (0, 1)], axis=1)
 
-    xy = [start]
+    xy, tracked = [start], [0]  # the tracked frames' points and indices
     alive = np.arange(len(start))
     carried = start  # with hold: every point's place, held or carried on by the warp
     apart, steps = np.zeros(len(start)), np.zeros(len(start))
@@ -258,7 +265,7 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
     # thread: the hold's small products gain nothing from more, whose threads spin after each call and take the
     # cores from the flows (kinect_paper's held points: 16.0 s against 25.8, the same tracks).
     with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(1) if backward else nullcontext() as helper:
-        for frame in rest:  # two frames held at a time: a stream is read once
+        for t, frame in _strided(rest, stride):  # two or three frames held at a time: a stream is read once
             now_xy = np.full_like(start, np.nan)
             if len(alive):
                 was = carried if hold else xy[-1][alive]
@@ -289,9 +296,35 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
                     apart[counted] += np.linalg.norm(ahead[stays] - (back if backward else now)[stays], axis=1)
                     steps[counted] += 1
             xy.append(now_xy)
+            tracked.append(t)
             previous = frame
-    xy = np.stack(xy)
+    xy = _between(np.stack(xy), tracked)
     return (xy, apart / np.maximum(steps, 1)) if disagreement else xy
+
+
+def _strided(frames: Iterable[np.ndarray], stride: int) -> Iterator[Tuple[int, np.ndarray]]:
+    """(index, frame) of every ``stride``-th of ``frames`` (the frames after the first, counted from 1) and of the last."""
+    skipped = None
+    for t, frame in enumerate(frames, 1):
+        skipped = None if t % stride == 0 else (t, frame)
+        if skipped is None:
+            yield t, frame
+    if skipped is not None:
+        yield skipped
+
+
+def _between(xy: np.ndarray, tracked: list) -> np.ndarray:
+    """Tracks (T, n, 2) of every frame from the tracked frames' ``xy``
+    (len(tracked), n, 2) at the ascending indices ``tracked``: linear in
+    time between them, NaN where either end is."""
+    if tracked[-1] + 1 == len(xy):
+        return xy
+    out = np.empty((tracked[-1] + 1,) + xy.shape[1:])
+    for (a, b), (xa, xb) in zip(zip(tracked, tracked[1:]), zip(xy, xy[1:])):
+        share = (np.arange(a, b) - a)[:, None, None] / (b - a)
+        out[a:b] = xa + share * (xb - xa)
+    out[tracked] = xy  # exactly as tracked (a NaN at the far end would spoil the near one's share 0)
+    return out
 
 
 FLOWS = ("farneback", "farneback2", "dis")
