@@ -31,8 +31,10 @@ from strain_gate import T  # noqa: E402
 D = T + ":fov=40:whole=1:moving=1:relmove=0.2:trim=3:contrast=1"
 
 
-def estimates(paths: list, setting: str) -> np.ndarray:
-    """(n, 3): each sheet's estimate over its true focal length, its contrast, and whether the default reads it (1 or 0)."""
+def estimates(paths: list, setting: str, through: int = 0) -> np.ndarray:
+    """(n, 3): each sheet's estimate over its true focal length, its contrast, and whether the default reads it (1 or 0).
+    ``through``: the setting's ``estimate`` lever (1: its ``focal ratio`` is the estimate's; 2: the estimate's where
+    bracketed, :attr:`~nrdepth.isometric.FocalEstimate.inside`; 0: the guess's)."""
     from nrdepth.reconstruct.sheet import MAX_STRAIN, MIN_CONTRAST
 
     side = GeneratorConfig().size  # the ratio does not depend on it: the guess and the grid both scale with the frame
@@ -50,7 +52,8 @@ def estimates(paths: list, setting: str) -> np.ndarray:
             strains = np.array([float(v) for v in curve.split()])
             if len(strains) == STEPS:
                 estimate = least_strain(focals, strains)
-                seen[key] = (estimate.focal / (guess / float(ratio)), estimate.contrast, float(by_default))
+                read_through = estimate.focal if through == 1 or (through == 2 and estimate.inside) else guess
+                seen[key] = (estimate.focal / (read_through / float(ratio)), estimate.contrast, float(by_default))
     return np.array(list(seen.values())).reshape(-1, 3)
 
 
@@ -59,8 +62,14 @@ def main() -> None:
     parser.add_argument("csv", type=Path, nargs="+", help="sheet_levers.py's CSVs of sheets through pinholes")
     parser.add_argument("--setting", default=D, help="the setting whose strains are read (default: the default's, D)")
     parser.add_argument("--contrasts", default="0,1.35,2,3", help="comma-separated contrast thresholds")
+    parser.add_argument("--estimate", type=int, choices=(0, 1, 2), default=None,
+                        help="the setting's estimate lever, which says whose focal ratio it recorded (default: read off the setting; 0 "
+                             "where it is not a setting, e.g. truth)")
     args = parser.parse_args()
-    found = estimates(args.csv, args.setting)
+    through = args.estimate
+    if through is None:
+        through = int(next((item.partition("=")[2] for item in args.setting.split(":") if item.startswith("estimate=")), 0))
+    found = estimates(args.csv, args.setting, through)
     print(f"{len(found)} sheets with the strain's curve")
     ratio, contrast, read = found.T
     subsets = [(f"contrast at least {threshold:g}", contrast >= threshold) for threshold in map(float, args.contrasts.split(","))]
