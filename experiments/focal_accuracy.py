@@ -32,7 +32,8 @@ D = T + ":fov=40:whole=1:moving=1:relmove=0.2:trim=3:contrast=1"
 
 
 def estimates(paths: list, setting: str, through: int = 0) -> np.ndarray:
-    """(n, 3): each sheet's estimate over its true focal length, its contrast, and whether the default reads it (1 or 0).
+    """(n, 4): each sheet's estimate over its true focal length, its contrast, whether the default reads it (1 or 0), and
+    how many points the estimate read (after the trim where the setting trims).
     ``through``: the setting's ``estimate`` lever (1: its ``focal ratio`` is the estimate's; 2: the estimate's where
     bracketed, :attr:`~nrdepth.isometric.FocalEstimate.inside`; 0: the guess's)."""
     from nrdepth.reconstruct.sheet import MAX_STRAIN, MIN_CONTRAST
@@ -53,8 +54,9 @@ def estimates(paths: list, setting: str, through: int = 0) -> np.ndarray:
             if len(strains) == STEPS:
                 estimate = least_strain(focals, strains)
                 read_through = estimate.focal if through == 1 or (through == 2 and estimate.inside) else guess
-                seen[key] = (estimate.focal / (read_through / float(ratio)), estimate.contrast, float(by_default))
-    return np.array(list(seen.values())).reshape(-1, 3)
+                points = float(row.get(f"{setting} trimmed") or row.get(f"{setting} points") or "nan")
+                seen[key] = (estimate.focal / (read_through / float(ratio)), estimate.contrast, float(by_default), points)
+    return np.array(list(seen.values())).reshape(-1, 4)
 
 
 def main() -> None:
@@ -62,6 +64,7 @@ def main() -> None:
     parser.add_argument("csv", type=Path, nargs="+", help="sheet_levers.py's CSVs of sheets through pinholes")
     parser.add_argument("--setting", default=D, help="the setting whose strains are read (default: the default's, D)")
     parser.add_argument("--contrasts", default="0,1.35,2,3", help="comma-separated contrast thresholds")
+    parser.add_argument("--points", type=int, default=100, help="also over the sheets whose estimate read at least this many points")
     parser.add_argument("--estimate", type=int, choices=(0, 1, 2), default=None,
                         help="the setting's estimate lever, which says whose focal ratio it recorded (default: read off the setting; 0 "
                              "where it is not a setting, e.g. truth)")
@@ -71,9 +74,12 @@ def main() -> None:
         through = int(next((item.partition("=")[2] for item in args.setting.split(":") if item.startswith("estimate=")), 0))
     found = estimates(args.csv, args.setting, through)
     print(f"{len(found)} sheets with the strain's curve")
-    ratio, contrast, read = found.T
+    ratio, contrast, read, points = found.T
     subsets = [(f"contrast at least {threshold:g}", contrast >= threshold) for threshold in map(float, args.contrasts.split(","))]
-    for label, kept in subsets + [("read by the default", read > 0)]:
+    many = points >= args.points
+    subsets += [(f"at least {args.points} points read", many), (f"at least {args.points} points read, contrast at least 2", many & (contrast >= 2)),
+                (f"fewer than {args.points} points read", ~many), ("read by the default", read > 0)]
+    for label, kept in subsets:
         if kept.any():
             print(f"{label}: {kept.sum()} sheets, the estimate within 25 % of the truth on {np.sum(np.abs(ratio[kept] - 1) <= 0.25)} "
                   f"({np.mean(np.abs(ratio[kept] - 1) <= 0.25):.0%}), median ratio {np.median(ratio[kept]):.3f} "
