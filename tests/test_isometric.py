@@ -185,7 +185,7 @@ def test_a_stride_tracks_every_nth_frame_and_the_last_as_alone_and_is_linear_bet
 
 def test_a_strided_track_is_nan_between_where_either_end_is():
     xy = np.array([[[0.0, 0.0], [1.0, 1.0]], [[2.0, 4.0], [np.nan, np.nan]]])
-    filled = isometric.points._between(xy, [0, 2])
+    filled = isometric.points._every_frame(xy, [0, 2])
     np.testing.assert_array_equal(filled[:, 0], [[0.0, 0.0], [1.0, 2.0], [2.0, 4.0]])
     assert np.array_equal(filled[0, 1], [1.0, 1.0]) and np.isnan(filled[1:, 1]).all()
 

@@ -298,7 +298,7 @@ def track_points(video: Union[np.ndarray, Iterable[np.ndarray]], start: np.ndarr
             xy.append(now_xy)
             tracked.append(t)
             previous = frame
-    xy = _between(np.stack(xy), tracked)
+    xy = _every_frame(np.stack(xy), tracked)
     return (xy, apart / np.maximum(steps, 1)) if disagreement else xy
 
 
@@ -313,10 +313,12 @@ def _strided(frames: Iterable[np.ndarray], stride: int) -> Iterator[Tuple[int, n
         yield skipped
 
 
-def _between(xy: np.ndarray, tracked: list) -> np.ndarray:
+def _every_frame(xy: np.ndarray, tracked: list) -> np.ndarray:
     """Tracks (T, n, 2) of every frame from the tracked frames' ``xy``
     (len(tracked), n, 2) at the ascending indices ``tracked``: linear in
-    time between them, NaN where either end is."""
+    time between them, NaN where either end is (unlike ``mdh._between``'s
+    depths, which take the nearer end's: a track lost at one end is not
+    guessed at)."""
     if tracked[-1] + 1 == len(xy):
         return xy
     out = np.empty((tracked[-1] + 1,) + xy.shape[1:])
