@@ -26,7 +26,7 @@ tracker, on three kinds of truth:
 Each line: median, 95th percentile and largest distance, the share of
 point-frames lost (NaN), and the seconds; for the sheets, the videos'
 95th percentiles' median. A tracker is ``key=value`` pairs joined by ``:``
-(``track_points``' ``hold``, ``backward``, ``flow``, ``margin``, ``stride``; ``ncc`` and ``fb``: the held tracker's thresholds; an empty one
+(``track_points``' ``hold``, ``backward``, ``flow``, ``margin``, ``stride``, ``scale`` its ``flow_scale``; ``ncc`` and ``fb``: the held tracker's thresholds; an empty one
 is its defaults).
 
     python benchmarks/bench_tracks.py [--trackers ",margin=48:hold=1"] [--videos 16] [--start 96] [--skip generated] [--lights below] [--set FIELD=V]
@@ -61,10 +61,12 @@ def parse(tracker: str) -> dict:
             out[key] = None if value == "none" else int(value)
         elif key == "stride":
             out[key] = int(value)
+        elif key == "scale":
+            out["flow_scale"] = float(value)
         elif key in ("ncc", "fb"):
             out[key] = float(value)
         else:
-            raise SystemExit(f"--trackers: unknown key {key!r} (hold, backward, flow, margin, stride, ncc, fb)")
+            raise SystemExit(f"--trackers: unknown key {key!r} (hold, backward, flow, margin, stride, scale, ncc, fb)")
     return out
 
 
