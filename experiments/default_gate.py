@@ -16,7 +16,9 @@
    0.1 where its point-frames held and strain pass, FLOW at 0.3 elsewhere);
 4. (``--versus-default SETTING``) a lever on the default: ``--default``'s
    reading (its own gates, the network elsewhere) against SETTING's read
-   the same way, paired per frame, on the sheets and on ``--noise``.
+   the same way, paired per frame, on the sheets and on ``--noise``; and
+   for each, how often the two lights (which share each sheet's geometry)
+   agree on reading a sheet.
 
     python experiments/default_gate.py docs/reconstruction/default_below.csv docs/reconstruction/default_above.csv
     python experiments/default_gate.py docs/reconstruction/moving_below.csv docs/reconstruction/moving_above.csv --default "$T:fov=40:whole=1:moving=1" \
@@ -56,6 +58,15 @@ def holds(rows: list, setting: str, tau: float, min_read: float, points: int, mi
 def default_reading(rows: list, setting: str, tau: float, min_read: float, points: int, min_contrast: float = 0.0) -> tuple:
     read = holds(rows, setting, tau, min_read, points, min_contrast)
     return np.where(read, column(rows, per_frame(setting, 0.1)), column(rows, "network per frame")), read
+
+
+def lights_agree(rows: list, read: np.ndarray) -> str:
+    """Of the clips read under both lights (which share each sheet's geometry), how many either light reads and how many both."""
+    by_clip: dict = {}
+    for row, was_read in zip(rows, read):
+        by_clip.setdefault(row["clip"], []).append(bool(was_read))
+    pairs = [reads for reads in by_clip.values() if len(reads) == 2]
+    return f"of {len(pairs)} sheets under both lights, either reads {sum(any(p) for p in pairs)}, both {sum(all(p) for p in pairs)}"
 
 
 def main() -> None:
@@ -104,6 +115,7 @@ def main() -> None:
         was, read_was = default_reading(rows, args.versus_default, *gates)
         print(f"4. the default reads {read.sum()} (both {(read & read_was).sum()}), {args.versus_default} {read_was.sum()}: {default.mean():.4f} against "
               f"{was.mean():.4f}, {paired(default, was)}")
+        print(f"   the default: {lights_agree(rows, read)}; {args.versus_default}: {lights_agree(rows, read_was)}")
     if args.noise:
         noise = rows_of(args.noise)
         default, read = default_reading(noise, args.default, *gates)

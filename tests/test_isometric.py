@@ -884,6 +884,32 @@ def test_the_focal_length_whose_refined_template_keeps_the_lengths_best_is_the_c
         isometric.estimate_focal(xy, (300, 300), evaluations=0)
 
 
+def slowly_rolled_sheet(frames: int = 48, side: int = 9) -> np.ndarray:
+    """Image positions (T, n, 2) of :func:`rolled_sheet`'s grid rolled and turned slowly, at most 3 px a frame."""
+    s, v = (a.ravel() for a in np.meshgrid(np.linspace(-1, 1, side), np.linspace(-0.8, 0.8, side)))
+    xy = []
+    for t in range(frames):
+        k = 0.2 + 0.8 * t / (frames - 1)
+        x, z = np.sin(k * s) / k, (1 - np.cos(k * s)) / k
+        a = 0.3 * np.sin(t / 8)
+        x, z = np.cos(a) * x + np.sin(a) * z, -np.sin(a) * x + np.cos(a) * z
+        points = np.stack([x, v + 0.01 * t, z + 4.0], axis=1)
+        xy.append(FOCAL * points[:, :2] / points[:, 2:])
+    return np.array(xy)
+
+
+def test_tracks_smoothed_in_time_give_back_the_focal_length_that_the_trackers_noise_hides():
+    xy = slowly_rolled_sheet()
+    noisy = xy + np.random.default_rng(0).normal(0, 0.2, xy.shape)  # 0.2 px in every frame floors the strain and flattens its valley
+    raw, smoothed = (isometric.estimate_focal(noisy, (300, 300), (0.0, 0.0), keyframes=4, smooth=s, evaluations=30) for s in (0, 1))
+    assert smoothed.contrast > 2 * raw.contrast and abs(smoothed.focal - FOCAL) < abs(raw.focal - FOCAL)
+    clean = isometric.estimate_focal(xy, (300, 300), (0.0, 0.0), keyframes=4, smooth=1, evaluations=30)  # the sheet's own motion barely blurred
+    assert clean.focal == pytest.approx(FOCAL, rel=0.03) and clean.contrast > 3
+    for bad in (-1.0, float("nan"), "1"):
+        with pytest.raises(ValueError, match="smooth"):
+            isometric.estimate_focal(xy, (300, 300), smooth=bad)
+
+
 def test_the_points_that_move_are_kept_and_the_backdrops_by_the_sheets_edge_left_out():
     xy, _ = rolled_sheet()
     T, n, _ = xy.shape

@@ -96,7 +96,9 @@ def estimate_focal(xy: np.ndarray, frame: Tuple[int, int], centre: Optional[Tupl
     Gaussian of this many frames (0: as tracked), since the trackers' noise
     sets a floor under the strain that flattens its valley (on
     ``kinect_paper``'s held points 0.1 px of noise takes the contrast from
-    3.9 to 2.6, smoothed over 1 frame 3.5). The focal lengths are read one after another, on
+    3.9 to 2.6, smoothed over 1 frame 3.5); not the stage's: on fresh
+    generated sheets it read worse (docs/campaign.md, "The focal length's
+    strain from tracks smoothed in time"). The focal lengths are read one after another, on
     one BLAS thread: their refinements are bound by Python (SciPy's
     LSMR), and in two threads they contend for the GIL (on
     ``kinect_paper``'s held points 10.1 s against 7.3, the same answer)."""

@@ -138,11 +138,6 @@ the network; 1.35 let 4 of 32 noise videos through), checked on 64
 fresh videos (docs/campaign.md, "The contrast read off the strain's
 whole curve")."""
 
-FOCAL_SMOOTH = 0.0
-"""Frames: the points read are smoothed in time by a Gaussian this wide
-before their strain picks the focal length and its contrast
-(:func:`~nrdepth.isometric.estimate_focal`'s ``smooth``); 0: as tracked."""
-
 KEEP_HELD = 0.8
 """With held points (``isometric_hold``), only those found again in at
 least this share of their frames in view are read
@@ -428,7 +423,7 @@ def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, find: bool, throug
     if find:  # the costliest gate last (nine programs): on a sheet that stretches the strain has said no already
         check()
         try:
-            estimate = estimate_focal(xy, frame, smooth=FOCAL_SMOOTH)
+            estimate = estimate_focal(xy, frame)
         except NotSolved as error:
             return no_answer.format(error.status)
         record.update(contrast=estimate.contrast, focal_estimate=estimate.focal)
