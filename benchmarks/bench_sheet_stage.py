@@ -45,8 +45,8 @@ only: :func:`held_thresholds`), ``contrast``
 (``experiments/sheet_levers.py`` only, 1: also ``estimate_focal``'s
 contrast on the points read, recorded, not used), ``cevals`` (with
 ``contrast``: its refinements' evaluations, ``estimate_focal``'s
-``evaluations``), ``csmooth`` (with ``contrast``: ``estimate_focal``'s
-``smooth``), ``onsheet``
+``evaluations``), ``csmooth`` and ``canchor`` (with ``contrast``: ``estimate_focal``'s
+``smooth`` and ``anchor``), ``onsheet``
 (``sheet_levers.py`` only, 1: of the points read, those that start on the
 sheet's true region: an oracle).
 With ``hold``, where fewer of the point-frames in view are held than the
@@ -108,13 +108,13 @@ def held_thresholds(fb: Optional[float] = None, ncc: Optional[float] = None) -> 
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0, "fscale": 1.0, "contrast": 0, "cevals": 100, "csmooth": 0.0, "onsheet": 0, "relmove": 0.0, "trim": 0.0, "fb": None, "estimate": 0, "stride": 1}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0, "fscale": 1.0, "contrast": 0, "cevals": 100, "csmooth": 0.0, "canchor": 0.0, "onsheet": 0, "relmove": 0.0, "trim": 0.0, "fb": None, "estimate": 0, "stride": 1}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
             raise SystemExit(f"--settings: unknown lever {key!r} (known: {', '.join(out)})")
         out[key] = value if key in ("flow", "each", "place", "template") or (key == "fov" and value in ("strain", "held")) else \
-            float(value) if key in ("drop", "keep", "anchor", "fov", "fscale", "relmove", "trim", "fb", "csmooth") else (None if value == "none" else int(value))
+            float(value) if key in ("drop", "keep", "anchor", "fov", "fscale", "relmove", "trim", "fb", "csmooth", "canchor") else (None if value == "none" else int(value))
     if out["keep"] and not out["hold"]:
         raise SystemExit(f"--settings {setting!r}: keep needs hold=1")
     if out["stride"] < 1:
@@ -259,8 +259,8 @@ def main() -> None:
                         "the roi and the true focal length, nothing given but the roi, or nothing at all (module docstring)")
     args = parser.parse_args()
     for setting in filter(None, args.settings.split(",")):  # before the network's minutes
-        if any(parse(setting)[key] for key in ("whole", "piece", "contrast", "onsheet", "estimate", "csmooth")) or parse(setting)["cevals"] != 100:  # read by sheet_levers alone
-            raise SystemExit(f"--settings {setting!r}: whole, piece, contrast, cevals, csmooth, estimate and onsheet are experiments/sheet_levers.py's levers; "
+        if any(parse(setting)[key] for key in ("whole", "piece", "contrast", "onsheet", "estimate", "csmooth", "canchor")) or parse(setting)["cevals"] != 100:  # read by sheet_levers alone
+            raise SystemExit(f"--settings {setting!r}: whole, piece, contrast, cevals, csmooth, canchor, estimate and onsheet are experiments/sheet_levers.py's levers; "
                              "the box here is --box")
 
     import cv2

@@ -13,7 +13,7 @@ the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 pinhole in place of the true camera (``strain``: the focal length from the points' strain; ``held``: the one an
 earlier held setting's ``strain`` found, else the guess), ``place``: the points where the first
 frame has texture, ``inset``: the sheet's region shrunk first, ``moving``: of the points read, those that move (``relmove``: at least this share of their median motion too), ``trim``: of those,
-the points whose pairs stretch least (``bench_sheet_stage.trim_strained``), ``fscale``: the flow on frames shrunk by this factor, ``stride``: only every n-th frame tracked, ``fb``: the held tracker's way back (px), ``contrast``: ``estimate_focal``'s contrast on the points read, recorded with its strains over the grid (``cevals``: its refinements' evaluations; ``csmooth``: its tracks smoothed in time over this many frames first; ``estimate``: then the programs solved again through the focal length it picks, the figures before, strain and contrast, left as they were; ``estimate=2``: only where the least strain lies two steps inside the grid), ``onsheet``: of the points read, those
+the points whose pairs stretch least (``bench_sheet_stage.trim_strained``), ``fscale``: the flow on frames shrunk by this factor, ``stride``: only every n-th frame tracked, ``fb``: the held tracker's way back (px), ``contrast``: ``estimate_focal``'s contrast on the points read, recorded with its strains over the grid (``cevals``: its refinements' evaluations; ``csmooth``: its tracks smoothed in time over this many frames first; ``canchor``: its refinements pulled towards their cone programs' depths by this weight; ``estimate``: then the programs solved again through the focal length it picks, the figures before, strain and contrast, left as they were; ``estimate=2``: only where the least strain lies two steps inside the grid), ``onsheet``: of the points read, those
 that start on the sheet (an oracle: what the points off it cost), ``whole``: the points over
 the whole frame, backdrop and all, not over the sheet, ``piece``: of the points read, the one
 piece that moves most, as ``experiments/kinect_box_parts.py`` finds the paper); the first is the reference, each
@@ -224,7 +224,7 @@ def main() -> None:
                 row[f"{name} strain"] = strain(xy, depths, through, distances, lever)
                 if lever["contrast"]:  # how sharply the strain picks a focal length: recorded for a gate, not used here
                     estimate = isometric.estimate_focal(xy[:, np.isfinite(xy).all(axis=(0, 2))], video.shape[1:], evaluations=lever["cevals"],
-                                                        smooth=lever["csmooth"])
+                                                        smooth=lever["csmooth"], anchor=lever["canchor"])
                     row[f"{name} contrast"] = estimate.contrast
                     row[f"{name} strains"] = " ".join(f"{s:.6g}" for s in estimate.strains)  # the whole curve, for gates read off it later
                     if lever["estimate"] == 1 or (lever["estimate"] == 2 and estimate.inside):

@@ -17,7 +17,7 @@ import nrdepth
 from nrdepth import isometric
 from nrdepth.isometric import least_disagreeing
 from nrdepth.isometric.hold import HOLD_WINDOW
-from nrdepth.isometric.mdh import _refine, _socp
+from nrdepth.isometric.mdh import _refine, _socp, solve_template
 from nrdepth.baselines.tracks import densify
 
 FOCAL = 500.0
@@ -908,6 +908,20 @@ def test_tracks_smoothed_in_time_give_back_the_focal_length_that_the_trackers_no
     for bad in (-1.0, float("nan"), "1"):
         with pytest.raises(ValueError, match="smooth"):
             isometric.estimate_focal(xy, (300, 300), smooth=bad)
+
+
+def test_a_refined_template_pulled_towards_its_cone_program_strays_less_the_harder_it_is_pulled():
+    xy = slowly_rolled_sheet()[::12] + np.random.default_rng(1).normal(0, 0.2, (4, 81, 2))
+    rays, pairs = nrdepth.Camera(FOCAL, (0.0, 0.0)).rays(xy), isometric.neighbour_pairs(xy[0], 8)
+    program, _ = solve_template(rays, pairs)
+    free = solve_template(rays, pairs, refined=True)
+    assert all(np.array_equal(a, b) for a, b in zip(solve_template(rays, pairs, refined=True, anchor=0.0), free))
+    strays = [np.abs(solve_template(rays, pairs, refined=True, anchor=a)[0] - program).mean() for a in (0.0, 0.01, 1.0)]
+    assert strays[0] > strays[1] > strays[2]
+    with pytest.raises(ValueError, match="anchor"):
+        solve_template(rays, pairs, refined=True, anchor=-0.1)
+    with pytest.raises(ValueError, match="anchor"):
+        isometric.estimate_focal(xy, (300, 300), anchor=float("nan"))
 
 
 def test_the_points_that_move_are_kept_and_the_backdrops_by_the_sheets_edge_left_out():

@@ -40,6 +40,7 @@ import numpy as np
 from ..camera import Camera
 from ..checks import is_number
 from .mdh import keyframe_indices, neighbour_pairs, pair_strain, solve_template
+from .mirror import check_anchor
 
 __all__ = ["estimate_focal", "focal_grid", "least_strain", "FocalEstimate", "VIEWS", "STEPS", "POINTS"]
 
@@ -84,7 +85,7 @@ class FocalEstimate:
 
 def estimate_focal(xy: np.ndarray, frame: Tuple[int, int], centre: Optional[Tuple[float, float]] = None, keyframes: int = 8,
                    neighbours: int = 8, views: Tuple[float, float] = VIEWS, steps: int = STEPS, points: int = POINTS,
-                   evaluations: int = 100, smooth: float = 0.0) -> FocalEstimate:
+                   evaluations: int = 100, smooth: float = 0.0, anchor: float = 0.0) -> FocalEstimate:
     """The focal length (pixels) through which tracks ``xy`` (T, n, 2),
     finite in every frame, of a sheet in frames of ``frame`` (H, W) keep
     their pairs' lengths best (module docstring): ``keyframes`` frames
@@ -98,7 +99,11 @@ def estimate_focal(xy: np.ndarray, frame: Tuple[int, int], centre: Optional[Tupl
     ``kinect_paper``'s held points 0.1 px of noise takes the contrast from
     3.9 to 2.6, smoothed over 1 frame 3.5); not the stage's: on fresh
     generated sheets it read worse (docs/campaign.md, "The focal length's
-    strain from tracks smoothed in time"). The focal lengths are read one after another, on
+    strain from tracks smoothed in time"); ``anchor``: each refinement's
+    depths also pulled towards its cone program's by this weight (0: free;
+    ``solve_template``'s), so that it stays in the taut start's basin,
+    where the focal length shows (an experiment: docs/campaign.md, "What
+    comes next"). The focal lengths are read one after another, on
     one BLAS thread: their refinements are bound by Python (SciPy's
     LSMR), and in two threads they contend for the GIL (on
     ``kinect_paper``'s held points 10.1 s against 7.3, the same answer)."""
@@ -117,6 +122,7 @@ def estimate_focal(xy: np.ndarray, frame: Tuple[int, int], centre: Optional[Tupl
         raise ValueError(f"frame: expected (H, W) pixels, got {frame!r}")
     if not (is_number(smooth) and smooth >= 0):
         raise ValueError(f"smooth: expected frames >= 0 (0: the tracks as they are), got {smooth!r}")
+    check_anchor(anchor)
     if smooth > 0:
         from scipy.ndimage import gaussian_filter1d
 
@@ -130,7 +136,7 @@ def estimate_focal(xy: np.ndarray, frame: Tuple[int, int], centre: Optional[Tupl
     def strain(focal: float) -> float:
         camera = Camera(float(focal), centre).at(tuple(frame))
         rays = camera.rays(tracks)
-        depths, distances = solve_template(rays, pairs, refined=True, evaluations=evaluations)
+        depths, distances = solve_template(rays, pairs, refined=True, evaluations=evaluations, anchor=anchor)
         return pair_strain(tracks, depths, camera, pairs, distances)
 
     # One BLAS thread: the same rounding on any machine, and no BLAS threads spinning beside Python-bound work.

@@ -133,7 +133,7 @@ def _socp(rays: np.ndarray, pairs: np.ndarray, distances: Optional[np.ndarray],
 
 
 def _refine(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distances: np.ndarray,
-            evaluations: int) -> Tuple[np.ndarray, np.ndarray]:
+            evaluations: int, anchor: float = 0.0) -> Tuple[np.ndarray, np.ndarray]:
     """Depths (M, n) and template distances (E,), from ``depths`` (NaN:
     not in view) and ``distances``, that make each pair's distance
     ``‖Z_i r_i − Z_j r_j‖`` equal to its ``D_ij`` in every frame where
@@ -142,7 +142,12 @@ def _refine(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distances: 
     sheet towards the camera gains nothing), depths and distances kept
     positive, ``Σ D = E`` kept by one more residual; trust-region
     reflective Gauss–Newton with the sparse exact Jacobian, at most
-    ``evaluations`` evaluations (it stops where it got to)."""
+    ``evaluations`` evaluations (it stops where it got to). ``anchor`` > 0:
+    each depth also pulled towards its start by one more residual,
+    ``√anchor · (Z − Z⁰) / mean(Z⁰)`` (as
+    :func:`~nrdepth.isometric.mirror.keep_lengths`' frame by frame), so
+    that the answer stays in the basin of the cone program's taut start
+    (deeper minima lie elsewhere: docs/campaign.md, "What comes next")."""
     from scipy import sparse
     from scipy.optimize import least_squares
     from threadpoolctl import threadpool_limits
@@ -163,8 +168,12 @@ def _refine(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distances: 
     def chords(x: np.ndarray) -> np.ndarray:
         return x[depth_i, None] * ray_i - x[depth_j, None] * ray_j
 
+    taut = depths[seen]  # Z⁰: where the refinement starts
+    pull = np.sqrt(anchor) / np.mean(taut) if anchor else 0.0
+
     def residuals(x: np.ndarray) -> np.ndarray:
-        return np.append(np.linalg.norm(chords(x), axis=1) / x[N + e] - 1, (x[N:].sum() / E - 1) * weight)
+        out = np.append(np.linalg.norm(chords(x), axis=1) / x[N + e] - 1, (x[N:].sum() / E - 1) * weight)
+        return np.concatenate([out, pull * (x[:N] - taut)]) if anchor else out
 
     rows = np.arange(K)
 
@@ -175,9 +184,11 @@ def _refine(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distances: 
         distance = x[N + e]
         values = [np.einsum("ka,ka->k", unit, ray_i) / distance, -np.einsum("ka,ka->k", unit, ray_j) / distance,
                   -length / distance**2, np.full(E, weight / E)]
-        return sparse.csr_matrix((np.concatenate(values), (np.concatenate([rows, rows, rows, np.full(E, K)]),
-                                                           np.concatenate([depth_i, depth_j, N + e, N + np.arange(E)]))),
-                                 shape=(K + 1, N + E))
+        at_rows, at_columns = [rows, rows, rows, np.full(E, K)], [depth_i, depth_j, N + e, N + np.arange(E)]
+        if anchor:
+            values, at_rows, at_columns = values + [np.full(N, pull)], at_rows + [K + 1 + np.arange(N)], at_columns + [np.arange(N)]
+        return sparse.csr_matrix((np.concatenate(values), (np.concatenate(at_rows), np.concatenate(at_columns))),
+                                 shape=(K + 1 + (N if anchor else 0), N + E))
 
     start = np.maximum(np.append(depths[seen], distances), 0.0)  # the cone program's answer may sit a rounding below a bound
     # One BLAS thread: a threaded BLAS sums the solver's long dot products in an order that depends on its
@@ -325,15 +336,17 @@ def mdh_depths(xy: np.ndarray, camera: Union[Camera, float, Tuple[float, float]]
 
 
 def solve_template(rays: np.ndarray, pairs: np.ndarray, seen: Optional[np.ndarray] = None, refined: bool = False,
-                   evaluations: int = 100) -> Tuple[np.ndarray, np.ndarray]:
+                   evaluations: int = 100, anchor: float = 0.0) -> Tuple[np.ndarray, np.ndarray]:
     """The depths (M, n) of frames solved together, their points' ``rays``
     (M, n, 3) (``seen`` (M, n): in view, default all; NaN where not), and
     the template distances (E,) of ``pairs`` (E, 2) that the joint cone
     program gives them; ``refined``: then each pair held to its distance
-    in every frame (least squares, at most ``evaluations`` evaluations):
+    in every frame (least squares, at most ``evaluations`` evaluations;
+    ``anchor``: each depth also pulled towards the program's, :func:`_refine`'s):
     :func:`mdh_depths`' keyframes, ``template`` "joint" or "refined"."""
+    check_anchor(anchor)
     depths, distances = _socp(rays, pairs, None, seen)
-    return _refine(rays, pairs, depths, distances, evaluations) if refined else (depths, distances)
+    return _refine(rays, pairs, depths, distances, evaluations, anchor) if refined else (depths, distances)
 
 
 def pair_strain(xy: np.ndarray, depths: np.ndarray, camera: Camera, pairs: np.ndarray, distances: np.ndarray) -> float:
