@@ -93,17 +93,14 @@ def estimate_focal(xy: np.ndarray, frame: Tuple[int, int], centre: Optional[Tupl
     ``steps`` focal lengths over pinholes seeing ``views`` degrees, at
     most ``points`` points, each refinement at most ``evaluations``
     evaluations (``solve_template``'s); ``centre``: the principal point (default: the
-    frame's centre); ``smooth``: the tracks first smoothed in time by a
-    Gaussian of this many frames (0: as tracked), since the trackers' noise
-    sets a floor under the strain that flattens its valley (on
-    ``kinect_paper``'s held points 0.1 px of noise takes the contrast from
-    3.9 to 2.6, smoothed over 1 frame 3.5); not the stage's: on fresh
-    generated sheets it read worse (docs/campaign.md, "The focal length's
-    strain from tracks smoothed in time"); ``anchor``: each refinement's
-    depths also pulled towards its cone program's by this weight (0: free;
-    ``solve_template``'s), so that it stays in the taut start's basin,
-    where the focal length shows (an experiment: docs/campaign.md, "What
-    comes next"). The focal lengths are read one after another, on
+    frame's centre). Two experiments, neither the stage's
+    (docs/campaign.md, "The focal length's strain from tracks smoothed in
+    time" and "What comes next"): ``smooth``, the tracks first smoothed in
+    time by a Gaussian of this many frames (0: as tracked), against the
+    floor the trackers' noise sets under the strain; ``anchor``, each
+    refinement pulled towards its cone program's depths by this weight
+    (0: free; ``solve_template``'s), to keep it in the taut start's
+    basin, where the focal length shows. The focal lengths are read one after another, on
     one BLAS thread: their refinements are bound by Python (SciPy's
     LSMR), and in two threads they contend for the GIL (on
     ``kinect_paper``'s held points 10.1 s against 7.3, the same answer)."""
