@@ -905,7 +905,7 @@ def test_tracks_smoothed_in_time_give_back_the_focal_length_that_the_trackers_no
     assert smoothed.contrast > 2 * raw.contrast and abs(smoothed.focal - FOCAL) < abs(raw.focal - FOCAL)
     clean = isometric.estimate_focal(xy, (300, 300), (0.0, 0.0), keyframes=4, smooth=1, evaluations=30)  # the sheet's own motion barely blurred
     assert clean.focal == pytest.approx(FOCAL, rel=0.03) and clean.contrast > 3
-    for bad in (-1.0, float("nan"), "1"):
+    for bad in (-1.0, float("nan"), float("inf"), "1"):
         with pytest.raises(ValueError, match="smooth"):
             isometric.estimate_focal(xy, (300, 300), smooth=bad)
 

@@ -117,8 +117,8 @@ def estimate_focal(xy: np.ndarray, frame: Tuple[int, int], centre: Optional[Tupl
             raise ValueError(f"{name}: expected an int >= {least}, got {value!r}")
     if len(frame) != 2 or min(frame) < 1:
         raise ValueError(f"frame: expected (H, W) pixels, got {frame!r}")
-    if not (is_number(smooth) and smooth >= 0):
-        raise ValueError(f"smooth: expected frames >= 0 (0: the tracks as they are), got {smooth!r}")
+    if not (is_number(smooth) and np.isfinite(smooth) and smooth >= 0):
+        raise ValueError(f"smooth: expected finite frames >= 0 (0: the tracks as they are), got {smooth!r}")
     check_anchor(anchor)
     if smooth > 0:
         from scipy.ndimage import gaussian_filter1d

@@ -190,7 +190,7 @@ def _refine(rays: np.ndarray, pairs: np.ndarray, depths: np.ndarray, distances: 
         return sparse.csr_matrix((np.concatenate(values), (np.concatenate(at_rows), np.concatenate(at_columns))),
                                  shape=(K + 1 + (N if anchor else 0), N + E))
 
-    start = np.maximum(np.append(depths[seen], distances), 0.0)  # the cone program's answer may sit a rounding below a bound
+    start = np.maximum(np.append(taut, distances), 0.0)  # the cone program's answer may sit a rounding below a bound
     # One BLAS thread: a threaded BLAS sums the solver's long dot products in an order that depends on its
     # thread count, and a hundred Gauss–Newton steps carry that rounding into the answer's fourth digit.
     with threadpool_limits(limits=1, user_api="blas"):
