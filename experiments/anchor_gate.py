@@ -8,10 +8,13 @@ strain gates as they are; the default's reading
 hold, the network elsewhere) on the sheets and on ``--noise``, against
 today's default and the network, paired per frame. Without ``--only``,
 every candidate and the rule's choice; with it, that candidate alone
-(the rule's fresh read).
+(the rule's fresh read). With ``--or-today``, each candidate where its
+gate holds and today's default elsewhere (which reads where today's
+gate holds).
 
     python experiments/anchor_gate.py docs/reconstruction/anchor_{below,above}_*.csv --noise docs/reconstruction/anchor_noise_*.csv
     python experiments/anchor_gate.py docs/reconstruction/gate_{below,above}_*.csv --noise docs/reconstruction/gate_noise_*.csv --only 0.03 1.5
+    python experiments/anchor_gate.py docs/reconstruction/either_{below,above}_*.csv --noise docs/reconstruction/either_noise_*.csv --only 0.03 1.5 --or-today
 """
 
 from __future__ import annotations
@@ -47,12 +50,13 @@ def main() -> None:
     parser.add_argument("csv", type=Path, nargs="+", help="sheet_levers.py's CSVs of the sheets (D and D:canchor=a for each anchor)")
     parser.add_argument("--noise", type=Path, nargs="+", required=True, help="sheet_levers.py's CSVs of videos that are no sheet")
     parser.add_argument("--only", nargs=2, type=float, metavar=("ANCHOR", "THRESHOLD"), default=None, help="one candidate, and the rule's fresh criteria")
+    parser.add_argument("--or-today", action="store_true", help="each candidate where its gate holds, today's default elsewhere")
     args = parser.parse_args()
     gates = (MAX_STRAIN, MIN_READ, 400)
     sheets, noise = rows_of(args.csv), rows_of(args.noise)
     network, noise_network = column(sheets, "network per frame"), column(noise, "network per frame")
     today, today_read = default_reading(sheets, D, *gates, TODAY)
-    today_noise, _ = default_reading(noise, D, *gates, TODAY)
+    today_noise, today_noise_read = default_reading(noise, D, *gates, TODAY)
     print(f"{len(sheets)} sheets: the network {network.mean():.4f}, the bowl {column(sheets, 'bowl per frame').mean():.4f}; "
           f"{len(noise)} noise videos: the network {noise_network.mean():.4f}")
     print(f"today (contrast >= {TODAY:g}) reads {today_read.sum()} sheets, {paired(today, network)} against the network; {lights_agree(sheets, today_read)}")
@@ -62,6 +66,9 @@ def main() -> None:
         on_sheets, read = default_reading(sheets, setting(anchor), *gates, threshold)
         on_noise, noise_read = default_reading(noise, setting(anchor), *gates, threshold)
         near_noise = default_reading(noise, setting(anchor), *gates, threshold / MARGIN)[1].sum()
+        if args.or_today:
+            on_sheets, read = np.where(read, on_sheets, today), read | today_read
+            on_noise, noise_read = np.where(noise_read, on_noise, today_noise), noise_read | today_noise_read
         print(f"anchor {anchor:<4g} >= {threshold:<4g}: sheets read {read.sum():2d} (both {(read & today_read).sum()}), {paired(on_sheets, today)} against today, "
               f"{paired(on_sheets, network)} against the network; noise read {noise_read.sum()} ({near_noise} at {threshold / MARGIN:.2f}), "
               f"{paired(on_noise, noise_network)} against the network; {lights_agree(sheets, read)}")
