@@ -27,10 +27,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 from default_gate import MIN_READ, default_reading, lights_agree, rows_of  # noqa: E402
-from strain_gate import column, paired  # noqa: E402
+from strain_gate import T, column, paired  # noqa: E402
 
-D = "margin=48:keyframes=8:neighbours=8:each=lengths:hold=1:keep=0.8:throughout=1:template=refined:fov=40:whole=1:moving=1:relmove=0.2:trim=3:contrast=1:estimate=2"
-TODAY = 2.0
+D = T + ":fov=40:whole=1:moving=1:relmove=0.2:trim=3:contrast=1:estimate=2"
 ANCHORS = (0.01, 0.03, 0.09)
 THRESHOLDS = (1.1, 1.2, 1.3, 1.4, 1.5, 1.75, 2.0)
 MARGIN = 1.2
@@ -44,7 +43,7 @@ def setting(anchor: float) -> str:
 
 
 def main() -> None:
-    from nrdepth.reconstruct.sheet import MAX_STRAIN
+    from nrdepth.reconstruct.sheet import MAX_STRAIN, MIN_CONTRAST as TODAY
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("csv", type=Path, nargs="+", help="sheet_levers.py's CSVs of the sheets (D and D:canchor=a for each anchor)")
