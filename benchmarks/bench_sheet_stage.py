@@ -46,7 +46,13 @@ only: :func:`held_thresholds`), ``contrast``
 contrast on the points read, recorded, not used), ``cevals`` (with
 ``contrast``: its refinements' evaluations, ``estimate_focal``'s
 ``evaluations``), ``csmooth`` and ``canchor`` (with ``contrast``: ``estimate_focal``'s
-``smooth`` and ``anchor``), ``onsheet``
+``smooth`` and ``anchor``), ``smooth`` (with ``throughout``: the points
+read smoothed in time by a Gaussian of this many frames, before the
+trim, the programs and the contrast), ``rsmooth`` (``sheet_levers.py``
+only, with ``throughout``: the gates, the trim and the estimate read the
+points as tracked, and only the shape that is fused is solved again, on
+the points read smoothed in time by a Gaussian of this many frames, through
+the camera the reading chose), ``onsheet``
 (``sheet_levers.py`` only, 1: of the points read, those that start on the
 sheet's true region: an oracle).
 With ``hold``, where fewer of the point-frames in view are held than the
@@ -108,13 +114,13 @@ def held_thresholds(fb: Optional[float] = None, ncc: Optional[float] = None) -> 
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0, "fscale": 1.0, "contrast": 0, "cevals": 100, "csmooth": 0.0, "canchor": 0.0, "onsheet": 0, "relmove": 0.0, "trim": 0.0, "fb": None, "estimate": 0, "stride": 1}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0, "fscale": 1.0, "contrast": 0, "cevals": 100, "csmooth": 0.0, "canchor": 0.0, "onsheet": 0, "relmove": 0.0, "trim": 0.0, "fb": None, "estimate": 0, "stride": 1, "smooth": 0.0, "rsmooth": 0.0}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
             raise SystemExit(f"--settings: unknown lever {key!r} (known: {', '.join(out)})")
         out[key] = value if key in ("flow", "each", "place", "template") or (key == "fov" and value in ("strain", "held")) else \
-            float(value) if key in ("drop", "keep", "anchor", "fov", "fscale", "relmove", "trim", "fb", "csmooth", "canchor") else (None if value == "none" else int(value))
+            float(value) if key in ("drop", "keep", "anchor", "fov", "fscale", "relmove", "trim", "fb", "csmooth", "canchor", "smooth", "rsmooth") else (None if value == "none" else int(value))
     if out["keep"] and not out["hold"]:
         raise SystemExit(f"--settings {setting!r}: keep needs hold=1")
     if out["stride"] < 1:
@@ -127,6 +133,8 @@ def parse(setting: str) -> dict:
         raise SystemExit(f"--settings {setting!r}: fov is the degrees a pinhole sees across the frame's longer side, in (0, 180), strain or held")
     if out["trim"] and not out["throughout"]:
         raise SystemExit(f"--settings {setting!r}: trim needs throughout=1 (points in every frame)")
+    if (out["smooth"] or out["rsmooth"]) and not out["throughout"]:
+        raise SystemExit(f"--settings {setting!r}: smooth and rsmooth need throughout=1 (points in every frame)")
     if out["estimate"] and not out["contrast"]:
         raise SystemExit(f"--settings {setting!r}: estimate needs contrast=1 (the estimate is the contrast's)")
     if not out["backward"] and out["drop"] and not out["hold"]:
@@ -191,13 +199,19 @@ def keep_held(xy: np.ndarray, shape: tuple, lever: dict) -> np.ndarray:
     held in every frame; with ``lever["moving"]``, of those only the points
     that move at least the stage's ``MIN_MOTION`` from where they start (with
     ``lever["relmove"]``, at least that share of the median such point's motion
-    too: a still backdrop's points by the sheet's edge move a little)."""
+    too: a still backdrop's points by the sheet's edge move a little); with
+    ``lever["smooth"]``, those smoothed in time by a Gaussian of that many frames."""
     from nrdepth import isometric
     from nrdepth.reconstruct.sheet import MIN_MOTION
 
     xy = xy[:, isometric.point_held_shares(xy, shape) >= lever["keep"]] if lever["keep"] else xy
     xy = xy[:, np.isfinite(xy).all(axis=(0, 2))] if lever["throughout"] else xy
-    return xy[:, isometric.moving_points(xy, MIN_MOTION, lever["relmove"])] if lever["moving"] else xy
+    xy = xy[:, isometric.moving_points(xy, MIN_MOTION, lever["relmove"])] if lever["moving"] else xy
+    if lever.get("smooth"):  # in time, before the trim, the programs and the contrast read them
+        from scipy.ndimage import gaussian_filter1d
+
+        xy = gaussian_filter1d(xy, lever["smooth"], axis=0, mode="nearest")
+    return xy
 
 
 def trim_strained(xy: np.ndarray, camera, lever: dict) -> np.ndarray:

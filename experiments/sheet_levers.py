@@ -11,7 +11,7 @@ the programs. A setting is ``key=value`` pairs joined by ``:``, as in
 ``benchmarks/bench_sheet_stage.py`` (``margin``, ``flow``, ``keyframes``,
 ``neighbours``, ``points``, ``hold``, ``backward``, ``drop``, ``keep``, ``each``, ``anchor``, ``fov``: a guessed
 pinhole in place of the true camera (``strain``: the focal length from the points' strain; ``held``: the one an
-earlier held setting's ``strain`` found, else the guess), ``place``: the points where the first
+earlier held setting's ``strain`` found, else the guess), ``smooth``: the points read smoothed in time first, ``rsmooth``: only the shape fused read from them smoothed, the gates as tracked, ``place``: the points where the first
 frame has texture, ``inset``: the sheet's region shrunk first, ``moving``: of the points read, those that move (``relmove``: at least this share of their median motion too), ``trim``: of those,
 the points whose pairs stretch least (``bench_sheet_stage.trim_strained``), ``fscale``: the flow on frames shrunk by this factor, ``stride``: only every n-th frame tracked, ``fb``: the held tracker's way back (px), ``contrast``: ``estimate_focal``'s contrast on the points read, recorded with its strains over the grid (``cevals``: its refinements' evaluations; ``csmooth``: its tracks smoothed in time over this many frames first; ``canchor``: its refinements pulled towards their cone programs' depths by this weight; ``estimate``: then the programs solved again through the focal length it picks, the figures before, strain and contrast, left as they were; ``estimate=2``: only where the least strain lies two steps inside the grid), ``onsheet``: of the points read, those
 that start on the sheet (an oracle: what the points off it cost), ``whole``: the points over
@@ -61,6 +61,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 
 import nrdepth
 from nrdepth import GeneratorConfig, generate_clips, isometric
@@ -233,6 +234,11 @@ def main() -> None:
                         depths, distances = isometric.mdh_depths(xy, through, keyframes=lever["keyframes"], neighbours=lever["neighbours"],
                                                                  every=everies[0] if len(everies) == 1 else 1, each_frame=lever["each"],
                                                                  template=lever["template"], anchor=lever["anchor"], with_distances=True)
+                if lever["rsmooth"]:  # the gates read the tracks as they are; the shape fused, the points smoothed in time
+                    xy = gaussian_filter1d(xy, lever["rsmooth"], axis=0, mode="nearest")
+                    depths, distances = isometric.mdh_depths(xy, through, keyframes=lever["keyframes"], neighbours=lever["neighbours"],
+                                                             every=everies[0] if len(everies) == 1 else 1, each_frame=lever["each"],
+                                                             template=lever["template"], anchor=lever["anchor"], with_distances=True)
                 if true_camera is not None:
                     row[f"{name} focal ratio"] = float(through.focal[0] / true_camera.focal[0])
                 same = (key, lever["keep"], lever["keyframes"], lever["neighbours"], lever["template"], lever["throughout"])
