@@ -309,9 +309,28 @@ def test_by_default_the_sheet_found_is_read_through_the_focal_length_its_strain_
     assert found.used and found.guessed and found.focal_estimate == picked.focal and picked.contrast >= MIN_CONTRAST
     if picked.inside:  # the gates through the guess, the shape through the estimate
         assert found.focal == (picked.focal,) * 2 and seen[:read_first] == [guess, found.focal] and " px estimated," in found.line()
-    else:  # a valley at the grid's edge: the guess
-        assert found.focal == guess and seen[:read_first] == [guess] and " px guessed," in found.line()
+    else:  # a valley at the grid's edge: the guess (the shape again from the points smoothed in time)
+        assert found.focal == guess and seen[:read_first] == [guess, guess] and " px guessed," in found.line()
     assert given.used and not given.guessed and set(seen[read_first:]) == {(picked.focal,) * 2}  # given, that focal length alone
+
+
+def test_the_shape_fused_is_solved_from_the_points_smoothed_in_time_while_every_gate_reads_them_as_tracked(model, bending):
+    from scipy.ndimage import gaussian_filter1d
+
+    from nrdepth.reconstruct.sheet import READ_SMOOTH, estimate_focal, mdh_depths, unstrained_points
+
+    options = {key: value for key, value in OPTIONS.items() if key != "focal"}
+    solved, gated = [], []
+    # MIN_CONTRAST: a clip too small for the strain to pick a focal length sharply
+    with decided(mdh_depths=lambda xy, *a, **k: solved.append(xy) or mdh_depths(xy, *a, **k),
+                 unstrained_points=lambda xy, *a, **k: gated.append(xy) or unstrained_points(xy, *a, **k),
+                 estimate_focal=lambda xy, *a, **k: gated.append(xy) or estimate_focal(xy, *a, **k), MIN_CONTRAST=1.0) as decisions:
+        nrdepth.reconstruct(bending, model, device="cpu", **options)
+    assert decisions[0].used and decisions[0].template == "refined" and len(solved) == 2
+    tracked, fused = solved
+    assert np.array_equal(gated[-1], tracked) and gated[0].shape[0] == tracked.shape[0]  # the trim and the estimate: the points as tracked
+    assert READ_SMOOTH > 0 and np.array_equal(fused, gaussian_filter1d(tracked, READ_SMOOTH, axis=0, mode="nearest"))
+    assert np.abs(fused - tracked).max() > 1e-3  # smoothed: the points moved
 
 
 def test_with_a_focal_length_but_no_sheet_the_sheet_is_found_first_as_by_default(model, bending):

@@ -42,7 +42,7 @@ from .frames import CHUNK, as_uint8, as_unit_float, resize, working_shape
 from .decision import SheetDecision
 from .options import ISOMETRIC_SCALE, REFINED_SCALE, ReconstructOptions
 
-__all__ = ["sheet_region", "sheet_depth", "read_sheet", "read_beside", "SheetReading", "SheetDecision", "FLOW_MARGIN", "KEYFRAMES", "EVERY", "NEIGHBOURS", "TRACK_SIDE", "MIN_FRAMES", "MIN_FRAMES_BY_DEFAULT", "MIN_TEXTURE", "MIN_MOTION", "MIN_HELD", "MIN_READ", "MOVING_SHARE", "TRIM", "MIN_CONTRAST", "KEEP_HELD", "MAX_STRAIN"]
+__all__ = ["sheet_region", "sheet_depth", "read_sheet", "read_beside", "SheetReading", "SheetDecision", "FLOW_MARGIN", "KEYFRAMES", "EVERY", "NEIGHBOURS", "TRACK_SIDE", "MIN_FRAMES", "MIN_FRAMES_BY_DEFAULT", "MIN_TEXTURE", "MIN_MOTION", "MIN_HELD", "MIN_READ", "MOVING_SHARE", "TRIM", "MIN_CONTRAST", "KEEP_HELD", "MAX_STRAIN", "READ_SMOOTH"]
 
 FLOW_MARGIN = 48
 """The sheet's points are followed by the flow over their box and this
@@ -145,6 +145,14 @@ least this share of their frames in view are read
 is rarely found, and the warp's guesses between would pull the program.
 On 32 generated print sheets they read −0.0146 ± 0.0089 per frame
 against every held point (docs/campaign.md, "Print sheets")."""
+
+READ_SMOOTH = 1.0
+"""Frames: the held points read (found in every frame) are smoothed in
+time by a Gaussian of this many frames before the shape that is fused is
+solved from them; every gate (the trim, the strain, the contrast, the
+focal length's estimate) reads them as tracked. A sheet's reading turns
+on a third of a pixel of its tracks (docs/campaign.md, "The shape read
+from its points smoothed in time, the gates as tracked")."""
 
 MAX_STRAIN = 0.0107
 """With ``isometric_template="auto"``: the held points' ``refined``
@@ -411,7 +419,7 @@ def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, find: bool, throug
         except NotSolved as error:  # e.g. a focal length far too long: rays nearly parallel, no perspective to read the shape by
             return no_answer.format(error.status)
 
-    solved = solve(camera)
+    solved, seen = solve(camera), camera
     if isinstance(solved, str):
         return solved
     depths, distances = solved
@@ -430,12 +438,16 @@ def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, find: bool, throug
         if not estimate.contrast >= MIN_CONTRAST:
             return f"no focal length keeps their pairs' lengths better than the others (contrast {estimate.contrast:.2f} < {MIN_CONTRAST:g}): no sheet"
         if options.focal is None and estimate.inside:  # the gates passed through the guess; the shape through the focal length the strain picks
-            estimated = Camera(estimate.focal, camera.centre)
-            solved = solve(estimated)
-            if isinstance(solved, str):
-                return solved
-            depths = solved[0]
-            record.update(focal=tuple(map(float, estimated.focal)))
+            seen = Camera(estimate.focal, camera.centre)
+    if through or find:  # the gates read the points as tracked; the shape fused, from them smoothed in time
+        from scipy.ndimage import gaussian_filter1d
+
+        xy = gaussian_filter1d(xy, READ_SMOOTH, axis=0, mode="nearest")
+        solved = solve(seen)
+        if isinstance(solved, str):
+            return solved
+        depths = solved[0]
+        record.update(focal=tuple(map(float, seen.focal)))
     return xy, depths
 
 
