@@ -50,7 +50,7 @@ import numpy as np
 
 import nrdepth
 import nrdepth.isometric.points as points
-from nrdepth.isometric import point_held_shares, track_grid
+from nrdepth.isometric import DROP, point_held_shares, track_grid
 from nrdepth.isometric.hold import Anchor
 
 SETTINGS = {"none": dict(backward=False, drop=0.0), "quarter": dict(flow_scale=0.25, backward=False, drop=0.0), "today": {}}
@@ -100,7 +100,7 @@ def count(predict: str, passes: int) -> None:
 
     frames = kinect_video()
     start, seconds = cpu(), time.perf_counter()
-    xy = track_grid(frames, np.ones(frames.shape[1:], bool), points=400, margin=48, hold=True, **({"drop": 0.2} | SETTINGS[predict]))
+    xy = track_grid(frames, np.ones(frames.shape[1:], bool), points=400, margin=48, hold=True, **({"drop": DROP} | SETTINGS[predict]))
     seconds, start = time.perf_counter() - seconds, cpu() - start
     every = int(np.isfinite(xy).all(axis=(0, 2)).sum())
     often = int((point_held_shares(xy, frames.shape[1:]) >= 0.8).sum())

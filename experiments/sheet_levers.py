@@ -207,9 +207,7 @@ def main() -> None:
                         trimmed_px = np.clip(np.rint(xy[0]).astype(int), 0, [video.shape[2] - 1, video.shape[1] - 1])
                         row[f"{name} trimmed"], row[f"{name} trimmed on sheet"] = xy.shape[1], float(np.mean(on[0][trimmed_px[:, 1], trimmed_px[:, 0]]))
                     # One every: solved as the stage solves it; several: read off the every-frame solution
-                    depths, distances = isometric.mdh_depths(xy, through, keyframes=lever["keyframes"], neighbours=lever["neighbours"],
-                                                             every=everies[0] if len(everies) == 1 else 1, each_frame=lever["each"], template=lever["template"],
-                                                             anchor=lever["anchor"], with_distances=True)
+                    depths, distances = program(xy, through, lever, everies[0] if len(everies) == 1 else 1)
                 except ValueError as error:  # the stage steps aside: the network's depth
                     print(f"  {name}: steps aside ({error})", flush=True)
                     for n in everies:
@@ -231,14 +229,10 @@ def main() -> None:
                     if lever["estimate"] == 1 or (lever["estimate"] == 2 and estimate.inside):
                         # the depths through the estimate (2: where its least lies two steps inside the grid); strain and contrast as read
                         through = nrdepth.Camera(estimate.focal).at(video.shape[1:])
-                        depths, distances = isometric.mdh_depths(xy, through, keyframes=lever["keyframes"], neighbours=lever["neighbours"],
-                                                                 every=everies[0] if len(everies) == 1 else 1, each_frame=lever["each"],
-                                                                 template=lever["template"], anchor=lever["anchor"], with_distances=True)
+                        depths, distances = program(xy, through, lever, everies[0] if len(everies) == 1 else 1)
                 if lever["rsmooth"]:  # the gates read the tracks as they are; the shape fused, the points smoothed in time
                     xy = gaussian_filter1d(xy, lever["rsmooth"], axis=0, mode="nearest")
-                    depths, distances = isometric.mdh_depths(xy, through, keyframes=lever["keyframes"], neighbours=lever["neighbours"],
-                                                             every=everies[0] if len(everies) == 1 else 1, each_frame=lever["each"],
-                                                             template=lever["template"], anchor=lever["anchor"], with_distances=True)
+                    depths, distances = program(xy, through, lever, everies[0] if len(everies) == 1 else 1)
                 if true_camera is not None:
                     row[f"{name} focal ratio"] = float(through.focal[0] / true_camera.focal[0])
                 same = (key, lever["keep"], lever["keyframes"], lever["neighbours"], lever["template"], lever["throughout"])
@@ -277,6 +271,14 @@ def main() -> None:
               f"{np.median([r['margin shift median px'] for r in rows]):.4f} px (the videos' medians' median; at most {max(r['margin shift max px'] for r in rows):.3f} px)")
         return
     report(rows, names)
+
+
+def program(xy: np.ndarray, camera, lever: dict, every: int) -> tuple:
+    """A setting's programs over its points ``xy`` through ``camera``
+    (``mdh_depths`` with its keyframes, neighbours, each frame, template and
+    anchor, every ``every``-th frame solved): depths and template distances."""
+    return isometric.mdh_depths(xy, camera, keyframes=lever["keyframes"], neighbours=lever["neighbours"], every=every, each_frame=lever["each"],
+                                template=lever["template"], anchor=lever["anchor"], with_distances=True)
 
 
 def truth_at(start: np.ndarray, vertices: np.ndarray, params: dict, size: int, depth: bool = False) -> np.ndarray:
