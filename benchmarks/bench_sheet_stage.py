@@ -38,7 +38,10 @@ they start: none on a still background), ``relmove`` (with ``moving``: of
 those, only the points that move at least this share of their median
 motion too), ``trim`` (of the points read, those whose pairs
 stretch in the keyframes' ``refined`` template more than this many times
-the points' median left out, up to three times over: ``trim_strained``), ``fscale`` (the flow on frames
+the points' median left out, up to three times over: ``trim_strained``), ``jump``
+(with ``trim``: also the points whose pairs' median depth step is more
+than this many median template distances, ``unstrained_points``'
+``jump``), ``fscale`` (the flow on frames
 shrunk by this factor, ``track_points``' ``flow_scale``), ``fb`` (the
 held tracker's way back, ``hold.HOLD_FB``, px; ``sheet_levers.py``
 only: :func:`held_thresholds`), ``contrast``
@@ -114,13 +117,13 @@ def held_thresholds(fb: Optional[float] = None, ncc: Optional[float] = None) -> 
 def parse(setting: str) -> dict:
     from nrdepth.isometric import DROP
 
-    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0, "fscale": 1.0, "contrast": 0, "cevals": 100, "csmooth": 0.0, "canchor": 0.0, "onsheet": 0, "relmove": 0.0, "trim": 0.0, "fb": None, "estimate": 0, "stride": 1, "smooth": 0.0, "rsmooth": 0.0}
+    out = {"margin": None, "flow": "farneback", "keyframes": 24, "neighbours": 20, "every": 1, "points": 400, "hold": 0, "backward": 1, "drop": DROP, "keep": 0.0, "each": "program", "anchor": 0.0, "fov": None, "place": "grid", "inset": 0, "whole": 0, "piece": 0, "template": "joint", "throughout": 0, "moving": 0, "fscale": 1.0, "contrast": 0, "cevals": 100, "csmooth": 0.0, "canchor": 0.0, "onsheet": 0, "relmove": 0.0, "trim": 0.0, "fb": None, "estimate": 0, "stride": 1, "smooth": 0.0, "rsmooth": 0.0, "jump": 0.0}
     for item in filter(None, setting.split(":")):
         key, _, value = item.partition("=")
         if key not in out:
             raise SystemExit(f"--settings: unknown lever {key!r} (known: {', '.join(out)})")
         out[key] = value if key in ("flow", "each", "place", "template") or (key == "fov" and value in ("strain", "held")) else \
-            float(value) if key in ("drop", "keep", "anchor", "fov", "fscale", "relmove", "trim", "fb", "csmooth", "canchor", "smooth", "rsmooth") else (None if value == "none" else int(value))
+            float(value) if key in ("drop", "keep", "anchor", "fov", "fscale", "relmove", "trim", "fb", "csmooth", "canchor", "smooth", "rsmooth", "jump") else (None if value == "none" else int(value))
     if out["keep"] and not out["hold"]:
         raise SystemExit(f"--settings {setting!r}: keep needs hold=1")
     if out["stride"] < 1:
@@ -133,6 +136,8 @@ def parse(setting: str) -> dict:
         raise SystemExit(f"--settings {setting!r}: fov is the degrees a pinhole sees across the frame's longer side, in (0, 180), strain or held")
     if out["trim"] and not out["throughout"]:
         raise SystemExit(f"--settings {setting!r}: trim needs throughout=1 (points in every frame)")
+    if out["jump"] and not out["trim"]:
+        raise SystemExit(f"--settings {setting!r}: jump needs trim (it is the trim's)")
     if (out["smooth"] or out["rsmooth"]) and not out["throughout"]:
         raise SystemExit(f"--settings {setting!r}: smooth and rsmooth need throughout=1 (points in every frame)")
     if out["estimate"] and not out["contrast"]:
@@ -218,10 +223,11 @@ def trim_strained(xy: np.ndarray, camera, lever: dict) -> np.ndarray:
     """The tracks ``xy`` (T, n, 2), finite in every frame, less the points
     whose pairs stray from their lengths more than ``lever["trim"]`` times
     the points' median (``nrdepth.isometric.unstrained_points`` over
-    ``lever["keyframes"]`` and ``lever["neighbours"]``)."""
+    ``lever["keyframes"]`` and ``lever["neighbours"]``; with ``lever["jump"]``,
+    its ``jump``)."""
     from nrdepth import isometric
 
-    return xy[:, isometric.unstrained_points(xy, camera, lever["keyframes"], lever["neighbours"], lever["trim"])]
+    return xy[:, isometric.unstrained_points(xy, camera, lever["keyframes"], lever["neighbours"], lever["trim"], jump=lever.get("jump") or None)]
 
 
 def box_check(frames: np.ndarray, box: np.ndarray) -> None:

@@ -126,6 +126,14 @@ nearest of three ways to the points that start on the sheet, on 32
 generated paper-like sheets (docs/campaign.md, "Why the default's reading
 did not hold")."""
 
+JUMP: Optional[float] = None
+"""To find the sheet: with :data:`TRIM`, the points whose pairs' median
+depth step is more than this many median template distances are left
+out too (:func:`~nrdepth.isometric.unstrained_points`' ``jump``): a point
+off the sheet keeps its pairs' lengths by sitting at the camera or far
+behind. None: not used (docs/campaign.md, "Points off the sheet that
+keep their lengths by their depth")."""
+
 MIN_CONTRAST = 2.0
 """To find the sheet: where the strain of the points read does not pick
 out a focal length (:func:`~nrdepth.isometric.estimate_focal`'s
@@ -396,7 +404,7 @@ def _read(xy: np.ndarray, frame: Tuple[int, int], hold: bool, find: bool, throug
                 f"{read.sum()} points {held_in} move, fewer than {MIN_READ:.0%} of the {options.isometric_points} asked for: no sheet that bends"
         check()
         try:
-            read[read] = unstrained_points(xy[:, read], camera, KEYFRAMES, NEIGHBOURS, TRIM)
+            read[read] = unstrained_points(xy[:, read], camera, KEYFRAMES, NEIGHBOURS, TRIM, jump=JUMP)
             record.update(points=int(read.sum()))
         except NotSolved as error:
             return no_answer.format(error.status)
