@@ -970,3 +970,17 @@ def test_the_points_whose_pairs_keep_their_lengths_are_the_sheets_and_not_intrud
     for jump in (0.0, -1.0, np.inf, "3"):
         with pytest.raises(ValueError, match="^jump: expected"):
             isometric.unstrained_points(tracks, camera, jump=jump)
+
+
+def test_each_points_median_over_its_pairs_agrees_with_brute_force():
+    from nrdepth.isometric.found import _median_by_point
+
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        n = int(rng.integers(1, 12))
+        pairs = rng.integers(0, n, (int(rng.integers(1, 30)), 2))
+        pairs = pairs[pairs[:, 0] != pairs[:, 1]]  # neighbour pairs never tie a point to itself
+        values = rng.normal(size=len(pairs))
+        brute = [np.median(values[(pairs == k).any(axis=1)]) if (pairs == k).any() else 0.0 for k in range(n)]
+        np.testing.assert_allclose(_median_by_point(pairs, values, n), brute, rtol=0, atol=1e-15)
+

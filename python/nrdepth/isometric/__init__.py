@@ -44,7 +44,8 @@ away through perspective. Three steps:
 
 Where the points are not cut to the sheet, :func:`moving_points` and
 :func:`unstrained_points` (:mod:`~nrdepth.isometric.found`) keep the
-sheet's: those that move, and those whose pairs keep their lengths; and
+sheet's: those that move, and those whose pairs keep their lengths
+without stepping far in depth; and
 :func:`estimate_focal` says how sharply their strain picks a focal length.
 
 Frames and units: pixel coordinates (column x, row y, pixel centres at

@@ -118,5 +118,7 @@ def _median_by_point(pairs: np.ndarray, values: np.ndarray, n: int) -> np.ndarra
     point, value = point[order], value[order]
     start = np.searchsorted(point, np.arange(n))
     count = np.bincount(point, minlength=n)
-    low, high = start + (count - 1) // 2, start + count // 2
-    return np.where(count > 0, (value[np.minimum(low, len(value) - 1)] + value[np.minimum(high, len(value) - 1)]) / 2, 0.0)
+    if not len(value):
+        return np.zeros(n)
+    low, high = (np.clip(start + k, 0, len(value) - 1) for k in ((count - 1) // 2, count // 2))  # clipped: a point in no pair reads 0 below
+    return np.where(count > 0, (value[low] + value[high]) / 2, 0.0)
