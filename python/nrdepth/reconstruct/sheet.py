@@ -132,7 +132,7 @@ depth step is more than this many median template distances are left
 out too (:func:`~nrdepth.isometric.unstrained_points`' ``jump``): a point
 off the sheet keeps its pairs' lengths by sitting at the camera or far
 behind. Adopted by a rule that asked it to cost 32 fresh generated sheets
-nothing (+0.0007 ± 0.0007 per frame; the real videos read as before;
+at most +0.002 per frame (+0.0007 ± 0.0007; the real videos read as before;
 docs/campaign.md, "Points off the sheet that keep their lengths by their
 depth")."""
 
