@@ -900,9 +900,13 @@ def slowly_rolled_sheet(frames: int = 48, side: int = 9) -> np.ndarray:
 
 def test_tracks_smoothed_in_time_give_back_the_focal_length_that_the_trackers_noise_hides():
     xy = slowly_rolled_sheet()
-    noisy = xy + np.random.default_rng(0).normal(0, 0.2, xy.shape)  # 0.2 px in every frame floors the strain and flattens its valley
-    raw, smoothed = (isometric.estimate_focal(noisy, (300, 300), (0.0, 0.0), keyframes=4, smooth=s, evaluations=30) for s in (0, 1))
-    assert smoothed.contrast > 2 * raw.contrast and abs(smoothed.focal - FOCAL) < abs(raw.focal - FOCAL)
+    closer, gains = 0, []
+    for seed in range(6):  # a property of the draws, not of one: a refinement's basin turns on small changes of its tracks
+        noisy = xy + np.random.default_rng(seed).normal(0, 0.2, xy.shape)  # 0.2 px in every frame floors the strain and flattens its valley
+        raw, smoothed = (isometric.estimate_focal(noisy, (300, 300), (0.0, 0.0), keyframes=4, smooth=s, evaluations=30) for s in (0, 1))
+        closer += abs(smoothed.focal - FOCAL) < abs(raw.focal - FOCAL)
+        gains.append(smoothed.contrast / raw.contrast)
+    assert closer >= 5 and np.median(gains) > 2
     clean = isometric.estimate_focal(xy, (300, 300), (0.0, 0.0), keyframes=4, smooth=1, evaluations=30)  # the sheet's own motion barely blurred
     assert clean.focal == pytest.approx(FOCAL, rel=0.03) and clean.contrast > 3
     for bad in (-1.0, float("nan"), float("inf"), "1"):
