@@ -42,7 +42,7 @@ from .frames import CHUNK, as_uint8, as_unit_float, resize, working_shape
 from .decision import SheetDecision
 from .options import ISOMETRIC_SCALE, REFINED_SCALE, ReconstructOptions
 
-__all__ = ["sheet_region", "sheet_depth", "read_sheet", "read_beside", "SheetReading", "SheetDecision", "FLOW_MARGIN", "KEYFRAMES", "EVERY", "NEIGHBOURS", "TRACK_SIDE", "MIN_FRAMES", "MIN_FRAMES_BY_DEFAULT", "MIN_TEXTURE", "MIN_MOTION", "MIN_HELD", "MIN_READ", "MOVING_SHARE", "TRIM", "MIN_CONTRAST", "KEEP_HELD", "MAX_STRAIN", "READ_SMOOTH"]
+__all__ = ["sheet_region", "sheet_depth", "read_sheet", "read_beside", "SheetReading", "SheetDecision", "FLOW_MARGIN", "KEYFRAMES", "EVERY", "NEIGHBOURS", "TRACK_SIDE", "MIN_FRAMES", "MIN_FRAMES_BY_DEFAULT", "MIN_TEXTURE", "MIN_MOTION", "MIN_HELD", "MIN_READ", "MOVING_SHARE", "TRIM", "MIN_CONTRAST", "KEEP_HELD", "MAX_STRAIN", "READ_SMOOTH", "JUMP"]
 
 FLOW_MARGIN = 48
 """The sheet's points are followed by the flow over their box and this
