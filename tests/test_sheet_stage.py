@@ -18,7 +18,21 @@ import nrdepth.model
 from nrdepth.model import save_model
 from nrdepth import GeneratorConfig, generate_clips
 from nrdepth.reconstruct import SheetFallback, reconstruct_file
-from nrdepth.reconstruct.sheet import MAX_STRAIN, MIN_CONTRAST, MIN_FRAMES, MIN_FRAMES_BY_DEFAULT, MIN_HELD, MIN_MOTION, MIN_READ
+from nrdepth.reconstruct import SheetSettings
+
+DEFAULT = SheetSettings()
+MAX_STRAIN, MIN_CONTRAST, MIN_FRAMES, MIN_FRAMES_BY_DEFAULT = DEFAULT.max_strain, DEFAULT.min_contrast, DEFAULT.min_frames, DEFAULT.min_frames_by_default
+MIN_HELD, MIN_MOTION, MIN_READ = DEFAULT.min_held, DEFAULT.min_motion, DEFAULT.min_read
+LOOSE = SheetSettings(min_contrast=1.0)  # 36 points over 64×64 pixels: their strain picks no focal length sharply
+STEPS = {"mdh_depths": "read", "estimate_focal": "read", "template_strain": "read", "unstrained_points": "find", "moving_points": "find",
+         "track_grid": "find", "densify": "fuse", "fuse": "fuse"}
+"""Each step's function of the sheet stage, by the module of the stage that calls it."""
+
+
+def step_module(name):
+    import importlib
+
+    return importlib.import_module(f"nrdepth.reconstruct.sheet.{STEPS[name]}")
 
 OPTIONS = {"max_side": 32, "focal": 60.0, "isometric_points": 36}
 
@@ -110,8 +124,7 @@ def test_held_points_read_the_sheet_and_a_frame_without_them_sends_the_stage_asi
 def test_held_the_stage_reads_only_the_points_found_again_in_most_of_their_frames(tmp_path, model, bending):
     from nrdepth.isometric import DROP, point_held_shares, track_grid
     from nrdepth.reconstruct.frames import as_uint8
-    from nrdepth.reconstruct.sheet import FLOW_MARGIN, KEEP_HELD
-
+    
     banded = bending.copy()
     banded[:, 14:41, 14:50] = 0.8  # a flat card still in front of the sheet: the points behind it are found in few of their frames
     np.save(tmp_path / "banded.npy", banded)
@@ -120,15 +133,15 @@ def test_held_the_stage_reads_only_the_points_found_again_in_most_of_their_frame
         reconstruct_file(tmp_path / "banded.npy", tmp_path / "out", model, device="cpu", **OPTIONS, isometric_hold=True, isometric_template="joint")
     with np.load(tmp_path / "out" / "depth.npz") as saved:
         sheet = json.loads(str(saved["sheet"]))
-    xy = track_grid(as_uint8(banded), points=OPTIONS["isometric_points"], drop=DROP, margin=FLOW_MARGIN, hold=True)
-    kept = point_held_shares(xy, banded.shape[1:]) >= KEEP_HELD
+    xy = track_grid(as_uint8(banded), points=OPTIONS["isometric_points"], drop=DROP, margin=DEFAULT.flow_margin, hold=True)
+    kept = point_held_shares(xy, banded.shape[1:]) >= DEFAULT.keep_held
     assert sheet["used"] and 0 < kept.sum() < len(kept) and sheet["points"] == kept.sum()
 
 
 def test_the_stage_solves_each_frame_as_asked(monkeypatch, model, bending):
     import importlib
 
-    stage = importlib.import_module("nrdepth.reconstruct.sheet")  # nrdepth.reconstruct is also the function
+    stage = step_module("mdh_depths")
 
     asked, solve = [], stage.mdh_depths
     def asking(*args, **kwargs):
@@ -138,7 +151,7 @@ def test_the_stage_solves_each_frame_as_asked(monkeypatch, model, bending):
     monkeypatch.setattr(stage, "mdh_depths", asking)
     depths = {each: nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS, isometric_each_frame=each, isometric_template="joint")
               for each in ("program", "lengths")}
-    cheaper = (stage.KEYFRAMES, stage.EVERY, stage.NEIGHBOURS)  # the joint template's program, as the cost rules chose it
+    cheaper = (DEFAULT.keyframes, DEFAULT.every, DEFAULT.neighbours)  # the joint template's program, as the cost rules chose it
     assert asked == [("program", *cheaper), ("lengths", *cheaper)]
     assert np.abs(depths["lengths"] - depths["program"]).max() > 1e-3  # the frames' lengths kept change the shape
 
@@ -148,7 +161,7 @@ def test_a_cone_program_without_an_answer_sends_the_stage_aside_with_its_status(
 
     from nrdepth.isometric import NotSolved
 
-    stage = importlib.import_module("nrdepth.reconstruct.sheet")
+    stage = step_module("mdh_depths")
 
     def unsolved(*args, **kwargs):
         raise NotSolved("InsufficientProgress")  # what Clarabel said to a focal length of 10⁹ px, before such a focal was refused
@@ -164,60 +177,44 @@ def test_a_cone_program_without_an_answer_sends_the_stage_aside_with_its_status(
         nrdepth.reconstruct(bending, model, device="cpu", **{**OPTIONS, "focal": 1e9})
 
 
-def test_auto_reads_held_points_through_refined_where_their_lengths_hold_and_the_joint_template_where_not(monkeypatch, model, bending):
-    import importlib
-
-    from nrdepth.reconstruct.options import REFINED_SCALE
-
-    stage = importlib.import_module("nrdepth.reconstruct.sheet")
-    decisions, decide = [], stage.sheet_depth
-    monkeypatch.setattr(importlib.import_module("nrdepth.reconstruct.api"), "sheet_depth", lambda *a, **k: decisions.append(decide(*a, **k)) or decisions[-1])
+def decide(video, model, **options):
+    """The depth and the sheet stage's decision (``with_decision``); a stage that steps aside warns (an error here) only where it was asked for."""
     with warnings.catch_warnings():
         warnings.simplefilter("error", SheetFallback)
-        auto = nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS)
-        joint = nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS, isometric_template="joint")
-    refined, _ = decisions
-    assert refined.used and refined.template == "refined" and refined.strain <= stage.MAX_STRAIN and refined.scale == REFINED_SCALE
+        return nrdepth.reconstruct(video, model, device="cpu", with_decision=True, **options)
+
+
+def test_auto_reads_held_points_through_refined_where_their_lengths_hold_and_the_joint_template_where_not(monkeypatch, model, bending):
+    auto, refined = decide(bending, model, **OPTIONS)
+    joint = decide(bending, model, **OPTIONS, isometric_template="joint").depth
+    assert refined.used and refined.template == "refined" and refined.strain <= MAX_STRAIN and refined.scale == DEFAULT.refined_scale
     assert np.abs(auto - joint).max() > 1e-3  # another reading of the sheet
     # A sheet whose pairs keep no length: the joint template, as if asked for, and the log says why
-    monkeypatch.setattr(stage, "MAX_STRAIN", 0.0)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", SheetFallback)
-        stretched = nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS)
-    fallback = decisions[-1]
-    assert fallback.used and fallback.template == "joint" and fallback.strain == refined.strain and fallback.held is None
-    assert "not held points through refined: their pairs do not keep their lengths" in fallback.line()
+    stretched, fallback = decide(bending, model, **OPTIONS, sheet_settings=SheetSettings(max_strain=0.0))
+    assert fallback.used and fallback.template == "joint" and fallback.held is None and fallback.scale == DEFAULT.joint_scale
+    assert fallback.strain is None  # the joint reading's own values: none of the refined reading's that gave way
+    assert f"not held points through refined: their pairs do not keep their lengths (strain {refined.strain:.4f}" in fallback.line()
     np.testing.assert_array_equal(stretched, joint)
     # Held points for the joint reading too: the tracks the first reading followed, not followed again
+    stage = step_module("track_grid")
     followed, follow = [], stage.track_grid
     monkeypatch.setattr(stage, "track_grid", lambda *a, **k: followed.append(k["hold"]) or follow(*a, **k))
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", SheetFallback)
-        held = nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS, isometric_hold=True)
-    assert followed == [True] and decisions[-1].template == "joint" and decisions[-1].held is not None
+    stiff = SheetSettings(max_strain=0.0)
+    held, decision = decide(bending, model, **OPTIONS, isometric_hold=True, sheet_settings=stiff)
+    assert followed == [True] and decision.template == "joint" and decision.held is not None
     np.testing.assert_array_equal(held, nrdepth.reconstruct(bending, model, device="cpu", **OPTIONS, isometric_hold=True, isometric_template="joint"))
 
 
 def test_by_default_the_stage_reads_a_sheet_and_leaves_what_is_no_sheet_alone(tmp_path, model, bending, capsys):
-    import importlib
-
-    api = importlib.import_module("nrdepth.reconstruct.api")  # nrdepth.reconstruct is also the function
-    decisions, decide = [], api.sheet_depth
     options = {key: value for key, value in OPTIONS.items() if key != "focal"}  # nothing given
     noise = np.random.default_rng(0).integers(0, 256, (MIN_FRAMES_BY_DEFAULT, 48, 56), dtype=np.uint8)  # nothing that stays
     short = bending[: MIN_FRAMES_BY_DEFAULT - 1]  # a sheet, but too short a clip to be found by default
     still = np.repeat(bending[:1], MIN_FRAMES_BY_DEFAULT, axis=0)  # every point held, none moves
-    stage = importlib.import_module("nrdepth.reconstruct.sheet")
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", SheetFallback)  # not asked for: where it steps aside, it says so in its line, not a warning
-        with pytest.MonkeyPatch.context() as patch:
-            patch.setattr(api, "sheet_depth", lambda *a, **k: decisions.append(decide(*a, **k)) or decisions[-1])
-            vague, lost, brief, stands = (nrdepth.reconstruct(video, model, device="cpu", **options) for video in (bending, noise, short, still))
-            patch.setattr(stage, "MIN_CONTRAST", 1.0)  # 36 points over 64×64 pixels: their strain picks no focal length sharply
-            sheet = nrdepth.reconstruct(bending, model, device="cpu", **options)
-            patch.setattr(stage, "MAX_STRAIN", 0.0)  # a sheet whose pairs keep no length: no sheet, and no other reading
-            stretching = nrdepth.reconstruct(bending, model, device="cpu", **options)
-    unsure, faint, few, unmoved, read, stretched = decisions
+    # not asked for: where it steps aside, it says so in its line, not a warning (decide)
+    (vague, unsure), (lost, faint), (brief, few), (stands, unmoved) = (decide(video, model, **options) for video in (bending, noise, short, still))
+    sheet, read = decide(bending, model, **options, sheet_settings=LOOSE)
+    # a sheet whose pairs keep no length: no sheet, and no other reading
+    stretching, stretched = decide(bending, model, **options, sheet_settings=LOOSE.replace(max_strain=0.0))
     assert not unsure.used and 1.0 <= unsure.contrast < MIN_CONTRAST and unsure.reason.startswith("no focal length keeps their pairs' lengths")
     np.testing.assert_array_equal(vague, network_alone(bending, model))
     assert read.used and read.guessed and read.template == "refined" and read.strain <= MAX_STRAIN and read.contrast == unsure.contrast
@@ -242,27 +239,19 @@ def test_by_default_the_stage_reads_a_sheet_and_leaves_what_is_no_sheet_alone(tm
         said = json.loads(str(saved["sheet"]))
         assert said["contrast"] == unsure.contrast and said["focal_estimate"] == unsure.focal_estimate
     assert main([*command, "-o", str(tmp_path / "off"), "--no-sheet"]) == 0
-    assert "sheet:" not in capsys.readouterr().out
+    assert "sheet: the network's depth alone (the sheet stage is off" in capsys.readouterr().out  # off: said too
     with np.load(tmp_path / "off" / "depth.npz") as saved:
-        assert "sheet" not in saved
+        said = json.loads(str(saved["sheet"]))
+        assert not said["used"] and said["focal"] is None and said["frames"] == len(bending)
 
 
 @contextmanager
-def decided(**stage_names):
-    """The sheet stage's decisions, listed as the job makes them, with each
-    of ``stage_names`` of ``nrdepth.reconstruct.sheet`` replaced meanwhile;
-    a stage that steps aside warns (an error here) only where it was asked for."""
-    import importlib
-
-    api = importlib.import_module("nrdepth.reconstruct.api")  # nrdepth.reconstruct is also the function
-    stage = importlib.import_module("nrdepth.reconstruct.sheet")
-    decisions, decide = [], api.sheet_depth
-    with warnings.catch_warnings(), pytest.MonkeyPatch.context() as patch:
-        warnings.simplefilter("error", SheetFallback)
-        patch.setattr(api, "sheet_depth", lambda *a, **k: decisions.append(decide(*a, **k)) or decisions[-1])
-        for name, value in stage_names.items():
-            patch.setattr(stage, name, value)
-        yield decisions
+def spied(**steps):
+    """Each of ``steps``' functions of the stage (:data:`STEPS`) replaced meanwhile."""
+    with pytest.MonkeyPatch.context() as patch:
+        for name, value in steps.items():
+            patch.setattr(step_module(name), name, value)
+        yield
 
 
 def noise_beside(video, width=48):
@@ -272,17 +261,15 @@ def noise_beside(video, width=48):
 
 
 def test_by_default_held_points_are_counted_where_they_are_read_so_a_frame_half_background_still_reads_its_sheet(model, bending):
-    from nrdepth.reconstruct.sheet import mdh_depths
+    from nrdepth.isometric import mdh_depths
 
     T, H, W = bending.shape
     still = np.concatenate([bending, np.repeat(bending[:1, :, ::-1][:, :, :48], T, axis=0)], axis=2)  # a still background beside it: held, not moving
     options = {key: value for key, value in OPTIONS.items() if key != "focal"}
     starts = []
     # MIN_CONTRAST as above: a clip too small for the strain to pick a focal length sharply
-    with decided(mdh_depths=lambda xy, *a, **k: starts.append(xy[0]) or mdh_depths(xy, *a, **k), MIN_CONTRAST=1.0) as decisions:
-        for video in (noise_beside(bending), still):
-            nrdepth.reconstruct(video, model, device="cpu", **options)
-    lost, held = decisions
+    with spied(mdh_depths=lambda xy, *a, **k: starts.append(xy[0]) or mdh_depths(xy, *a, **k)):
+        (_, lost), (_, held) = (decide(video, model, **options, sheet_settings=LOOSE) for video in (noise_beside(bending), still))
     assert lost.held < MIN_HELD  # most of the frame's point-frames are lost, which given a sheet would send the stage aside...
     assert lost.used and lost.template == "refined" and MIN_READ * OPTIONS["isometric_points"] <= lost.points  # ...but the sheet's are read
     assert held.used and held.held > 0.9  # the still background's points are held in every frame...
@@ -291,20 +278,18 @@ def test_by_default_held_points_are_counted_where_they_are_read_so_a_frame_half_
 
 @pytest.mark.parametrize("least", [4, 1])
 def test_by_default_the_sheet_found_is_read_through_the_focal_length_its_strain_picks_where_its_valley_lies_inside(model, bending, least):
-    from nrdepth.isometric import FocalEstimate
-    from nrdepth.reconstruct.sheet import mdh_depths
+    from nrdepth.isometric import FocalEstimate, mdh_depths
 
     focals = tuple(40.0 * 1.3**k for k in range(9))
     strains = tuple(0.001 * (1 + (k - least) ** 2) for k in range(9))  # a valley at `least`, contrast 5
     picked = FocalEstimate(focals[least], strains[least], focals, strains)
     options = {key: value for key, value in OPTIONS.items() if key != "focal"}
     seen = []
-    with decided(mdh_depths=lambda xy, camera, *a, **k: seen.append(camera.focal) or mdh_depths(xy, camera, *a, **k),
-                 estimate_focal=lambda *a, **k: picked) as decisions:
-        nrdepth.reconstruct(bending, model, device="cpu", **options)  # nothing given
+    with spied(mdh_depths=lambda xy, camera, *a, **k: seen.append(camera.focal) or mdh_depths(xy, camera, *a, **k),
+               estimate_focal=lambda *a, **k: picked):
+        found = decide(bending, model, **options).sheet  # nothing given
         read_first = len(seen)
-        nrdepth.reconstruct(bending, model, device="cpu", **options, focal=picked.focal)  # the estimate given as the focal length
-    found, given = decisions
+        given = decide(bending, model, **options, focal=picked.focal).sheet  # the estimate given as the focal length
     guess = nrdepth.Camera.guessed(bending.shape[1:]).focal
     assert found.used and found.guessed and found.focal_estimate == picked.focal and picked.contrast >= MIN_CONTRAST
     if picked.inside:  # the gates through the guess, the shape through the estimate
@@ -317,36 +302,35 @@ def test_by_default_the_sheet_found_is_read_through_the_focal_length_its_strain_
 def test_the_shape_fused_is_solved_from_the_points_smoothed_in_time_while_every_gate_reads_them_as_tracked(model, bending):
     from scipy.ndimage import gaussian_filter1d
 
-    from nrdepth.reconstruct.sheet import READ_SMOOTH, estimate_focal, mdh_depths, unstrained_points
+    from nrdepth.isometric import estimate_focal, mdh_depths, unstrained_points
 
     options = {key: value for key, value in OPTIONS.items() if key != "focal"}
     solved, gated = [], []
     # MIN_CONTRAST: a clip too small for the strain to pick a focal length sharply
-    with decided(mdh_depths=lambda xy, *a, **k: solved.append(xy) or mdh_depths(xy, *a, **k),
-                 unstrained_points=lambda xy, *a, **k: gated.append(xy) or unstrained_points(xy, *a, **k),
-                 estimate_focal=lambda xy, *a, **k: gated.append(xy) or estimate_focal(xy, *a, **k), MIN_CONTRAST=1.0) as decisions:
-        nrdepth.reconstruct(bending, model, device="cpu", **options)
-    assert decisions[0].used and decisions[0].template == "refined" and len(solved) == 2
+    with spied(mdh_depths=lambda xy, *a, **k: solved.append(xy) or mdh_depths(xy, *a, **k),
+               unstrained_points=lambda xy, *a, **k: gated.append(xy) or unstrained_points(xy, *a, **k),
+               estimate_focal=lambda xy, *a, **k: gated.append(xy) or estimate_focal(xy, *a, **k)):
+        decision = decide(bending, model, **options, sheet_settings=LOOSE).sheet
+    assert decision.used and decision.template == "refined" and len(solved) == 2
     tracked, fused = solved
     trimmed_from = [gated[0][:, j] for j in range(gated[0].shape[1])]
     assert all(any(np.array_equal(tracked[:, i], column) for column in trimmed_from) for i in range(tracked.shape[1]))  # the trim: as tracked
     assert np.array_equal(gated[-1], tracked)  # the estimate: as tracked
-    assert READ_SMOOTH > 0 and np.array_equal(fused, gaussian_filter1d(tracked, READ_SMOOTH, axis=0, mode="nearest"))
+    assert LOOSE.read_smooth > 0 and np.array_equal(fused, gaussian_filter1d(tracked, LOOSE.read_smooth, axis=0, mode="nearest"))
     assert np.abs(fused - tracked).max() > 1e-3  # smoothed: the points moved
 
 
 def test_with_a_focal_length_but_no_sheet_the_sheet_is_found_first_as_by_default(model, bending):
-    from nrdepth.reconstruct.sheet import mdh_depths
+    from nrdepth.isometric import mdh_depths
 
     T, H, W = bending.shape
     beside = noise_beside(bending)
     starts = []
     # MIN_CONTRAST: a clip too small for the strain to pick a focal length sharply
-    with decided(mdh_depths=lambda xy, *a, **k: starts.append(xy[0]) or mdh_depths(xy, *a, **k), MIN_CONTRAST=1.0) as decisions:
-        nrdepth.reconstruct(beside, model, device="cpu", **OPTIONS)  # the focal length alone
-        nrdepth.reconstruct(beside, model, device="cpu", **OPTIONS, sheet=(0, 0, W + 48, H))  # the same region given as the sheet
-        nrdepth.reconstruct(beside[: MIN_FRAMES_BY_DEFAULT - 1], model, device="cpu", **OPTIONS)  # too short a clip to find the sheet in
-    found, boxed, short = decisions
+    with spied(mdh_depths=lambda xy, *a, **k: starts.append(xy[0]) or mdh_depths(xy, *a, **k)):
+        found = decide(beside, model, **OPTIONS, sheet_settings=LOOSE).sheet  # the focal length alone
+        boxed = decide(beside, model, **OPTIONS, sheet_settings=LOOSE, sheet=(0, 0, W + 48, H)).sheet  # the same region given as the sheet
+        short = decide(beside[: MIN_FRAMES_BY_DEFAULT - 1], model, **OPTIONS, sheet_settings=LOOSE).sheet  # too short a clip to find the sheet in
     assert found.used and not found.guessed and found.focal == (OPTIONS["focal"],) * 2 and found.template == "refined"
     assert found.held < MIN_HELD and found.contrast >= 1.0 and (starts[0][:, 0] < W).all()  # the noise's points lost, the sheet's found and read
     assert boxed.used and boxed.template == "joint" and boxed.contrast is None  # given as the sheet: its point-frames held, no finding
@@ -357,20 +341,18 @@ def test_with_a_focal_length_but_no_sheet_the_sheet_is_found_first_as_by_default
 def test_points_are_followed_in_frames_shrunk_to_the_tracking_side_and_come_back_in_the_videos_pixels(monkeypatch):
     import importlib
 
-    stage = importlib.import_module("nrdepth.reconstruct.sheet")
+    stage = importlib.import_module("nrdepth.reconstruct.sheet.find")
     texture = np.random.default_rng(2).random((96, 160))
     texture = np.real(np.fft.ifft2(np.fft.fft2(texture) * np.exp(-0.5 * (np.fft.fftfreq(96)[:, None] ** 2 + np.fft.fftfreq(160) ** 2) / 0.04**2)))
     texture = np.rint(255 * (texture - texture.min()) / np.ptp(texture)).astype(np.uint8)
     video = np.stack([np.roll(texture, 2 * t, axis=1)[:, 32:128] for t in range(8)])  # 2 px a frame to the right, 96×96
-    options = nrdepth.ReconstructOptions(isometric_points=25, isometric_drop=0.0)
     region = np.zeros((96, 96), bool)
     region[24:72, 24:72] = True
     seen = []
     follow = stage.track_grid
     monkeypatch.setattr(stage, "track_grid", lambda frames, *a, **k: follow([seen.append(f.shape) or f for f in frames], *a, **k))
-    native = stage._tracked(iter(video), region, options, hold=False)
-    monkeypatch.setattr(stage, "TRACK_SIDE", 48)
-    shrunk = stage._tracked(iter(video), region, options, hold=False)
+    native = stage.tracked(iter(video), region, 25, 0.0, False, DEFAULT)
+    shrunk = stage.tracked(iter(video), region, 25, 0.0, False, DEFAULT.replace(track_side=48))
     assert seen == [(96, 96)] * 8 + [(48, 48)] * 8
     np.testing.assert_allclose(np.nanmedian(shrunk[-1] - shrunk[0], axis=0), [14.0, 0.0], atol=0.3)  # in the video's pixels
     assert shrunk.shape == native.shape and np.abs(shrunk[0] - native[0]).max() <= 0.5  # the same grid, within half a video pixel

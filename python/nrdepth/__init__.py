@@ -28,13 +28,16 @@ from .engine.surface import (
 )
 from . import memory  # nrdepth.memory.keep_freed_memory: the CLI's heap, for a caller's own process
 from .io import view
-from .reconstruct import ReconstructOptions, reconstruct, reconstruct_file, reconstruct_many
+from .reconstruct import Reconstruction, ReconstructOptions, SheetDecision, SheetSettings, reconstruct, reconstruct_file, reconstruct_many
 from .reconstruct.stitch import PatchLayout, patch_layout, stitch, temporal_align
 from .scores.metrics import flat_baseline, gbr_align, grid_contrast, mae_sn, sign_rates
 
 __all__ = [
     "Camera",
     "ReconstructOptions",
+    "Reconstruction",
+    "SheetDecision",
+    "SheetSettings",
     "CAMERA_Z",
     "TEXTURE_FAMILIES",
     "Clips",

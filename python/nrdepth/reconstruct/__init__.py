@@ -21,15 +21,16 @@ the figures.
 """
 
 from ..camera import Camera
-from .api import SheetFallback, reconstruct, reconstruct_file
+from .api import Reconstruction, SheetFallback, reconstruct, reconstruct_file
 from .batch import BatchRow, reconstruct_many
 from .coarse import coarse_depth, coarse_half
 from .fine import GPU_TILE, MARGIN, TILE, field_frames, field_windows, patch_depths, tile_plan
 from .frames import Statistic, working_shape
 from .network import inference_model
-from .options import FINE_PASSES, ISOMETRIC_DROP, ISOMETRIC_SCALE, MAX_SIDE, REFINED_SCALE, ReconstructOptions
+from .options import FINE_PASSES, ISOMETRIC_DROP, MAX_SIDE, ReconstructOptions
+from .sheet.settings import SheetSettings
 from .decision import SheetDecision
 
-__all__ = ["reconstruct", "reconstruct_file", "reconstruct_many", "BatchRow", "SheetDecision", "SheetFallback", "ReconstructOptions", "Camera", "MAX_SIDE", "FINE_PASSES", "ISOMETRIC_SCALE", "REFINED_SCALE", "ISOMETRIC_DROP",
+__all__ = ["reconstruct", "reconstruct_file", "reconstruct_many", "BatchRow", "Reconstruction", "SheetDecision", "SheetSettings", "SheetFallback", "ReconstructOptions", "Camera", "MAX_SIDE", "FINE_PASSES", "ISOMETRIC_DROP",
            "coarse_depth", "coarse_half", "patch_depths", "field_frames", "field_windows", "tile_plan", "inference_model", "working_shape",
            "Statistic", "TILE", "GPU_TILE", "MARGIN"]

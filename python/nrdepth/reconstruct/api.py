@@ -9,16 +9,16 @@ read in a second thread beside the fine pass) and :mod:`.export` (units, resolut
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import warnings
 from contextlib import nullcontext
 from pathlib import Path
-from typing import Any, Callable, ContextManager, Iterable, Optional, Tuple, Union
+from typing import Any, Callable, ContextManager, Iterable, NamedTuple, Optional, Union
 
 import numpy as np
 
-from ..camera import Camera
 from ..checks import option_error
 from ..interrupt import sigint_remembered
 from ..io.decode import open_video, select, to_gray
@@ -28,13 +28,13 @@ from .export import final, units_of
 from .frames import CHUNK, DiskFrames
 from .mask import file_mask, video_mask
 from .network import fine_precision, load_net
-from .options import FILE_ONLY, ReconstructOptions
+from .options import FILE_ONLY, STAGE_OPTIONS, ReconstructOptions
 from .pipeline import Pipeline
 from .decision import SheetDecision
-from .sheet import read_beside, sheet_depth, sheet_region
+from .sheet import SheetStage, read_beside, sheet_depth, stage_of
 from .stitching import stitched
 
-__all__ = ["reconstruct", "reconstruct_file", "SheetFallback"]
+__all__ = ["reconstruct", "reconstruct_file", "Reconstruction", "SheetFallback"]
 
 Model = Union[None, str, "os.PathLike[str]", "torch.nn.Module"]  # noqa: F821
 Progress = Optional[Callable[[int, int], None]]
@@ -56,29 +56,48 @@ def _network(model: Model, options: ReconstructOptions) -> tuple:
 
 
 def _said(decision: SheetDecision, options: ReconstructOptions) -> SheetDecision:
-    """The sheet stage's decision, said: a warning where it left the network's depth alone that ``focal`` or ``sheet`` asked it to shape."""
+    """The sheet stage's decision, said: a warning where it left the network's
+    depth alone that ``focal`` or ``sheet`` asked it to shape, and one per
+    option of the stage that was set but could not act."""
     if not decision.used and options.sheet_given:
-        warnings.warn(decision.line(), SheetFallback, stacklevel=3)
+        warnings.warn(decision.line(), SheetFallback, stacklevel=4)
+    if decision.motion is None and options.sheet_stage:  # the stage never followed its points: its options did nothing
+        for name in STAGE_OPTIONS:
+            if name in options.changed():
+                warnings.warn(f"{name}: the sheet stage did not read the video, so this option did nothing ({decision.reason})", UserWarning, stacklevel=4)
     return decision
 
 
-def _region(options: ReconstructOptions, frame: Tuple[int, int]) -> Optional[np.ndarray]:
-    """Where the sheet stage's points go (:func:`~.sheet.sheet_region`), or None where it does not run:
-    off, or by default over a region with no room for its points (a refusal only where the user gave the sheet)."""
-    if not options.sheet_mode:
-        return None
-    try:
-        return sheet_region(options, frame)
-    except ValueError:
-        if options.sheet_given:
-            raise
-        return None
+def _stage(options: ReconstructOptions, frame: tuple) -> SheetStage:
+    """Where the sheet stage runs (:func:`~.sheet.stage_of`), with a warning
+    for ``isometric_hold`` where nothing is given: a sheet found by default is
+    always read through its held points."""
+    if options.isometric_hold and not options.sheet_given and options.sheet_mode:
+        warnings.warn("isometric_hold: with neither focal nor sheet given the sheet is always found among held points; "
+                      "this option acts with focal or sheet only", UserWarning, stacklevel=3)
+    return stage_of(options, frame)
 
 
-def _sheet_beside(pipeline: Pipeline, options: ReconstructOptions, camera: Camera, region: Optional[np.ndarray],
-                  whole: Callable[[], Iterable[np.ndarray]]) -> ContextManager:
+def _sheet_beside(pipeline: Pipeline, options: ReconstructOptions, stage: SheetStage, whole: Callable[[], Iterable[np.ndarray]]) -> ContextManager:
     """The sheet stage's reading (:func:`~.sheet.read_beside`) while the fine pass runs, where the stage runs; else nothing."""
-    return nullcontext() if region is None else read_beside(pipeline.shape[0], options, camera, region, whole)
+    return nullcontext() if stage.region is None else read_beside(pipeline.shape[0], options, stage.camera, stage.region, whole)
+
+
+def _decided(raw, pipeline: Pipeline, options: ReconstructOptions, stage: SheetStage, whole: Callable[[], Iterable[np.ndarray]],
+             reading: Any) -> SheetDecision:
+    """The sheet stage's decision, ``raw`` fused in place where it used the sheet's shape; said (:func:`_said`)."""
+    if stage.region is None:
+        return _said(dataclasses.replace(stage.skipped, frames=pipeline.shape[0]), options)
+    return _said(sheet_depth(raw, pipeline.work, options, stage.camera, stage.region, whole, reading), options)
+
+
+class Reconstruction(NamedTuple):
+    """:func:`reconstruct`'s answer with ``with_decision=True``: the ``depth``
+    and what the sheet stage did (``sheet``; its ``camera``: the one the
+    shape was read through)."""
+
+    depth: np.ndarray
+    sheet: SheetDecision
 
 
 class SheetFallback(UserWarning):
@@ -87,7 +106,8 @@ class SheetFallback(UserWarning):
 
 
 @sigint_remembered()  # a Ctrl-C that a library swallows still stops the job
-def reconstruct(video: np.ndarray, model: Model = None, options: Optional[ReconstructOptions] = None, *, progress: Progress = None, **settings: Any) -> np.ndarray:
+def reconstruct(video: np.ndarray, model: Model = None, options: Optional[ReconstructOptions] = None, *, progress: Progress = None,
+                with_decision: bool = False, **settings: Any) -> Union[np.ndarray, Reconstruction]:
     """The depth video of ``video`` (T, H, W[, 3]; uint8, or float in
     [0, 1]; colour becomes luma): float32 (T', H', W') of the selected
     frames and region.
@@ -97,7 +117,8 @@ def reconstruct(video: np.ndarray, model: Model = None, options: Optional[Recons
     :class:`~nrdepth.ReconstructOptions`, and/or any of its fields as
     keywords (``roi=``, ``focal=``, ``device="cuda"``, …; they replace the
     options' own). ``progress(done, total)`` is called as frames of the
-    fine pass are done.
+    fine pass are done. ``with_decision``: return a :class:`Reconstruction`,
+    the depth with the sheet stage's decision (``depth, sheet = ...``).
 
     The job: the selected frames and region at a working resolution
     (``max_side``), the coarse pass (each whole frame through the network
@@ -129,21 +150,20 @@ def reconstruct(video: np.ndarray, model: Model = None, options: Optional[Recons
     if file_only:
         raise option_error(file_only[0], "says what reconstruct_file writes; reconstruct returns the depth")
     mask = video_mask(options.mask, gray.shape, options.frames, options.roi)
-    region = _region(options, gray.shape[1:3])
+    stage = _stage(options, gray.shape[1:3])
     video = select(gray, options.frames, options.roi)
     device, net = _network(model, options)
     chunks = lambda: (video[a : a + CHUNK] for a in range(0, len(video), CHUNK))  # noqa: E731
     pipeline = Pipeline(video.shape[1:], chunks, net, device, options, mask)
-    camera, whole = options.sheet_camera(gray.shape[1:3]), lambda: iter(select(gray, options.frames, None))
-    with _sheet_beside(pipeline, options, camera, region, whole) as reading:
+    whole = lambda: iter(select(gray, options.frames, None))  # noqa: E731
+    with _sheet_beside(pipeline, options, stage, whole) as reading:
         raw = np.concatenate(list(stitched(pipeline, progress)))
-        if region is not None:
-            _said(sheet_depth(raw, pipeline.work, options, camera, region, whole, reading), options)
+        decision = _decided(raw, pipeline, options, stage, whole, reading)
     offset, scale = units_of(pipeline, raw, options.temporal, options.units)
     depth = np.empty((len(raw), *pipeline.full), np.float32)
     for a in range(0, len(raw), CHUNK):  # a chunk at a time: the float64 working copy stays small (the same bits)
         depth[a : a + CHUNK] = final(pipeline, raw, a, min(a + CHUNK, len(raw)), offset, -scale if options.flip else scale)
-    return depth
+    return Reconstruction(depth, decision) if with_decision else depth
 
 
 @sigint_remembered()
@@ -177,7 +197,7 @@ def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.
     out = check_output_folder(out, options.overwrite, inputs=(input,))
     source = open_video(input, "input", options.frames, options.roi)
     mask = file_mask(options.mask, source, options.frames, options.roi)
-    region = _region(options, source.raw_size)
+    stage = _stage(options, source.raw_size)
     pipeline = Pipeline(source.frame_size, lambda: source.chunks(CHUNK), net, device, options, mask)
     t = pipeline.shape[0]
     ply_relief = options.ply_relief
@@ -187,13 +207,11 @@ def reconstruct_file(input: Union[str, "os.PathLike[str]"], out: Union[str, "os.
                               overwrite=options.overwrite, viewer=options.viewer) as writer:
         writer.set_metadata("network", {"device": str(device), "precision": fine_precision(options.precision, device)})
         raw = DiskFrames(writer.scratch("stitched.f32"), pipeline.shape[1:])
-        camera = options.sheet_camera(source.raw_size)
         whole = lambda: (frame for chunk in source.chunks(CHUNK, roi=False) for frame in chunk)  # noqa: E731 (streamed)
-        with _sheet_beside(pipeline, options, camera, region, whole) as reading:
+        with _sheet_beside(pipeline, options, stage, whole) as reading:
             for chunk in stitched(pipeline, progress):
                 raw.append(chunk)
-            if region is not None:
-                writer.set_metadata("sheet", _said(sheet_depth(raw, pipeline.work, options, camera, region, whole, reading), options).as_dict())
+            writer.set_metadata("sheet", _decided(raw, pipeline, options, stage, whole, reading).as_dict())
         offset, scale = units_of(pipeline, raw, options.temporal, options.units)
         scale = -scale if options.flip else scale
         # The ranges from the working resolution (bilinear resizing makes no new extremes), a chunk at a time.

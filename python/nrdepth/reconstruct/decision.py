@@ -7,6 +7,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Optional, Tuple
 
+from ..camera import Camera
+
 __all__ = ["SheetDecision"]
 
 
@@ -14,7 +16,8 @@ __all__ = ["SheetDecision"]
 class SheetDecision:
     """What the sheet stage did: ``used`` its shape, or left the network's
     depth alone for ``reason``; the camera's ``focal`` and ``centre``
-    (pixels) the shape was read through, ``guessed`` where no focal length
+    (pixels) the shape was read through (None where the stage did not run:
+    off, or skipped, the ``reason`` says why), ``guessed`` where no focal length
     was given (then ``focal`` is :meth:`~nrdepth.Camera.guessed`'s, or the
     ``focal_estimate`` where the shape was read through it; the log line
     says ``estimated``), the ``frames`` read, the ``points`` read (after the drop and, held, :data:`~.sheet.KEEP_HELD`),
@@ -34,9 +37,9 @@ class SheetDecision:
 
     used: bool
     reason: str
-    focal: Tuple[float, float]
-    centre: Tuple[float, float]
-    frames: int
+    focal: Optional[Tuple[float, float]] = None
+    centre: Optional[Tuple[float, float]] = None
+    frames: int = 0
     guessed: bool = False
     points: int = 0
     texture: Optional[float] = None
@@ -59,6 +62,13 @@ class SheetDecision:
                            if value is not None)
         template = f", template {self.template}" if self.template else ""
         # read through the estimate: focal was set from focal_estimate itself, so they are equal exactly
+        if self.focal is None:  # the stage did not run: no camera, no points
+            return f"sheet: {what} ({self.reason}; {self.frames} frames)"
         given = "" if not self.guessed else " estimated" if self.focal[0] == self.focal_estimate else " guessed"
         return (f"sheet: {what} ({self.reason}; focal {self.focal[0]:g},{self.focal[1]:g} px{given}, {self.frames} frames, "
                 f"{self.points} points{template}{measured})")
+
+    @property
+    def camera(self) -> Optional[Camera]:
+        """The camera the shape was read through (or would have been), or None where the stage did not run."""
+        return None if self.focal is None else Camera(self.focal, self.centre)

@@ -26,10 +26,11 @@ from ..camera import GUESSED_VIEW, Camera
 from ..checks import is_number, option_error
 from ..isometric import DROP, EACH_FRAME, TEMPLATES
 from .fine import check_tile
+from .sheet.settings import SheetSettings
 from .network import PRECISIONS
 from .stitch import ALIGNMENTS, COARSE_WEIGHT, TEMPORAL_WEIGHT, WINDOWS, check_stitching
 
-__all__ = ["ReconstructOptions", "MAX_SIDE", "FINE_PASSES", "ISOMETRIC_SCALE", "REFINED_SCALE", "STAGE_TEMPLATES", "ISOMETRIC_DROP", "ISOMETRIC_HOLD", "ISOMETRIC_EACH_FRAME", "UNITS", "PRECISIONS", "add_flags", "options_from_flags"]
+__all__ = ["ReconstructOptions", "SheetSettings", "MAX_SIDE", "FINE_PASSES", "STAGE_TEMPLATES", "ISOMETRIC_DROP", "ISOMETRIC_HOLD", "ISOMETRIC_EACH_FRAME", "UNITS", "PRECISIONS", "add_flags", "options_from_flags"]
 
 MAX_SIDE = 480
 """Default working resolution: a frame's longer side, in pixels. The real
@@ -38,16 +39,6 @@ cloth (filmed at 1920×1080) reads best here and the real paper the same at
 FINE_PASSES = ("field", "patches")
 """The fine passes, the default first (:mod:`nrdepth.reconstruct.fine`)."""
 UNITS = ("standard", "pixels")
-ISOMETRIC_SCALE = 0.3
-"""With a camera's focal length, the isometric depth's shape from the
-joint template is kept above this scale (a fraction of the frame's
-shorter side) and the network's below it; picked by a rule fixed
-beforehand on 64 generated sheets (docs/campaign.md)."""
-REFINED_SCALE = 0.1
-"""The same for the held points' ``refined`` template that
-``isometric_template="auto"`` reads where its lengths hold: of 0.3, 0.2,
-0.1 and 0.05 the best on 32 generated paper-like sheets by a rule fixed
-beforehand (docs/campaign.md, "refined where its lengths hold")."""
 STAGE_TEMPLATES = ("auto",) + TEMPLATES
 """The sheet stage's templates: "auto" (the held points through
 ``refined`` where their pairs keep their lengths, the joint template
@@ -201,8 +192,9 @@ class ReconstructOptions:
         "box X,Y,W,H in the video's pixels, or bool (H, W). With focal and no sheet, the sheet is first looked for over the roi (the whole "
         "frame without one) as with neither given, then the roi is read as the sheet", type=_ROI, metavar="X,Y,W,H")
     isometric_scale: Optional[float] = _option(None, "the sheet stage: the length below which the network's relief is kept, as a fraction of the "
-                                               f"frame's shorter side (0: the isometric depth alone; default: {REFINED_SCALE} through the held points' refined "
-                                               f"template, {ISOMETRIC_SCALE} through the others)", type=float)
+                                               "frame's shorter side (0: the isometric depth alone; default: sheet_settings' refined_scale, "
+                                               f"{SheetSettings.refined_scale}, through the held points' refined template, its joint_scale, "
+                                               f"{SheetSettings.joint_scale}, through the others)", type=float)
     isometric_template: str = _option(STAGE_TEMPLATES[0], "the sheet stage: the pairs' template distances (nrdepth.isometric.mdh_depths): auto (points "
                                       "held to the first frame through refined where their pairs keep their lengths; with focal or sheet given, the joint "
                                       "template otherwise), joint, "
@@ -221,6 +213,10 @@ class ReconstructOptions:
                                    "focal or sheet given, the points read through the joint template where the held points through refined give way",
                                    action="store_true")
     isometric_points: int = _option(400, "the sheet stage: about how many points are followed over the sheet (a square grid)", type=int)
+    sheet_settings: SheetSettings = _option(
+        SheetSettings(), "the sheet stage's tunable values (nrdepth.reconstruct.sheet.SheetSettings: its thresholds, keyframes, scales), each "
+        "chosen by a rule on generated sheets (docs/sheet-stage.md); on the command line KEY=VALUE pairs joined by ':' "
+        "(min_contrast=1.5:read_smooth=0), the rest at their defaults", type=SheetSettings.parse, metavar="KEY=VALUE[:...]")
     # The outputs.
     flip: bool = _option(False, "negate the depth: the other convex/concave reading (the model assumes light from above; use it for a video "
                          "lit from below)", action="store_true")
@@ -322,14 +318,22 @@ def _check(o: ReconstructOptions) -> None:
         raise option_error("ply_relief", f"expected a positive finite number, got {o.ply_relief!r}")
 
 
+STAGE_OPTIONS = ("centre", "isometric_scale", "isometric_template", "isometric_each_frame", "isometric_drop", "isometric_points", "isometric_hold",
+                 "sheet_settings")
+"""The sheet stage's options beside ``focal`` and ``sheet``: they shape its reading, and act only where it runs."""
+
+
 def _check_sheet(o: ReconstructOptions) -> None:
+    if isinstance(o.sheet_settings, str):  # as the command line writes it
+        object.__setattr__(o, "sheet_settings", SheetSettings.parse(o.sheet_settings))
+    if not isinstance(o.sheet_settings, SheetSettings):
+        raise option_error("sheet_settings", f"expected a nrdepth.SheetSettings, got {type(o.sheet_settings).__name__}", TypeError)
     if not isinstance(o.sheet_stage, (bool, np.bool_)):
         raise option_error("sheet_stage", f"expected a bool, got {o.sheet_stage!r}", TypeError)
     if o.sheet_given and not o.sheet_stage:
         raise option_error("sheet_stage", f"the sheet stage is off, yet {'focal' if o.focal is not None else 'sheet'} asks for the sheet's shape")
     if not o.sheet_mode:
-        given = [name for name in ("centre", "isometric_scale", "isometric_template", "isometric_each_frame", "isometric_drop", "isometric_points",
-                                   "isometric_hold") if _differs(getattr(o, name), _DEFAULTS[name])]
+        given = [name for name in STAGE_OPTIONS if _differs(getattr(o, name), _DEFAULTS[name])]
         if given and not o.sheet_stage:
             raise option_error("sheet_stage", f"the sheet stage is off, yet its options are set ({', '.join(given)})")
         if given:
