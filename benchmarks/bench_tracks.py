@@ -37,7 +37,9 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Iterator, Optional
 
 import numpy as np
 
@@ -45,8 +47,24 @@ from nrdepth.isometric import track_points
 from nrdepth.isometric.hold import HOLD_NCC
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "experiments"))
-sys.path.insert(0, str(Path(__file__).parent))
-from bench_sheet_stage import held_thresholds  # noqa: E402
+
+
+@contextmanager
+def held_thresholds(fb: Optional[float] = None, ncc: Optional[float] = None) -> Iterator[None]:
+    """The held tracker's thresholds set for the block where given (its way
+    back ``hold.HOLD_FB``, px; its correlation ``hold.HOLD_NCC``): levers to
+    read, not options."""
+    from nrdepth.isometric import hold
+
+    given = {name: value for name, value in (("HOLD_FB", fb), ("HOLD_NCC", ncc)) if value is not None}
+    saved = {name: getattr(hold, name) for name in given}
+    try:
+        for name, value in given.items():
+            setattr(hold, name, value)
+        yield
+    finally:
+        for name, value in saved.items():
+            setattr(hold, name, value)
 
 
 def parse(tracker: str) -> dict:
