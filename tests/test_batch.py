@@ -144,3 +144,43 @@ def test_inputs_are_named_and_listed_once_each(batch, tmp_path, capsys):
     with pytest.raises(ValueError, match="^overwrite:"):
         nrdepth.reconstruct_many(listing, tmp_path / "out", overwrite=True)
     assert not (tmp_path / "out").exists()
+
+
+def test_no_two_inputs_of_a_batch_ever_meet_in_one_folder(tmp_path):
+    def made(*paths):
+        for path in paths:
+            path = tmp_path / path
+            if path.suffix:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                path.touch()
+            else:  # an image folder
+                path.mkdir(parents=True, exist_ok=True)
+                (path / "0.png").touch()
+        return [tmp_path / p for p in paths]
+
+    for inputs in (["a/clip.npy", "b/clip.npy", "clip_1.npy"], ["clip", "clip.npy", "clip_npy.npy"]):
+        videos = made(*inputs)
+        names = [folder.name for _, folder in list_videos(videos, tmp_path / "out")]
+        assert len({name.casefold() for name in names}) == len(names), names
+        assert names == [folder.name for _, folder in list_videos(videos, tmp_path / "out")]  # the same inputs, the same folders
+    assert [f.name for _, f in list_videos(made("a/clip.npy", "b/clip.npy", "clip_1.npy"), tmp_path / "out")] == ["clip_1_2", "clip_2", "clip_1"]
+    rng = np.random.default_rng(0)
+    stems = ["clip", "clip_1", "clip_2", "Clip", "clip_npy", "clip_mp4", "clip_1_2", "clip_images"]
+    for trial in range(200):  # random sets of same stems, suffixes, folders and names that look like suffixed names
+        root = f"fuzz{trial}"
+        paths = {f"{root}/{rng.choice(['', 'a/', 'b/', 'a/b/'])}{rng.choice(stems)}{rng.choice(['.npy', '.mp4', '.avi', ''])}"
+                 for _ in range(rng.integers(2, 9))}
+        videos = made(*sorted(paths))
+        rng.shuffle(videos)
+        names = [folder.name.casefold() for _, folder in list_videos(videos, tmp_path / "out")]
+        assert len(set(names)) == len(names), (videos, names)
+
+
+def test_a_folder_an_earlier_batch_wrote_for_another_video_is_refused_naming_both(batch, tmp_path):
+    out = tmp_path / "out"
+    (tmp_path / "x").mkdir()
+    np.save(tmp_path / "x" / "a.npy", drifting(4, 3))
+    (out / "a").mkdir(parents=True)  # as an earlier batch of x/a.npy left it
+    (out / SUMMARY).write_text(f"input,output,status\n{tmp_path / 'x' / 'a.npy'},{out / 'a'},done\n")
+    with pytest.raises(ValueError, match=r"^inputs: .*a\.npy would be written to .*, which holds .*x/a\.npy from an earlier batch"):
+        nrdepth.reconstruct_many(batch / "videos" / "a.npy", out)

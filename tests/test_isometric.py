@@ -727,13 +727,9 @@ def test_an_anchored_frame_minimises_strains_and_pull_together_and_stays_nearer_
             isometric.keep_lengths(rays, pairs, start, distances, anchor=bad)
         with pytest.raises(ValueError, match="anchor"):
             isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), each_frame="lengths", anchor=bad)
-        with pytest.raises(ValueError, match="anchor"):
-            isometric.isometric_depth(np.zeros((3, 32, 32), np.uint8), FOCAL, each_frame="lengths", anchor=bad)
     for each_frame in ("program", "mirror"):  # an anchor only "lengths" would use is not silently ignored
         with pytest.raises(ValueError, match="anchor"):
             isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), each_frame=each_frame, anchor=1.0)
-        with pytest.raises(ValueError, match="anchor"):
-            isometric.isometric_depth(np.zeros((3, 32, 32), np.uint8), FOCAL, each_frame=each_frame, anchor=1.0)
 
 
 def test_mdh_each_frame_keeps_the_lengths_the_program_only_bounds():
@@ -786,16 +782,6 @@ def test_bad_input_names_the_argument():
         isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), pairs=np.array([[0, 99]]))
     with pytest.raises(ValueError, match="keyframes"):
         isometric.mdh_depths(xy, FOCAL, (0.0, 0.0), keyframes=1)
-    with pytest.raises(ValueError, match="video"):
-        isometric.isometric_depth(video.astype(np.float32), FOCAL)
-    with pytest.raises(ValueError, match="mask"):
-        isometric.isometric_depth(video, FOCAL, mask=np.ones((5, 5), bool))
-    with pytest.raises(ValueError, match="focal"):
-        isometric.isometric_depth(video, 0.0)
-    with pytest.raises(ValueError, match="template"):
-        isometric.isometric_depth(video, FOCAL, template=np.ones(4))
-    with pytest.raises(ValueError, match="each_frame"):
-        isometric.isometric_depth(video, FOCAL, each_frame="best")
     rays, pairs = np.column_stack([xy[0] / FOCAL, np.ones(len(xy[0]))]), isometric.neighbour_pairs(xy[0], 4)
     with pytest.raises(ValueError, match="rays"):
         isometric.mirror_depths(rays[:, :2], np.ones(len(rays)))

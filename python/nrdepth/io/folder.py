@@ -19,7 +19,7 @@ from ..checks import is_number, option_error
 from ..interrupt import committed, raise_if_interrupted
 from .colours import colorize_depth, depth_range
 from .decode import PathLike, npz_header
-from .viewer import FULL_RESOLUTION, ViewerFrames, write_page
+from .viewer import FULL_RESOLUTION, ViewerFrames, sheet_note, write_page
 from .writers import PLY_RELIEF, Mp4Writer, write_depth_png16, write_ply
 
 __all__ = ["ReconstructionWriter", "save_reconstruction", "check_output_folder", "check_complete", "MARKER", "WRITTEN"]
@@ -236,7 +236,8 @@ class ReconstructionWriter:
             for video in self.videos:
                 video.close()
             if self.viewer is not None:
-                write_page(self.tmp / "viewer.html", [("depth", self.viewer)], self.fps, f"nrdepth: {self.out.name}", FULL_RESOLUTION)
+                write_page(self.tmp / "viewer.html", [("depth", self.viewer)], self.fps, f"nrdepth: {self.out.name}",
+                           " ".join(filter(None, [FULL_RESOLUTION, sheet_note(self.metadata.get("sheet"))])))
             committed()  # a Ctrl-C before this point leaves nothing; after it, the output stands
             aside = self.out.parent / f".{self.out.name}.old-{os.getpid()}"
             if self.out.exists():

@@ -204,6 +204,15 @@ def view(
     return write_page(Path("viewer.html") if path is None else path, [("depth", frames)], fps, title)
 
 
+def sheet_note(sheet: Optional[str]) -> str:
+    """The page's line for the sheet stage's decision (``depth.npz``'s ``sheet``, JSON), or "" where there is none."""
+    if not sheet:
+        return ""
+    from ..reconstruct.decision import SheetDecision  # the page says what the job decided, in the job's words
+
+    return SheetDecision(**json.loads(sheet)).line()
+
+
 def _view_folder(folder: Path, path: Optional[PathLike], title: str) -> Path:
     if not (folder / "depth.npz").is_file():
         raise ValueError(f"depth: {folder} holds no depth.npz (expected a folder written by nrdepth reconstruct)")
@@ -217,7 +226,9 @@ def _view_folder(folder: Path, path: Optional[PathLike], title: str) -> Path:
         fps, greys = read_left_half(folder / "side_by_side.mp4", shape[1:])
     for depth, grey in zip(chunks, _rechunk(greys, shape[0])):
         frames.add(depth, grey[: len(depth)] if grey is not None else None)
-    return write_page(folder / "viewer.html" if path is None else path, [("depth", frames)], fps, title, FULL_RESOLUTION)
+    with np.load(folder / "depth.npz") as saved:
+        sheet = str(saved["sheet"]) if "sheet" in saved.files else None
+    return write_page(folder / "viewer.html" if path is None else path, [("depth", frames)], fps, title, " ".join(filter(None, [FULL_RESOLUTION, sheet_note(sheet)])))
 
 
 def _rechunk(greys: Iterable[Optional[np.ndarray]], total: int, size: int = 16) -> Iterable[Optional[np.ndarray]]:

@@ -37,8 +37,8 @@ away through perspective. Three steps:
   equal ``D_ij`` in every keyframe (isometry as an equality): a
   least-squares refinement of the keyframes' depths and the ``D_ij``,
   started from the program's answer (docs/reconstruction.md).
-- :func:`isometric_depth` runs both and spreads the depths over each frame
-  (linear over the points' Delaunay triangles, nearest outside their hull);
+- the main job's sheet stage (:mod:`nrdepth.reconstruct.sheet`) runs both
+  with its settings, spreads the depths over each frame and fuses them:
   :func:`fuse` keeps the network's relief and takes the shape above a
   length scale from the isometric depth.
 
@@ -59,8 +59,8 @@ from .focal import FocalEstimate, estimate_focal
 from .found import moving_points, unstrained_points
 from .fuse import fuse
 from .mirror import SHAPE_KEPT, keep_lengths, mirror_depths, mirror_or_not, shape_kept
-from .mdh import EACH_FRAME, TEMPLATES, NotSolved, TooFewPoints, isometric_depth, keyframe_indices, mdh_depths, neighbour_pairs, pair_strain, template_strain
+from .mdh import EACH_FRAME, TEMPLATES, NotSolved, TooFewPoints, keyframe_indices, mdh_depths, neighbour_pairs, pair_strain, template_strain
 from .points import BORDER, DROP, FLOWS, frames_of, held_share, inside, least_disagreeing, PLACES, point_held_shares, start_grid, start_texture, track_grid, track_points
 
-__all__ = ["track_grid", "start_grid", "start_texture", "PLACES", "track_points", "least_disagreeing", "inside", "held_share", "point_held_shares", "neighbour_pairs", "mdh_depths", "pair_strain", "template_strain", "keyframe_indices", "estimate_focal", "FocalEstimate", "moving_points", "unstrained_points", "isometric_depth", "fuse", "mirror_depths", "keep_lengths", "mirror_or_not", "shape_kept", "SHAPE_KEPT",
+__all__ = ["track_grid", "start_grid", "start_texture", "PLACES", "track_points", "least_disagreeing", "inside", "held_share", "point_held_shares", "neighbour_pairs", "mdh_depths", "pair_strain", "template_strain", "keyframe_indices", "estimate_focal", "FocalEstimate", "moving_points", "unstrained_points", "fuse", "mirror_depths", "keep_lengths", "mirror_or_not", "shape_kept", "SHAPE_KEPT",
            "frames_of", "TooFewPoints", "NotSolved", "TEMPLATES", "EACH_FRAME", "DROP", "BORDER", "FLOWS"]

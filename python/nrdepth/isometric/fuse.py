@@ -15,7 +15,7 @@ def fuse(depth: np.ndarray, isometric: np.ndarray, scale: float, mask: Optional[
          relief: str = "frame") -> np.ndarray:
     """The network's ``depth`` (T, H, W) with its shape above ``scale``
     (the standard deviation of a Gaussian, in pixels) taken from
-    ``isometric`` (T, H, W, :func:`isometric_depth`): ``depth`` is fitted to
+    ``isometric`` (T, H, W, spread from the points: :mod:`nrdepth.reconstruct.sheet.fuse`): ``depth`` is fitted to
     ``isometric`` over ``mask`` (T, H, W, default every pixel) by
     ``λ d + α x + β y + τ``, a plane per frame, and their difference,
     smoothed by the Gaussian over ``mask``, is added. ``relief``: "frame"

@@ -15,12 +15,10 @@ from typing import Optional, Tuple, Union
 
 import numpy as np
 
-from ..baselines.tracks import densify
 from ..camera import Camera
 from .mirror import check_anchor, keep_lengths, mirror_or_not, shape_kept
-from .points import DROP, check_video, track_grid
 
-__all__ = ["neighbour_pairs", "mdh_depths", "pair_strain", "template_strain", "keyframe_indices", "solve_template", "isometric_depth", "TooFewPoints", "TEMPLATES", "EACH_FRAME"]
+__all__ = ["neighbour_pairs", "mdh_depths", "pair_strain", "template_strain", "keyframe_indices", "solve_template", "TooFewPoints", "TEMPLATES", "EACH_FRAME"]
 
 
 class TooFewPoints(ValueError):
@@ -408,32 +406,3 @@ def _between(depths: np.ndarray, anchors: np.ndarray, seen: np.ndarray) -> None:
         both = np.isfinite(left) & np.isfinite(right)
         row = np.where(both, blend, np.where(np.isfinite(near), near, np.where(np.isfinite(left), left, right)))
         depths[t] = np.where(seen[t], row, np.nan)
-
-
-def isometric_depth(video: np.ndarray, focal, centre=None, mask: Optional[np.ndarray] = None, points: int = 400,
-                    neighbours: int = 20, keyframes: int = 24, far: int = 0, reach: int = 0, window: int = 21,
-                    backward: bool = True, template: str = "joint", drop: float = DROP, hold: bool = False, each_frame: str = "program",
-                    anchor: float = 0.0, place: str = "grid", every: int = 1, flow: str = "farneback", flow_scale: float = 1.0) -> np.ndarray:
-    """Dense depth (T, H, W) float64 of an inextensible sheet filmed by
-    ``video`` (T, H, W) uint8 through a perspective camera of focal length
-    ``focal`` pixels (one number or (f_x, f_y)) and principal point
-    ``centre`` (default: the frame's centre): :func:`track_grid` over
-    ``mask`` (the sheet in the first frame; default: the whole frame;
-    ``points``, ``window``, ``backward``, ``drop``: :data:`DROP`, ``hold``, ``place``, ``flow``, ``flow_scale``), :func:`mdh_depths` (``neighbours``,
-    ``keyframes``, ``far``, ``reach``, ``template``, ``each_frame``, ``anchor``, ``every``), then linear over the points' Delaunay triangles,
-    nearest outside their hull. Units: the mean distance between
-    neighbouring points is about 1."""
-    video = check_video(video)
-    camera = Camera(focal, centre).at(video.shape[1:])  # checked before tracking
-    if not isinstance(template, str):  # given distances need the pairs, which are drawn after tracking
-        raise ValueError(f"template: expected one of {TEMPLATES} (given distances go to mdh_depths with their pairs), got {type(template).__name__}")
-    _check_template(template)
-    if each_frame not in EACH_FRAME:  # checked before tracking
-        raise ValueError(f"each_frame: expected one of {EACH_FRAME}, got {each_frame!r}")
-    check_anchor(anchor, each_frame)
-    if not (isinstance(every, (int, np.integer)) and every >= 1):  # checked before tracking
-        raise ValueError(f"every: expected an int >= 1 (1: every frame solved), got {every!r}")
-    xy = track_grid(video, mask, points, window, backward, drop, flow=flow, hold=hold, place=place, flow_scale=flow_scale)
-    depths = mdh_depths(xy, camera, neighbours=neighbours, keyframes=keyframes, far=far, reach=reach, template=template, each_frame=each_frame,
-                        anchor=anchor, every=every)
-    return densify(xy, depths, video.shape)

@@ -26,7 +26,7 @@ from .hold import HOLD_WINDOW, Anchor
 __all__ = ["track_grid", "start_grid", "start_texture", "PLACES", "track_points", "least_disagreeing", "inside", "held_share", "point_held_shares", "check_video", "frames_of", "DROP", "BORDER", "FLOWS"]
 
 DROP = 0.2
-""":func:`isometric_depth`'s and ``reconstruct(focal=...)``'s share of the
+"""``reconstruct(focal=...)``'s share of the
 tracked points left out: those whose forward and backward flows disagree
 most (:func:`track_grid`'s ``drop``). At every fusion scale the paper
 and the cloth per frame gain, and the long generated sheets decided it

@@ -18,6 +18,7 @@ from __future__ import annotations
 import csv
 import glob
 import io
+import json
 import os
 import signal
 import time
@@ -27,6 +28,8 @@ from dataclasses import asdict, dataclass, fields
 from multiprocessing import active_children, get_context
 from pathlib import Path
 from typing import Callable, Iterable, Iterator, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
 
 from ..checks import option_error
 from ..io.decode import IMAGE_SUFFIXES, PathLike, npz_header
@@ -58,6 +61,19 @@ class BatchRow:
     seconds: float = 0.0
     frames: int = 0
     error: str = ""
+    sheet_used: str = ""
+    """The sheet stage's decision (``depth.npz``'s ``sheet``): ``yes`` where the sheet's shape was used, ``no`` where not, "" before a run."""
+    sheet_reason: str = ""
+    sheet_focal: str = ""
+    """The focal length in pixels the shape was read through (``FX FY``), "" where the stage did not run."""
+
+    def take_sheet(self, folder: PathLike) -> None:
+        """The sheet columns from the written ``folder``'s ``depth.npz``."""
+        with np.load(Path(folder) / "depth.npz") as saved:
+            sheet = json.loads(str(saved["sheet"])) if "sheet" in saved.files else None
+        if sheet is not None:
+            self.sheet_used, self.sheet_reason = ("yes" if sheet["used"] else "no"), sheet["reason"]
+            self.sheet_focal = "" if sheet["focal"] is None else " ".join(f"{f:g}" for f in sheet["focal"])
 
 
 def _is_image_folder(folder: Path) -> bool:
@@ -95,8 +111,12 @@ def list_videos(inputs: Union[PathLike, Sequence[PathLike]], out: PathLike) -> L
     """Each video of ``inputs`` (see :func:`reconstruct_many`) with its own
     folder under ``out``: its name without the suffix; where names meet,
     with it (``clip_mp4``, ``clip_avi``), or numbered in input order where
-    that is not enough (``clip_1``, ``clip_2``). A video listed twice is
-    run once."""
+    that is not enough (``clip_1``, ``clip_2``). A name made so that meets
+    another video's own name (``clip_1.npy``), or another made name, takes
+    the next free number (``clip_1_2``); names are compared as a
+    case-insensitive file system would. Every name is decided before any
+    work, from the inputs alone: the same inputs, the same folders. A video
+    listed twice is run once."""
     if isinstance(inputs, (str, os.PathLike)):
         inputs = [inputs]
     if not inputs:
@@ -108,15 +128,49 @@ def list_videos(inputs: Union[PathLike, Sequence[PathLike]], out: PathLike) -> L
             if video.resolve() not in seen:
                 seen.add(video.resolve())
                 videos.append(video)
+    return [(video, Path(out) / name) for video, name in zip(videos, _folder_names(videos))]
+
+
+def _folder_names(videos: List[Path]) -> List[str]:
+    """:func:`list_videos`' folder names, none meeting another (case-insensitively)."""
     stems = [v.name if v.is_dir() else v.stem for v in videos]
-    names = list(stems)
-    for stem in set(stems):
-        group = [i for i, s in enumerate(stems) if s == stem]
+    folded = [stem.casefold() for stem in stems]
+    wanted = list(stems)
+    for stem in set(folded):
+        group = [i for i, s in enumerate(folded) if s == stem]
         suffixes = [videos[i].suffix.lstrip(".").lower() or "images" for i in group]
         if len(group) > 1:
             for k, i in enumerate(group, 1):
-                names[i] = f"{stem}_{suffixes[k - 1]}" if len(set(suffixes)) == len(group) else f"{stem}_{k}"
-    return [(video, Path(out) / name) for video, name in zip(videos, names)]
+                wanted[i] = f"{stems[i]}_{suffixes[k - 1]}" if len(set(suffixes)) == len(group) else f"{stems[i]}_{k}"
+    names: List[Optional[str]] = [None] * len(videos)
+    taken = set()
+    # A video's own name first (clip_1.npy keeps clip_1), then the names made, in input order, each the next free one.
+    for i in sorted(range(len(videos)), key=lambda i: (wanted[i] != stems[i], i)):
+        name, k = wanted[i], 2
+        while name.casefold() in taken:
+            name, k = f"{wanted[i]}_{k}", k + 1
+        taken.add(name.casefold())
+        names[i] = name
+    return names
+
+
+def _earlier_inputs(out: Path) -> dict:
+    """The input each output folder of an earlier batch into ``out`` was written from (its ``summary.csv``), by folder name."""
+    try:
+        with open(out / SUMMARY, encoding="utf-8", newline="") as table:
+            return {Path(row["output"]).name.casefold(): row["input"] for row in csv.DictReader(table) if row.get("output") and row.get("input")}
+    except (OSError, csv.Error, KeyError):
+        return {}
+
+
+def _check_against_earlier(pairs: List[Tuple[Path, Path]], out: Path) -> None:
+    """Refuses a video whose folder holds another video's result from an earlier batch into ``out``, naming both."""
+    earlier = _earlier_inputs(out)
+    for video, folder in pairs:
+        before = earlier.get(folder.name.casefold())
+        if before is not None and folder.exists() and os.path.realpath(before) != os.path.realpath(video):
+            raise option_error("inputs", f"{video} would be written to {folder}, which holds {before} from an earlier batch "
+                               "(its summary.csv); give another output folder, or remove that one")
 
 
 def _one_line(error: BaseException) -> str:
@@ -135,6 +189,7 @@ def _run_one(video: str, folder: str, model: Optional[str], options: Reconstruct
     try:
         reconstruct_file(video, folder, model, ReconstructOptions.of(options, overwrite=True))  # a folder left incomplete is redone
         row.status, row.frames = "done", npz_header(Path(folder) / "depth.npz", "depth")[0][0]
+        row.take_sheet(folder)
     except Exception as error:  # noqa: BLE001 - whatever a video does, the batch goes on and says why
         row.status, row.error = "failed", _one_line(error)
     row.seconds = round(time.perf_counter() - start, 2)
@@ -276,12 +331,14 @@ def reconstruct_many(inputs: Union[PathLike, Sequence[PathLike]], out: PathLike,
     if out.is_file():
         raise option_error("out", f"{out} is a file; expected a folder")
     pairs = list_videos(inputs, out)
+    _check_against_earlier(pairs, out)
     out.mkdir(parents=True, exist_ok=True)
     rows = [BatchRow(str(video), str(folder)) for video, folder in pairs]
     todo: List[Tuple[int, BatchRow]] = []
     for i, row in enumerate(rows):
         try:
             row.frames, row.status = check_complete(row.output, viewer=options.viewer, png16=options.png16, ply=options.ply), "skipped"
+            row.take_sheet(row.output)
         except ValueError:
             todo.append((i, row))
     _write_summary(out, rows)

@@ -63,7 +63,8 @@ class SheetSettings:
     min_motion: float = 0.5
     """Pixels: the median over the points read of the farthest each moves
     from where it starts, below which the video does not move; half the
-    flow's own median error on a real sheet's true points."""
+    flow's own median error on kinect_paper's true points (read off that
+    video, not chosen by a rule)."""
     min_held: float = 0.8
     """With held points and ``focal`` or ``sheet`` given: fewer of the
     point-frames in view found again than this share and the reading gives
