@@ -1,4 +1,6 @@
-"""Reconstruction of whole videos: time and accuracy.
+"""The main job on generated videos: its time and accuracy, and flat sheets in, flat out.
+
+``job``: Reconstruction of whole videos: time and accuracy.
 
 1. Time to reconstruct a 256×256×16 video, split into the network half
    (coarse pass + every patch, with cutting and resizing) and the Rust half
@@ -18,10 +20,26 @@
    out at each border).
 
     python benchmarks/bench_reconstruct.py [--model PATH] [--videos 8] [--repeats 3] [--seed S] [--coarse-weight MU]
+
+``flat``: Flat in, flat out: the flat textured sheets of the test suite
+(``tests/test_reconstruct.py``: tilted, turning, lit from above, vertices
+fixed in the image) reconstructed in pixels, and the same sheets with bumps
+whose RMS is 3 % of the frame's width. Prints, per texture family, the
+largest over frames of the reconstruction's residual about its best plane
+over the true depth's standard deviation (the test asks for < 0.2 on the
+flat sheet), and the bumps' reconstructed relief over their true relief
+(geometric mean over frames; 1 is right).
+
+    python benchmarks/bench_flat_sheet.py [--model PATH] [--families fractal,weave,plaid,stripes,cells]
+
+    python benchmarks/bench_reconstruct_all.py job [--help]
+    python benchmarks/bench_reconstruct_all.py flat [--help]
 """
 
 from __future__ import annotations
 
+# ---- job ------------------------------------------------------------
+MAIN_JOB_DOC = "Reconstruction of whole videos: time and accuracy.\n\n1. Time to reconstruct a 256×256×16 video, split into the network half\n   (coarse pass + every patch, with cutting and resizing) and the Rust half\n   (alignment and overlap-add: the default stitch, and the paper's;\n   temporal alignment), on the CPU and on CUDA when present. The shipped\n   model unless --model.\n2. The stitched MAE-SN of generated 256×256×16 videos drawn inside the\n   training ranges and, as in the paper's second experiment, outside them\n   (stronger, more flexible, more folded, faster surfaces), both MAE-SN\n   alignments, beside the flat baseline. The same patches stitched four\n   ways: the default (joint alignment, ``--coarse-weight``, Hann windows),\n   the paper's (each patch aligned to the coarse pass on its own, triangle\n   windows), and the two mixed ones; the default then temporally aligned;\n   the coarse pass alone. Then each stitch's contrast at the 32-pixel patch\n   period (``nrdepth.grid_contrast``: seams), beside the truth's, over the\n   whole frame and over its inner 192×192 pixels (one patch period left\n   out at each border).\n\n    python benchmarks/bench_reconstruct.py [--model PATH] [--videos 8] [--repeats 3] [--seed S] [--coarse-weight MU]\n"
 import argparse
 import time
 
@@ -120,8 +138,8 @@ def accuracy(model, videos: int, device: str, seed: int = TEST_SEED, coarse_weig
             print(f"  {key:72s}{g[:, 0].mean():>9.3f} ± {g[:, 0].std():.3f} {g[:, 1].mean():>9.3f} ± {g[:, 1].std():.3f}")
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main_job() -> None:
+    parser = argparse.ArgumentParser(description=MAIN_JOB_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--model", default=None, help="model.safetensors or run folder (default: the shipped model)")
     parser.add_argument("--videos", type=int, default=8)
     parser.add_argument("--repeats", type=int, default=3)
@@ -133,6 +151,46 @@ def main() -> None:
         timing(args.model, device, args.repeats)
     accuracy(args.model, args.videos, devices[-1], args.seed, args.coarse_weight)
 
+# ---- flat ------------------------------------------------------------
+MAIN_FLAT_DOC = "Flat in, flat out: the flat textured sheets of the test suite\n(``tests/test_reconstruct.py``: tilted, turning, lit from above, vertices\nfixed in the image) reconstructed in pixels, and the same sheets with bumps\nwhose RMS is 3 % of the frame's width. Prints, per texture family, the\nlargest over frames of the reconstruction's residual about its best plane\nover the true depth's standard deviation (the test asks for < 0.2 on the\nflat sheet), and the bumps' reconstructed relief over their true relief\n(geometric mean over frames; 1 is right).\n\n    python benchmarks/bench_flat_sheet.py [--model PATH] [--families fractal,weave,plaid,stripes,cells]\n"
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+import nrdepth
+import nrdepth.model
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from test_reconstruct import FLAT_SHEET_WINDOW, flat_sheet_residual, flat_sheet_video, plane_residuals  # noqa: E402
+
+
+def main_flat() -> None:
+    parser = argparse.ArgumentParser(description=MAIN_FLAT_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--model", default=None, help="a model with a depth scale (default: the shipped nrdepth.model.SCALED_MODEL)")
+    parser.add_argument("--families", default="fractal,weave,plaid,stripes,cells")
+    args = parser.parse_args()
+    model = nrdepth.model.load_model(args.model or nrdepth.model.SCALED_MODEL)
+    print(f"{'texture':10s}{'flat: residual / depth std':>28s}{'bumps: relief / true':>24s}")
+    for family in args.families.split(","):
+        flat_video, flat_depth = flat_sheet_video(family)
+        bumps_video, bumps_depth = flat_sheet_video(family, relief=0.08)
+        to_pixels = flat_video.shape[2] / FLAT_SHEET_WINDOW
+        flat = flat_sheet_residual(nrdepth.reconstruct(flat_video, model, device="cpu", units="pixels"), flat_depth * to_pixels)
+        ratio = plane_residuals(nrdepth.reconstruct(bumps_video, model, device="cpu", units="pixels")) / plane_residuals(bumps_depth * to_pixels)
+        print(f"{family:10s}{flat:>28.3f}{np.exp(np.log(ratio).mean()):>24.3f}")
+
+
+
+COMMANDS = {"job": main_job, "flat": main_flat}
+
 
 if __name__ == "__main__":
-    main()
+    import sys as _sys
+
+    if len(_sys.argv) < 2 or _sys.argv[1] not in COMMANDS:
+        raise SystemExit(f"usage: python {_sys.argv[0]} {{{'|'.join(COMMANDS)}}} [options]  (each command's --help says more)")
+    command = _sys.argv.pop(1)
+    _sys.argv[0] = f"{_sys.argv[0]} {command}"
+    COMMANDS[command]()

@@ -1,4 +1,16 @@
-"""Learning curves: held-out MAE-SN (both alignments), sign-correct and flip
+"""Training: the networks' speed, and learning curves of training runs.
+
+``speed``: Cost of each network architecture, measured in one run: FLOPs per
+64×64×16 patch (forward, counted by torch's FlopCounterMode), training
+samples/s (forward, loss, backward, Adam step) and inference patches/s, on the
+CPU and on CUDA when there is one, each beside its ratio to the paper's
+``UNet3D(base=16)`` measured in the same run. The clip generator's rate is
+printed too: online training needs it to keep up.
+
+    python benchmarks/bench_learning.py [--batch 4] [--steps 5] [--loss aligned_both_signed]
+    python benchmarks/bench_learning.py --arch unet2p1d:width=32 --arch unet3d:base=8
+
+``curves``: Learning curves: held-out MAE-SN (both alignments), sign-correct and flip
 rates of training runs against clips seen and against hours of training,
 beside the flat baseline and the paper's figures.
 
@@ -7,8 +19,8 @@ training batch uses) after each epoch into ``metrics.csv``; this script trains
 configurations side by side for the same wall-clock time and draws those rows.
 
     # two configurations, 60 minutes each, side by side, one torch thread each
-    python benchmarks/learning_curves.py train --minutes 60 \\
-        runs/a="--arch unet2p1d --loss aligned_both_signed --steps 100" \\
+    python benchmarks/learning_curves.py train --minutes 60 \
+        runs/a="--arch unet2p1d --loss aligned_both_signed --steps 100" \
         runs/b="--arch unet3d --base 16 --loss aligned_both_signed --steps 25"
     # curves of any runs (resumed runs included): CSV + PNG
     python benchmarks/learning_curves.py plot runs/a runs/b -o docs/learning_curves
@@ -24,10 +36,98 @@ its MAE-SN per frame and from the first frame, and its sign-correct share.
 --validation-clips 64 --workers 0 --device cpu --quiet`` unless the
 arguments given override them; a run stopped at the budget resumes where it
 stopped when started again (same folder).
+
+    python benchmarks/learning_all.py speed [--help]
+    python benchmarks/learning_all.py curves [--help]
 """
 
 from __future__ import annotations
 
+# ---- speed ------------------------------------------------------------
+MAIN_SPEED_DOC = "Cost of each network architecture, measured in one run: FLOPs per\n64×64×16 patch (forward, counted by torch's FlopCounterMode), training\nsamples/s (forward, loss, backward, Adam step) and inference patches/s, on the\nCPU and on CUDA when there is one, each beside its ratio to the paper's\n``UNet3D(base=16)`` measured in the same run. The clip generator's rate is\nprinted too: online training needs it to keep up.\n\n    python benchmarks/bench_learning.py [--batch 4] [--steps 5] [--loss aligned_both_signed]\n    python benchmarks/bench_learning.py --arch unet2p1d:width=32 --arch unet3d:base=8\n"
+import argparse
+import time
+from typing import Callable, Dict, List, Tuple
+
+import torch
+from torch.utils.flop_counter import FlopCounterMode
+
+import nrdepth
+from nrdepth.learning.losses import get_loss
+from nrdepth.model import build_model, count_parameters
+
+REFERENCE = ("unet3d", {"base": 16})
+
+
+def rate(fn: Callable[[], None], items: int, repeats: int) -> float:
+    fn()  # warm-up
+    start = time.perf_counter()
+    for _ in range(repeats):
+        fn()
+    return items * repeats / (time.perf_counter() - start)
+
+
+def forward_flops(model: torch.nn.Module) -> int:
+    with torch.no_grad(), FlopCounterMode(display=False) as counter:
+        model(torch.zeros(1, 1, 16, 64, 64))
+    return counter.get_total_flops()
+
+
+def parse_arch(text: str) -> Tuple[str, Dict[str, int]]:
+    name, _, rest = text.partition(":")
+    config = {k: int(v) for k, v in (item.split("=") for item in rest.split(",") if item)}
+    return name, config
+
+
+def main_speed() -> None:
+    parser = argparse.ArgumentParser(description=MAIN_SPEED_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--batch", type=int, default=4)
+    parser.add_argument("--steps", type=int, default=5)
+    parser.add_argument("--loss", default="aligned_both_signed")
+    parser.add_argument("--arch", action="append", default=None, help="NAME[:key=value,...] (repeatable; default: unet2p1d)")
+    args = parser.parse_args()
+    archs: List[Tuple[str, Dict[str, int]]] = [REFERENCE] + [parse_arch(a) for a in (args.arch or ["unet2p1d"])]
+
+    clips = nrdepth.generate_clips(args.batch, seed=0)
+    generator = rate(lambda: nrdepth.generate_clips(args.batch, seed=1), args.batch, args.steps)
+    video = torch.from_numpy(clips.video).float().div(255).unsqueeze(1)
+    target = torch.nn.functional.avg_pool2d(torch.from_numpy(clips.depth), 2)
+    loss_fn = get_loss(args.loss)
+    devices = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
+    print(f"batch {args.batch} of 16×64×64, loss {args.loss}, torch threads {torch.get_num_threads()}; clip generator {generator:.1f} clips/s")
+    print(f"{'architecture':54s}{'params':>10s}{'GFLOP/patch':>13s}{'device':>8s}{'train/s':>10s}{'×ref':>7s}{'infer/s':>10s}{'×ref':>7s}")
+    for device in devices:
+        reference: Dict[str, float] = {}
+        for name, config in archs:
+            torch.manual_seed(0)
+            model = build_model(name, **config)
+            flops = forward_flops(model)
+            model = model.to(device)
+            optimiser = torch.optim.Adam(model.parameters(), 1e-3)
+            v, t = video.to(device), target.to(device)
+
+            def step() -> None:
+                optimiser.zero_grad()
+                loss_fn(model(v)[:, 0], t).backward()
+                optimiser.step()
+                if device == "cuda":
+                    torch.cuda.synchronize()
+
+            @torch.no_grad()
+            def infer() -> None:
+                model(v)
+                if device == "cuda":
+                    torch.cuda.synchronize()
+
+            train_rate, infer_rate = rate(step, args.batch, args.steps), rate(infer, args.batch, args.steps)
+            if not reference:
+                reference = {"train": train_rate, "infer": infer_rate}
+            label = f"{name}({', '.join(f'{k}={v}' for k, v in model.config.items())})"
+            print(f"{label:54s}{count_parameters(model):>10,}{flops / 1e9:>13.2f}{device:>8s}{train_rate:>10.2f}{train_rate / reference['train']:>6.1f}×"
+                  f"{infer_rate:>10.2f}{infer_rate / reference['infer']:>6.1f}×")
+
+# ---- curves ------------------------------------------------------------
+MAIN_CURVES_DOC = 'Learning curves: held-out MAE-SN (both alignments), sign-correct and flip\nrates of training runs against clips seen and against hours of training,\nbeside the flat baseline and the paper\'s figures.\n\nEvery ``nrdepth train`` run scores its validation clips (a generator seed no\ntraining batch uses) after each epoch into ``metrics.csv``; this script trains\nconfigurations side by side for the same wall-clock time and draws those rows.\n\n    # two configurations, 60 minutes each, side by side, one torch thread each\n    python benchmarks/learning_curves.py train --minutes 60 \\\n        runs/a="--arch unet2p1d --loss aligned_both_signed --steps 100" \\\n        runs/b="--arch unet3d --base 16 --loss aligned_both_signed --steps 25"\n    # curves of any runs (resumed runs included): CSV + PNG\n    python benchmarks/learning_curves.py plot runs/a runs/b -o docs/learning_curves\n    # a warm-started run drawn where it continues another: "A@CLIPS+B" (B\'s\n    # --init was A\'s weights at CLIPS clips seen; B\'s clips and hours follow A\'s)\n    python benchmarks/learning_curves.py plot runs/a@27200+runs/c -o docs/campaign\n\nRuns that watch a real video (``nrdepth train --real``) get a third row:\nits MAE-SN per frame and from the first frame, and its sign-correct share.\n``paired A B`` compares two runs that saw the same clips epoch by epoch.\n\n``train`` passes ``--batch-size 8 --epochs 100000 --schedule constant\n--validation-clips 64 --workers 0 --device cpu --quiet`` unless the\narguments given override them; a run stopped at the budget resumes where it\nstopped when started again (same folder).\n'
 import argparse
 import csv
 import json
@@ -215,8 +315,8 @@ def paired(a: str, b: str, key: str) -> None:
           f"second − first {mean:+.4f} ± {sd / math.sqrt(len(d)):.4f} (standard error; consecutive epochs are not independent), lower in {sum(v < 0 for v in d)} of {len(d)} epochs")
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main_curves() -> None:
+    parser = argparse.ArgumentParser(description=MAIN_CURVES_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("train", help="train configurations side by side for the same wall-clock time")
     p.add_argument("specs", nargs="+", metavar="OUT=ARGS", help="run folder and its nrdepth train arguments")
@@ -238,5 +338,15 @@ def main() -> None:
         plot(args.runs, args.out, labels)
 
 
+
+COMMANDS = {"speed": main_speed, "curves": main_curves}
+
+
 if __name__ == "__main__":
-    main()
+    import sys as _sys
+
+    if len(_sys.argv) < 2 or _sys.argv[1] not in COMMANDS:
+        raise SystemExit(f"usage: python {_sys.argv[0]} {{{'|'.join(COMMANDS)}}} [options]  (each command's --help says more)")
+    command = _sys.argv.pop(1)
+    _sys.argv[0] = f"{_sys.argv[0]} {command}"
+    COMMANDS[command]()

@@ -8,7 +8,7 @@ its mmap threshold (at most 32 MB) from a fresh mapping and unmaps it when
 freed, so every new activation is faulted in and zeroed by the kernel: a
 third of the CPU time of the job's network pass over ``kinect_paper``
 went to zeroing pages (``perf``), and the fine pass ran 1.55–1.65× faster with mmap off and the
-heap never trimmed (``benchmarks/bench_inference.py`` under
+heap never trimmed (``benchmarks/bench_kernels.py write-over`` under
 ``MALLOC_MMAP_MAX_=0``; docs/reconstruction.md, "Cost"). The price: the process keeps
 its peak heap until it exits.
 

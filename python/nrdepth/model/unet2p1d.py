@@ -53,7 +53,7 @@ WRITE_OVER = True
 """Without gradients, sums are written over a layer's new output
 (:class:`Block`'s residual, :class:`UpMerge`'s skip): the same bits, no
 new activations. False: every sum a new tensor, as with gradients (the
-reference ``benchmarks/bench_inference.py`` times against)."""
+reference ``benchmarks/bench_kernels.py write-over`` times against)."""
 
 
 def _written_over() -> bool:
