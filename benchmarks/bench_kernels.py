@@ -7,7 +7,7 @@ the best of three runs each, their ratio, and the largest difference between the
 stage spreads its points' depths over every frame this way
 (docs/reconstruction.md, "The sheet stage's cost").
 
-    python benchmarks/bench_densify.py [--frames 50] [--threads 2]
+    python benchmarks/bench_kernels.py densify [--frames 50] [--threads 2]
 
 ``write-over``: The main job's fine pass (``nrdepth.reconstruct.fine.field_frames``, the
 shipped network over ``kinect_paper``'s roi in tiles) with its sums written
@@ -16,7 +16,7 @@ default) against every sum a new tensor, the reference, in the same run:
 seconds each, rounds alternating, their medians and ratio, whether the
 two depths are the same bytes, and a 2048² sgemm before and after.
 
-    python benchmarks/bench_inference.py [--frames 64] [--rounds 3] [--threads 2]
+    python benchmarks/bench_kernels.py write-over [--frames 64] [--rounds 3] [--threads 2]
 
 ``stitch``: Time and peak memory of stitching a large video, for each stitch: the
 paper's (each patch aligned to the coarse depth on its own, triangle
@@ -30,7 +30,7 @@ ties are mostly strong. They arrive as `reconstruct` gives them: time-major,
 memory (the video, its coarse depth and the patches held) is its own.
 Ratios are to the paper's stitch, measured in the same run.
 
-    python benchmarks/bench_stitch_large.py [--shape 48,720,1280] [--threads N]
+    python benchmarks/bench_kernels.py stitch [--shape 48,720,1280] [--threads N]
 
     python benchmarks/bench_kernels.py densify [--help]
     python benchmarks/bench_kernels.py write-over [--help]
@@ -40,7 +40,7 @@ Ratios are to the paper's stitch, measured in the same run.
 from __future__ import annotations
 
 # ---- densify ------------------------------------------------------------
-MAIN_DENSIFY_DOC = '``nrdepth.baselines.tracks.densify`` (the Rust core\'s ``spread`` over\nSciPy\'s Delaunay triangles) against ``scipy.interpolate.griddata``, the\nreference it replaced, measured in the same run: milliseconds a frame,\nthe best of three runs each, their ratio, and the largest difference between the two. The sheet\nstage spreads its points\' depths over every frame this way\n(docs/reconstruction.md, "The sheet stage\'s cost").\n\n    python benchmarks/bench_densify.py [--frames 50] [--threads 2]\n'
+MAIN_DENSIFY_DOC = '``nrdepth.baselines.tracks.densify`` (the Rust core\'s ``spread`` over\nSciPy\'s Delaunay triangles) against ``scipy.interpolate.griddata``, the\nreference it replaced, measured in the same run: milliseconds a frame,\nthe best of three runs each, their ratio, and the largest difference between the two. The sheet\nstage spreads its points\' depths over every frame this way\n(docs/reconstruction.md, "The sheet stage\'s cost").\n\n    python benchmarks/bench_kernels.py densify [--frames 50] [--threads 2]\n'
 import argparse
 import os
 import time
@@ -91,14 +91,11 @@ def main_densify() -> None:
               f"ms ({slow_s / fast_s:.1f}× faster); largest difference {np.abs(fast - slow).max():.1e}")
 
 # ---- write-over ------------------------------------------------------------
-MAIN_WRITE_OVER_DOC = "The main job's fine pass (``nrdepth.reconstruct.fine.field_frames``, the\nshipped network over ``kinect_paper``'s roi in tiles) with its sums written\nover each layer's new output (``nrdepth.model.unet2p1d.WRITE_OVER``, the\ndefault) against every sum a new tensor, the reference, in the same run:\nseconds each, rounds alternating, their medians and ratio, whether the\ntwo depths are the same bytes, and a 2048² sgemm before and after.\n\n    python benchmarks/bench_inference.py [--frames 64] [--rounds 3] [--threads 2]\n"
-import argparse
+MAIN_WRITE_OVER_DOC = "The main job's fine pass (``nrdepth.reconstruct.fine.field_frames``, the\nshipped network over ``kinect_paper``'s roi in tiles) with its sums written\nover each layer's new output (``nrdepth.model.unet2p1d.WRITE_OVER``, the\ndefault) against every sum a new tensor, the reference, in the same run:\nseconds each, rounds alternating, their medians and ratio, whether the\ntwo depths are the same bytes, and a 2048² sgemm before and after.\n\n    python benchmarks/bench_kernels.py write-over [--frames 64] [--rounds 3] [--threads 2]\n"
 import statistics
 import sys
-import time
 from pathlib import Path
 
-import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 from bench_video import sgemm_rate  # noqa: E402
@@ -150,15 +147,11 @@ def main_write_over() -> None:
     print(f"sgemm 2048²: {sgemm_rate():.0f} GFLOP/s")
 
 # ---- stitch ------------------------------------------------------------
-MAIN_STITCH_DOC = "Time and peak memory of stitching a large video, for each stitch: the\npaper's (each patch aligned to the coarse depth on its own, triangle\nwindows), the default (joint alignment with its temporal tie, Hann windows)\nand the default untied (ν = 0).\n\nThe patches stand in for a network's: one smooth random 16×64×64 block,\nshifted and offset per patch, so that neighbouring patches disagree and the\nties are mostly strong. They arrive as `reconstruct` gives them: time-major,\n64 at a time. Each stitch runs in a fresh process, so its peak resident\nmemory (the video, its coarse depth and the patches held) is its own.\nRatios are to the paper's stitch, measured in the same run.\n\n    python benchmarks/bench_stitch_large.py [--shape 48,720,1280] [--threads N]\n"
-import argparse
-import os
+MAIN_STITCH_DOC = "Time and peak memory of stitching a large video, for each stitch: the\npaper's (each patch aligned to the coarse depth on its own, triangle\nwindows), the default (joint alignment with its temporal tie, Hann windows)\nand the default untied (ν = 0).\n\nThe patches stand in for a network's: one smooth random 16×64×64 block,\nshifted and offset per patch, so that neighbouring patches disagree and the\nties are mostly strong. They arrive as `reconstruct` gives them: time-major,\n64 at a time. Each stitch runs in a fresh process, so its peak resident\nmemory (the video, its coarse depth and the patches held) is its own.\nRatios are to the paper's stitch, measured in the same run.\n\n    python benchmarks/bench_kernels.py stitch [--shape 48,720,1280] [--threads N]\n"
 import resource
 import subprocess
 import sys
-import time
 
-import numpy as np
 
 STITCHES = {"paper": ("coarse", "triangle", 0.0), "default": ("joint", "hann", None), "untied": ("joint", "hann", 0.0)}
 

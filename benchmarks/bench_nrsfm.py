@@ -10,8 +10,8 @@ table of each method's best setting per sequence: the selection is made on
 the benchmark's own error, as the published tables choose K per sequence, so
 it says what each method can reach, not what it gives untuned.
 
-    python benchmarks/bench_nrsfm.py [--K 4] [--d-fraction 0.1] [--sequences yoga,dance]
-    python benchmarks/bench_nrsfm.py --K 2,3,4,6,8 --d-fraction 0.1,0.2 [--rows sweep.csv]
+    python benchmarks/bench_nrsfm.py mocap [--K 4] [--d-fraction 0.1] [--sequences yoga,dance]
+    python benchmarks/bench_nrsfm.py mocap --K 2,3,4,6,8 --d-fraction 0.1,0.2 [--rows sweep.csv]
 
 ``table3``: The paper's Table 3 in its shape, on real video: nrdepth against CSF2 and
 KSTA (nrdepth.baselines.nrsfm) fed by a maintained tracker, and a flat plane.
@@ -33,16 +33,16 @@ and MAE-SN per frame and from the first frame.
 kinect_paper (no ground truth): the same trackers on the printed part of the
 sheet in frames 0–47, and one picture frames | nrdepth | CSF2 | KSTA.
 
-    python benchmarks/bench_table3.py [--K 2] [--d-fraction 0.1] [--model PATH] [--out docs]
+    python benchmarks/bench_nrsfm.py table3 [--K 2] [--d-fraction 0.1] [--model PATH] [--out docs]
 
-    python benchmarks/bench_nrsfm_all.py mocap [--help]
-    python benchmarks/bench_nrsfm_all.py table3 [--help]
+    python benchmarks/bench_nrsfm.py mocap [--help]
+    python benchmarks/bench_nrsfm.py table3 [--help]
 """
 
 from __future__ import annotations
 
 # ---- mocap ------------------------------------------------------------
-MAIN_MOCAP_DOC = "The classic motion-capture NRSfM benchmark: PTA (from the files) beside\nCSF2 and KSTA (nrdepth.baselines.nrsfm; KSTA in our reading of its paper) on drink,\npickup, yoga, stretch and dance, with the benchmark's 3-D error\n(nrdepth.baselines.nrsfm.error_3d; see shared/data/nrsfm/README.md).\n\nGiven several K or d fractions, every setting is run and printed, then a\ntable of each method's best setting per sequence: the selection is made on\nthe benchmark's own error, as the published tables choose K per sequence, so\nit says what each method can reach, not what it gives untuned.\n\n    python benchmarks/bench_nrsfm.py [--K 4] [--d-fraction 0.1] [--sequences yoga,dance]\n    python benchmarks/bench_nrsfm.py --K 2,3,4,6,8 --d-fraction 0.1,0.2 [--rows sweep.csv]\n"
+MAIN_MOCAP_DOC = "The classic motion-capture NRSfM benchmark: PTA (from the files) beside\nCSF2 and KSTA (nrdepth.baselines.nrsfm; KSTA in our reading of its paper) on drink,\npickup, yoga, stretch and dance, with the benchmark's 3-D error\n(nrdepth.baselines.nrsfm.error_3d; see shared/data/nrsfm/README.md).\n\nGiven several K or d fractions, every setting is run and printed, then a\ntable of each method's best setting per sequence: the selection is made on\nthe benchmark's own error, as the published tables choose K per sequence, so\nit says what each method can reach, not what it gives untuned.\n\n    python benchmarks/bench_nrsfm.py mocap [--K 4] [--d-fraction 0.1] [--sequences yoga,dance]\n    python benchmarks/bench_nrsfm.py mocap --K 2,3,4,6,8 --d-fraction 0.1,0.2 [--rows sweep.csv]\n"
 import argparse
 import csv
 import math
@@ -105,18 +105,14 @@ def main_mocap() -> None:
                 f"{method} {b[method]:.4f} ({b['K']}, {b['d']})" for method, b in best.items()))
 
 # ---- table3 ------------------------------------------------------------
-MAIN_TABLE3_DOC = "The paper's Table 3 in its shape, on real video: nrdepth against CSF2 and\nKSTA (nrdepth.baselines.nrsfm) fed by a maintained tracker, and a flat plane.\n\nphisft_R1 (a real cloth video with per-frame depth ground truth; its README):\npoints are tracked on the full-resolution frames (luma of the RGB, 1920×1080)\ninside the cloth's silhouette common to all frames, eroded by 12 pixels\n(Shi–Tomasi corners + pyramidal Lucas–Kanade with a forward–backward check,\n``nrdepth.baselines.tracks.track_video``), moved to the 4×-reduced grid of\n``derived_q4.npz`` (a q4 pixel's centre is full-resolution (4i + 1.5)), run\nthrough CSF2 and KSTA (K, d below; the cameras are orthographic, the Kinect's\nis not: f ≈ 970 px at 1.2–1.5 m) and interpolated over the crop\n``bench_real.py`` scores (rows 110–218, columns 106–214 of that grid) by\n``nrdepth.baselines.tracks.densify``. nrdepth reconstructs the crop's video itself.\nEvery method is scored over the crop's pixels with a ground-truth value: MAE\nin millimetres after each frame's least-squares GBR alignment to the truth,\nand MAE-SN per frame and from the first frame.\n\nkinect_paper (no ground truth): the same trackers on the printed part of the\nsheet in frames 0–47, and one picture frames | nrdepth | CSF2 | KSTA.\n\n    python benchmarks/bench_table3.py [--K 2] [--d-fraction 0.1] [--model PATH] [--out docs]\n"
-import argparse
-import math
-import time
+MAIN_TABLE3_DOC = "The paper's Table 3 in its shape, on real video: nrdepth against CSF2 and\nKSTA (nrdepth.baselines.nrsfm) fed by a maintained tracker, and a flat plane.\n\nphisft_R1 (a real cloth video with per-frame depth ground truth; its README):\npoints are tracked on the full-resolution frames (luma of the RGB, 1920×1080)\ninside the cloth's silhouette common to all frames, eroded by 12 pixels\n(Shi–Tomasi corners + pyramidal Lucas–Kanade with a forward–backward check,\n``nrdepth.baselines.tracks.track_video``), moved to the 4×-reduced grid of\n``derived_q4.npz`` (a q4 pixel's centre is full-resolution (4i + 1.5)), run\nthrough CSF2 and KSTA (K, d below; the cameras are orthographic, the Kinect's\nis not: f ≈ 970 px at 1.2–1.5 m) and interpolated over the crop\n``bench_real.py`` scores (rows 110–218, columns 106–214 of that grid) by\n``nrdepth.baselines.tracks.densify``. nrdepth reconstructs the crop's video itself.\nEvery method is scored over the crop's pixels with a ground-truth value: MAE\nin millimetres after each frame's least-squares GBR alignment to the truth,\nand MAE-SN per frame and from the first frame.\n\nkinect_paper (no ground truth): the same trackers on the printed part of the\nsheet in frames 0–47, and one picture frames | nrdepth | CSF2 | KSTA.\n\n    python benchmarks/bench_nrsfm.py table3 [--K 2] [--d-fraction 0.1] [--model PATH] [--out docs]\n"
 from pathlib import Path
 
-import numpy as np
 
 import nrdepth
 import nrdepth.model
 from nrdepth.scores.metrics import flat_baseline, gbr_align, mae_sn
-from nrdepth.baselines.nrsfm import cameras, csf2, ksta
+from nrdepth.baselines.nrsfm import csf2, ksta
 from nrdepth.engine.preview import save_png
 from nrdepth.baselines.tracks import densify, measurement_matrix, nrsfm_depth, track_video
 from nrdepth.io import colorize_depth, depth_range, read_video

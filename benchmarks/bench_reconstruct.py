@@ -19,7 +19,7 @@
    whole frame and over its inner 192×192 pixels (one patch period left
    out at each border).
 
-    python benchmarks/bench_reconstruct.py [--model PATH] [--videos 8] [--repeats 3] [--seed S] [--coarse-weight MU]
+    python benchmarks/bench_reconstruct.py job [--model PATH] [--videos 8] [--repeats 3] [--seed S] [--coarse-weight MU]
 
 ``flat``: Flat in, flat out: the flat textured sheets of the test suite
 (``tests/test_reconstruct.py``: tilted, turning, lit from above, vertices
@@ -30,16 +30,16 @@ over the true depth's standard deviation (the test asks for < 0.2 on the
 flat sheet), and the bumps' reconstructed relief over their true relief
 (geometric mean over frames; 1 is right).
 
-    python benchmarks/bench_flat_sheet.py [--model PATH] [--families fractal,weave,plaid,stripes,cells]
+    python benchmarks/bench_reconstruct.py flat [--model PATH] [--families fractal,weave,plaid,stripes,cells]
 
-    python benchmarks/bench_reconstruct_all.py job [--help]
-    python benchmarks/bench_reconstruct_all.py flat [--help]
+    python benchmarks/bench_reconstruct.py job [--help]
+    python benchmarks/bench_reconstruct.py flat [--help]
 """
 
 from __future__ import annotations
 
 # ---- job ------------------------------------------------------------
-MAIN_JOB_DOC = "Reconstruction of whole videos: time and accuracy.\n\n1. Time to reconstruct a 256×256×16 video, split into the network half\n   (coarse pass + every patch, with cutting and resizing) and the Rust half\n   (alignment and overlap-add: the default stitch, and the paper's;\n   temporal alignment), on the CPU and on CUDA when present. The shipped\n   model unless --model.\n2. The stitched MAE-SN of generated 256×256×16 videos drawn inside the\n   training ranges and, as in the paper's second experiment, outside them\n   (stronger, more flexible, more folded, faster surfaces), both MAE-SN\n   alignments, beside the flat baseline. The same patches stitched four\n   ways: the default (joint alignment, ``--coarse-weight``, Hann windows),\n   the paper's (each patch aligned to the coarse pass on its own, triangle\n   windows), and the two mixed ones; the default then temporally aligned;\n   the coarse pass alone. Then each stitch's contrast at the 32-pixel patch\n   period (``nrdepth.grid_contrast``: seams), beside the truth's, over the\n   whole frame and over its inner 192×192 pixels (one patch period left\n   out at each border).\n\n    python benchmarks/bench_reconstruct.py [--model PATH] [--videos 8] [--repeats 3] [--seed S] [--coarse-weight MU]\n"
+MAIN_JOB_DOC = "Reconstruction of whole videos: time and accuracy.\n\n1. Time to reconstruct a 256×256×16 video, split into the network half\n   (coarse pass + every patch, with cutting and resizing) and the Rust half\n   (alignment and overlap-add: the default stitch, and the paper's;\n   temporal alignment), on the CPU and on CUDA when present. The shipped\n   model unless --model.\n2. The stitched MAE-SN of generated 256×256×16 videos drawn inside the\n   training ranges and, as in the paper's second experiment, outside them\n   (stronger, more flexible, more folded, faster surfaces), both MAE-SN\n   alignments, beside the flat baseline. The same patches stitched four\n   ways: the default (joint alignment, ``--coarse-weight``, Hann windows),\n   the paper's (each patch aligned to the coarse pass on its own, triangle\n   windows), and the two mixed ones; the default then temporally aligned;\n   the coarse pass alone. Then each stitch's contrast at the 32-pixel patch\n   period (``nrdepth.grid_contrast``: seams), beside the truth's, over the\n   whole frame and over its inner 192×192 pixels (one patch period left\n   out at each border).\n\n    python benchmarks/bench_reconstruct.py job [--model PATH] [--videos 8] [--repeats 3] [--seed S] [--coarse-weight MU]\n"
 import argparse
 import time
 
@@ -152,14 +152,11 @@ def main_job() -> None:
     accuracy(args.model, args.videos, devices[-1], args.seed, args.coarse_weight)
 
 # ---- flat ------------------------------------------------------------
-MAIN_FLAT_DOC = "Flat in, flat out: the flat textured sheets of the test suite\n(``tests/test_reconstruct.py``: tilted, turning, lit from above, vertices\nfixed in the image) reconstructed in pixels, and the same sheets with bumps\nwhose RMS is 3 % of the frame's width. Prints, per texture family, the\nlargest over frames of the reconstruction's residual about its best plane\nover the true depth's standard deviation (the test asks for < 0.2 on the\nflat sheet), and the bumps' reconstructed relief over their true relief\n(geometric mean over frames; 1 is right).\n\n    python benchmarks/bench_flat_sheet.py [--model PATH] [--families fractal,weave,plaid,stripes,cells]\n"
-import argparse
+MAIN_FLAT_DOC = "Flat in, flat out: the flat textured sheets of the test suite\n(``tests/test_reconstruct.py``: tilted, turning, lit from above, vertices\nfixed in the image) reconstructed in pixels, and the same sheets with bumps\nwhose RMS is 3 % of the frame's width. Prints, per texture family, the\nlargest over frames of the reconstruction's residual about its best plane\nover the true depth's standard deviation (the test asks for < 0.2 on the\nflat sheet), and the bumps' reconstructed relief over their true relief\n(geometric mean over frames; 1 is right).\n\n    python benchmarks/bench_reconstruct.py flat [--model PATH] [--families fractal,weave,plaid,stripes,cells]\n"
 import sys
 from pathlib import Path
 
-import numpy as np
 
-import nrdepth
 import nrdepth.model
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))

@@ -7,8 +7,8 @@ CPU and on CUDA when there is one, each beside its ratio to the paper's
 ``UNet3D(base=16)`` measured in the same run. The clip generator's rate is
 printed too: online training needs it to keep up.
 
-    python benchmarks/bench_learning.py [--batch 4] [--steps 5] [--loss aligned_both_signed]
-    python benchmarks/bench_learning.py --arch unet2p1d:width=32 --arch unet3d:base=8
+    python benchmarks/learning_curves.py speed [--batch 4] [--steps 5] [--loss aligned_both_signed]
+    python benchmarks/learning_curves.py speed --arch unet2p1d:width=32 --arch unet3d:base=8
 
 ``curves``: Learning curves: held-out MAE-SN (both alignments), sign-correct and flip
 rates of training runs against clips seen and against hours of training,
@@ -19,14 +19,14 @@ training batch uses) after each epoch into ``metrics.csv``; this script trains
 configurations side by side for the same wall-clock time and draws those rows.
 
     # two configurations, 60 minutes each, side by side, one torch thread each
-    python benchmarks/learning_curves.py train --minutes 60 \
+    python benchmarks/learning_curves.py curves train --minutes 60 \
         runs/a="--arch unet2p1d --loss aligned_both_signed --steps 100" \
         runs/b="--arch unet3d --base 16 --loss aligned_both_signed --steps 25"
     # curves of any runs (resumed runs included): CSV + PNG
-    python benchmarks/learning_curves.py plot runs/a runs/b -o docs/learning_curves
+    python benchmarks/learning_curves.py curves plot runs/a runs/b -o docs/learning_curves
     # a warm-started run drawn where it continues another: "A@CLIPS+B" (B's
     # --init was A's weights at CLIPS clips seen; B's clips and hours follow A's)
-    python benchmarks/learning_curves.py plot runs/a@27200+runs/c -o docs/campaign
+    python benchmarks/learning_curves.py curves plot runs/a@27200+runs/c -o docs/campaign
 
 Runs that watch a real video (``nrdepth train --real``) get a third row:
 its MAE-SN per frame and from the first frame, and its sign-correct share.
@@ -37,14 +37,14 @@ its MAE-SN per frame and from the first frame, and its sign-correct share.
 arguments given override them; a run stopped at the budget resumes where it
 stopped when started again (same folder).
 
-    python benchmarks/learning_all.py speed [--help]
-    python benchmarks/learning_all.py curves [--help]
+    python benchmarks/learning_curves.py speed [--help]
+    python benchmarks/learning_curves.py curves [--help]
 """
 
 from __future__ import annotations
 
 # ---- speed ------------------------------------------------------------
-MAIN_SPEED_DOC = "Cost of each network architecture, measured in one run: FLOPs per\n64×64×16 patch (forward, counted by torch's FlopCounterMode), training\nsamples/s (forward, loss, backward, Adam step) and inference patches/s, on the\nCPU and on CUDA when there is one, each beside its ratio to the paper's\n``UNet3D(base=16)`` measured in the same run. The clip generator's rate is\nprinted too: online training needs it to keep up.\n\n    python benchmarks/bench_learning.py [--batch 4] [--steps 5] [--loss aligned_both_signed]\n    python benchmarks/bench_learning.py --arch unet2p1d:width=32 --arch unet3d:base=8\n"
+MAIN_SPEED_DOC = "Cost of each network architecture, measured in one run: FLOPs per\n64×64×16 patch (forward, counted by torch's FlopCounterMode), training\nsamples/s (forward, loss, backward, Adam step) and inference patches/s, on the\nCPU and on CUDA when there is one, each beside its ratio to the paper's\n``UNet3D(base=16)`` measured in the same run. The clip generator's rate is\nprinted too: online training needs it to keep up.\n\n    python benchmarks/learning_curves.py speed [--batch 4] [--steps 5] [--loss aligned_both_signed]\n    python benchmarks/learning_curves.py speed --arch unet2p1d:width=32 --arch unet3d:base=8\n"
 import argparse
 import time
 from typing import Callable, Dict, List, Tuple
@@ -127,8 +127,7 @@ def main_speed() -> None:
                   f"{infer_rate:>10.2f}{infer_rate / reference['infer']:>6.1f}×")
 
 # ---- curves ------------------------------------------------------------
-MAIN_CURVES_DOC = 'Learning curves: held-out MAE-SN (both alignments), sign-correct and flip\nrates of training runs against clips seen and against hours of training,\nbeside the flat baseline and the paper\'s figures.\n\nEvery ``nrdepth train`` run scores its validation clips (a generator seed no\ntraining batch uses) after each epoch into ``metrics.csv``; this script trains\nconfigurations side by side for the same wall-clock time and draws those rows.\n\n    # two configurations, 60 minutes each, side by side, one torch thread each\n    python benchmarks/learning_curves.py train --minutes 60 \\\n        runs/a="--arch unet2p1d --loss aligned_both_signed --steps 100" \\\n        runs/b="--arch unet3d --base 16 --loss aligned_both_signed --steps 25"\n    # curves of any runs (resumed runs included): CSV + PNG\n    python benchmarks/learning_curves.py plot runs/a runs/b -o docs/learning_curves\n    # a warm-started run drawn where it continues another: "A@CLIPS+B" (B\'s\n    # --init was A\'s weights at CLIPS clips seen; B\'s clips and hours follow A\'s)\n    python benchmarks/learning_curves.py plot runs/a@27200+runs/c -o docs/campaign\n\nRuns that watch a real video (``nrdepth train --real``) get a third row:\nits MAE-SN per frame and from the first frame, and its sign-correct share.\n``paired A B`` compares two runs that saw the same clips epoch by epoch.\n\n``train`` passes ``--batch-size 8 --epochs 100000 --schedule constant\n--validation-clips 64 --workers 0 --device cpu --quiet`` unless the\narguments given override them; a run stopped at the budget resumes where it\nstopped when started again (same folder).\n'
-import argparse
+MAIN_CURVES_DOC = 'Learning curves: held-out MAE-SN (both alignments), sign-correct and flip\nrates of training runs against clips seen and against hours of training,\nbeside the flat baseline and the paper\'s figures.\n\nEvery ``nrdepth train`` run scores its validation clips (a generator seed no\ntraining batch uses) after each epoch into ``metrics.csv``; this script trains\nconfigurations side by side for the same wall-clock time and draws those rows.\n\n    # two configurations, 60 minutes each, side by side, one torch thread each\n    python benchmarks/learning_curves.py curves train --minutes 60 \\\n        runs/a="--arch unet2p1d --loss aligned_both_signed --steps 100" \\\n        runs/b="--arch unet3d --base 16 --loss aligned_both_signed --steps 25"\n    # curves of any runs (resumed runs included): CSV + PNG\n    python benchmarks/learning_curves.py curves plot runs/a runs/b -o docs/learning_curves\n    # a warm-started run drawn where it continues another: "A@CLIPS+B" (B\'s\n    # --init was A\'s weights at CLIPS clips seen; B\'s clips and hours follow A\'s)\n    python benchmarks/learning_curves.py curves plot runs/a@27200+runs/c -o docs/campaign\n\nRuns that watch a real video (``nrdepth train --real``) get a third row:\nits MAE-SN per frame and from the first frame, and its sign-correct share.\n``paired A B`` compares two runs that saw the same clips epoch by epoch.\n\n``train`` passes ``--batch-size 8 --epochs 100000 --schedule constant\n--validation-clips 64 --workers 0 --device cpu --quiet`` unless the\narguments given override them; a run stopped at the budget resumes where it\nstopped when started again (same folder).\n'
 import csv
 import json
 import math
@@ -136,9 +135,7 @@ import os
 import shlex
 import subprocess
 import sys
-import time
 from pathlib import Path
-from typing import Dict, List
 
 PAPER = {"frame": 0.3832, "first": 0.6133}
 """The paper's ℓ_GBR network on its held-out synthetic clips (its Table 1)."""

@@ -14,6 +14,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import List
 
 import numpy as np
 import pytest
@@ -184,3 +185,71 @@ def test_a_folder_an_earlier_batch_wrote_for_another_video_is_refused_naming_bot
     (out / SUMMARY).write_text(f"input,output,status\n{tmp_path / 'x' / 'a.npy'},{out / 'a'},done\n")
     with pytest.raises(ValueError, match=r"^inputs: .*a\.npy would be written to .*, which holds .*x/a\.npy from an earlier batch"):
         nrdepth.reconstruct_many(batch / "videos" / "a.npy", out)
+
+
+def _children(pid: int) -> List[int]:
+    """The live processes whose parent is ``pid`` (Linux's /proc)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == pid and fields[0] != "Z":
+                found.append(int(entry.name))
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        return (Path("/proc") / str(pid) / "stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads the process table from /proc")
+def test_a_batch_killed_by_kill_9_leaves_no_process_of_its_own_behind(batch, tmp_path):
+    argv = [sys.executable, "-m", "nrdepth", "reconstruct-many", str(batch / "videos"), "-o", str(tmp_path / "out"), "--model",
+            str(batch / "model.safetensors"), "--device", "cpu", "--workers", "2", "--threads", "1", "--quiet"]
+    process = subprocess.Popen(argv, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline, workers = time.time() + 120, []
+    while time.time() < deadline and len(workers) < 3:  # two workers and the resource tracker
+        workers = _children(process.pid)
+        time.sleep(0.1)
+    assert len(workers) >= 2, workers
+    time.sleep(1.0)  # the workers under way
+    process.kill()  # the batch alone, as a crash or the OOM killer would: not its process group
+    process.wait()
+    deadline = time.time() + 10
+    while time.time() < deadline and any(_alive(pid) for pid in workers):
+        time.sleep(0.2)
+    left = [pid for pid in workers if _alive(pid)]
+    try:
+        assert not left, f"still alive 10 s after kill -9: {left}"
+    finally:
+        os.killpg(process.pid, signal.SIGKILL) if left else None
+
+
+def test_ctrl_c_in_a_batch_says_one_line_from_every_process(batch, tmp_path):
+    argv = [sys.executable, "-m", "nrdepth", "reconstruct-many", str(batch / "videos"), "-o", str(tmp_path / "out"), "--model",
+            str(batch / "model.safetensors"), "--device", "cpu", "--workers", "2", "--threads", "1"]
+    process = subprocess.Popen(argv, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while time.time() < deadline and len(_children(process.pid)) < 3:
+        time.sleep(0.1)
+    time.sleep(1.5)
+    os.killpg(process.pid, signal.SIGINT)  # as a terminal's Ctrl-C: every process of the group
+    out, err = process.communicate(timeout=120)
+    assert process.returncode == 130, err[-2000:]
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err[-2000:]
+
+
+def test_a_ray_address_that_cannot_be_reached_fails_at_once_naming_it(batch, tmp_path):
+    start = time.perf_counter()
+    for address in ("127.0.0.1:1", "ray://127.0.0.1:1"):
+        with pytest.raises(ValueError, match=f"^address: no Ray cluster answers at {address} "):
+            nrdepth.reconstruct_many(batch / "videos" / "a.npy", tmp_path / "out", engine="ray", address=address)
+    with pytest.raises(ValueError, match="^address: expected host:port"):
+        nrdepth.reconstruct_many(batch / "videos" / "a.npy", tmp_path / "out", engine="ray", address="127.0.0.1:port")
+    assert time.perf_counter() - start < 30 and not (tmp_path / "out").exists()

@@ -11,7 +11,7 @@ import torch
 import nrdepth
 import nrdepth.model
 from nrdepth import GeneratorConfig, SheetSettings, generate_clips
-from nrdepth.reconstruct import SheetFallback, reconstruct_file
+from nrdepth.reconstruct import reconstruct_file
 
 from test_sheet_stage import LOOSE, OPTIONS, step_module
 

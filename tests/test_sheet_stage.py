@@ -139,7 +139,6 @@ def test_held_the_stage_reads_only_the_points_found_again_in_most_of_their_frame
 
 
 def test_the_stage_solves_each_frame_as_asked(monkeypatch, model, bending):
-    import importlib
 
     stage = step_module("mdh_depths")
 
@@ -157,7 +156,6 @@ def test_the_stage_solves_each_frame_as_asked(monkeypatch, model, bending):
 
 
 def test_a_cone_program_without_an_answer_sends_the_stage_aside_with_its_status(monkeypatch, model, bending):
-    import importlib
 
     from nrdepth.isometric import NotSolved
 

@@ -106,6 +106,37 @@ def test_view_names_a_damaged_depth_npz_and_the_cli_exits_2(tmp_path, damage, ca
     assert len(err) == 1 and err[0].startswith(f"nrdepth view: error: depth: {folder / 'depth.npz'}"), err
     assert sorted(p.name for p in folder.iterdir()) == ["depth.npz"]  # no page, no temporary file
 
+def test_view_refuses_files_that_disagree_or_infinite_depth_naming_the_file_and_leaves_no_partial_page(tmp_path):
+    import torch
+
+    torch.manual_seed(0)
+    video, _ = clip(size=64)
+    np.save(tmp_path / "clip.npy", video)
+    out = nrdepth.reconstruct_file(tmp_path / "clip.npy", tmp_path / "out", nrdepth.model.UNet3D(base=2), device="cpu", max_side=32)
+    with np.load(out / "depth.npz") as saved:
+        arrays = dict(saved)
+        assert "sheet" in arrays and "sheet:" in (out / "viewer.html").read_text()  # the stage's decision is on the page
+    listing = sorted(p.name for p in out.iterdir())
+    for frames in (len(video) + 24, len(video) - 4):  # more and fewer frames of depth than the side-by-side video has
+        depth = np.resize(arrays["depth"], (frames, *arrays["depth"].shape[1:]))
+        np.savez(out / "depth.npz", **{**arrays, "depth": depth})
+        with pytest.raises(ValueError, match=f"^video: {out / 'side_by_side.mp4'} holds (more|fewer) frames than the {frames} of "):
+            view(out)
+    infinite = arrays["depth"].copy()
+    infinite[3, 2, 2] = np.inf
+    np.savez(out / "depth.npz", **{**arrays, "depth": infinite})
+    with pytest.raises(ValueError, match=f"^depth: {out / 'depth.npz'}: frame 3 holds infinite depth"):
+        view(out)
+    with pytest.raises(ValueError, match="^depth: frame 3 holds infinite depth"):
+        view(infinite, path=tmp_path / "v.html")
+    np.savez(out / "depth.npz", **arrays)
+    (out / "viewer.html").unlink()
+    (out / "viewer.html").mkdir()
+    with pytest.raises(ValueError, match="^path: .*viewer.html is a folder"):
+        view(out)
+    assert sorted(p.name for p in out.iterdir()) == listing and not list(tmp_path.glob("**/*.partial-*"))
+
+
 def test_a_reconstruction_folder_gets_its_viewer_and_view_rewrites_it(tmp_path):
     import torch
 

@@ -88,7 +88,11 @@ class ViewerFrames:
         self.seen = 0
 
     def add(self, depth: np.ndarray, grey: Optional[np.ndarray] = None) -> None:
-        """The next frames: float depth (n, H, W) and uint8 grey (n, H, W) or None."""
+        """The next frames: float depth (n, H, W), finite or NaN (no surface), and uint8 grey (n, H, W) or None."""
+        infinite = np.isinf(np.asarray(depth, dtype=np.float64)).any(axis=(1, 2))
+        if infinite.any():
+            raise option_error("depth", f"frame {self.seen + int(np.argmax(infinite))} holds infinite depth; expected finite values "
+                               "(NaN where there is no surface)")
         picked = [i for i in range(len(depth)) if (self.seen + i) % self.keep == 0]
         self.seen += len(depth)
         if picked:
@@ -168,9 +172,15 @@ def write_page(path: PathLike, videos: Sequence[Tuple[str, ViewerFrames]], fps: 
     html = figure.to_html(include_plotlyjs=True, full_html=True, div_id="nrdepth-view", post_script=script,
                           config={"displaylogo": False, "responsive": True}, default_height="88vh")
     path = Path(path)
+    if path.is_dir():
+        raise option_error("path", f"{path} is a folder; expected the page's file name (viewer.html)")
     tmp = path.with_name(f".{path.name}.partial-{os.getpid()}")
-    tmp.write_text(html, encoding="utf-8")
-    os.replace(tmp, path)
+    try:
+        tmp.write_text(html, encoding="utf-8")
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)  # no partial page left behind, whatever stopped it
+        raise
     return path
 
 
@@ -222,10 +232,22 @@ def _view_folder(folder: Path, path: Optional[PathLike], title: str) -> Path:
     frames = ViewerFrames(shape)
     fps = 25.0
     greys: Iterable[Optional[np.ndarray]] = iter(lambda: None, 0)
-    if (folder / "side_by_side.mp4").is_file():
-        fps, greys = read_left_half(folder / "side_by_side.mp4", shape[1:])
-    for depth, grey in zip(chunks, _rechunk(greys, shape[0])):
-        frames.add(depth, grey[: len(depth)] if grey is not None else None)
+    video = folder / "side_by_side.mp4"
+    if video.is_file():
+        fps, greys = read_left_half(video, shape[1:])
+    greys = iter(_rechunk(greys, shape[0]))
+    for depth, grey in zip(chunks, greys):
+        if grey is not None and len(grey) != len(depth):
+            raise option_error("video", f"{video} holds {'more' if len(grey) > len(depth) else 'fewer'} frames than the {shape[0]} of "
+                               f"{folder / 'depth.npz'}")
+        try:
+            frames.add(depth, grey)
+        except ValueError as error:
+            raise option_error("depth", f"{folder / 'depth.npz'}: {error.detail}") from None
+    extra = next(greys, None)
+    if frames.seen < shape[0] or extra is not None:
+        raise option_error("video", f"{video} holds {'fewer' if frames.seen < shape[0] else 'more'} frames than the {shape[0]} of "
+                           f"{folder / 'depth.npz'}")
     with np.load(folder / "depth.npz") as saved:
         sheet = str(saved["sheet"]) if "sheet" in saved.files else None
     return write_page(folder / "viewer.html" if path is None else path, [("depth", frames)], fps, title, " ".join(filter(None, [FULL_RESOLUTION, sheet_note(sheet)])))

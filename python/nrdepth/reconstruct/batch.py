@@ -21,6 +21,8 @@ import io
 import json
 import os
 import signal
+import sys
+import threading
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
@@ -184,14 +186,18 @@ def _run_one(video: str, folder: str, model: Optional[str], options: Reconstruct
 
     torch.set_num_threads(threads)
     keep_freed_memory()  # the worker's process is the batch's own
+    global _RUNNING
     row = BatchRow(video, folder)
     start = time.perf_counter()
+    _RUNNING = True
     try:
         reconstruct_file(video, folder, model, ReconstructOptions.of(options, overwrite=True))  # a folder left incomplete is redone
         row.status, row.frames = "done", npz_header(Path(folder) / "depth.npz", "depth")[0][0]
         row.take_sheet(folder)
     except Exception as error:  # noqa: BLE001 - whatever a video does, the batch goes on and says why
         row.status, row.error = "failed", _one_line(error)
+    finally:
+        _RUNNING = False
     row.seconds = round(time.perf_counter() - start, 2)
     return row
 
@@ -213,12 +219,48 @@ def _write_summary(out: Path, rows: Iterable[BatchRow]) -> None:
     os.replace(tmp, out / SUMMARY)
 
 
-def _pin_gpu(counter, gpus: int) -> None:
-    """A local worker's GPU, in turn among ``gpus``: the only one it sees (set before torch starts)."""
-    with counter.get_lock():
-        index, counter.value = counter.value, counter.value + 1
-    visible = os.environ.get("CUDA_VISIBLE_DEVICES")
-    os.environ["CUDA_VISIBLE_DEVICES"] = visible.split(",")[index % gpus] if visible else str(index % gpus)
+_RUNNING = False
+"""In a worker: whether a video is being reconstructed (a Ctrl-C then stops it cleanly; between videos the worker just exits)."""
+
+
+def _worker_start(parent: int, counter, gpus: int) -> None:
+    """A local worker's start: it dies with its batch, a Ctrl-C between videos
+    ends it without a word, and with ``gpus`` it sees a GPU of its own, in turn
+    (set before torch starts)."""
+    _die_with(parent)
+    signal.signal(signal.SIGINT, _worker_sigint)
+    if gpus:
+        with counter.get_lock():
+            index, counter.value = counter.value, counter.value + 1
+        visible = os.environ.get("CUDA_VISIBLE_DEVICES")
+        os.environ["CUDA_VISIBLE_DEVICES"] = visible.split(",")[index % gpus] if visible else str(index % gpus)
+
+
+def _die_with(parent: int) -> None:
+    """This process ends when ``parent`` does, even by ``kill -9``: the kernel's
+    parent-death signal on Linux, and everywhere a thread that watches the parent."""
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            pass
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(1)
+
+    if os.getppid() != parent:  # the parent died before the signal was set
+        os._exit(1)
+    threading.Thread(target=watch, name="nrdepth batch parent watch", daemon=True).start()
+
+
+def _worker_sigint(signum: int, frame: object) -> None:
+    if _RUNNING:
+        raise KeyboardInterrupt  # the video's job stops and leaves nothing behind; the batch says so, once
+    os._exit(130)  # between videos: nothing to stop, and no traceback to print
 
 
 def _local(jobs: List[Tuple[int, BatchRow]], model: Optional[str], options: ReconstructOptions, workers: int, threads: int,
@@ -229,9 +271,9 @@ def _local(jobs: List[Tuple[int, BatchRow]], model: Optional[str], options: Reco
     context = get_context("spawn")
     left = dict(jobs)
     while left:
-        pinning = dict(initializer=_pin_gpu, initargs=(context.Value("i", 0), gpus)) if gpus else {}
+        starting = dict(initializer=_worker_start, initargs=(os.getpid(), context.Value("i", 0), gpus))
         ours = {child.pid for child in active_children()}  # the caller's own children, not to be signalled below
-        pool = ProcessPoolExecutor(max_workers=min(workers, len(left)), mp_context=context, **pinning)
+        pool = ProcessPoolExecutor(max_workers=min(workers, len(left)), mp_context=context, **starting)
         try:
             # After a worker died: one video a pool, so that a death names its video and spares the others.
             submitted = list(left.items()) if workers > 1 else list(left.items())[:1]
@@ -257,6 +299,27 @@ def _local(jobs: List[Tuple[int, BatchRow]], model: Optional[str], options: Reco
             raise
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
+
+
+RAY_REACH = 10.0
+"""Seconds within which a Ray cluster's address must answer a TCP connection, or the batch is refused naming it
+(Ray's own client retries for many minutes, and names another address when it gives up)."""
+
+
+def _check_ray_address(address: str) -> None:
+    """Refuses a Ray ``address`` (``host:port`` or ``ray://host:port``) that no TCP connection reaches within :data:`RAY_REACH`."""
+    import socket
+
+    if address in ("auto", "local") or not isinstance(address, str):
+        return
+    host, _, port = address.split("://", 1)[-1].rpartition(":")
+    try:
+        socket.create_connection((host.strip("[]") or "127.0.0.1", int(port)), timeout=RAY_REACH).close()
+    except ValueError:
+        raise option_error("address", f"expected host:port, ray://host:port, 'auto' or 'local', got {address!r}") from None
+    except OSError as error:
+        raise option_error("address", f"no Ray cluster answers at {address} ({error.strerror or error}); start one (ray start --head) "
+                           "or leave address out to start one here") from None
 
 
 def _ray(jobs: List[Tuple[int, BatchRow]], model: Optional[str], options: ReconstructOptions, threads: Optional[int], address: Optional[str]) -> Iterator[Tuple[int, BatchRow]]:
@@ -322,6 +385,8 @@ def reconstruct_many(inputs: Union[PathLike, Sequence[PathLike]], out: PathLike,
         raise option_error("engine", f"expected one of {ENGINES}, got {engine!r}")
     if progress is not None and not callable(progress):
         raise TypeError(f"progress: expected a callable progress(done, total, row) or None, got {type(progress).__name__}")
+    if engine == "ray" and address is not None:
+        _check_ray_address(address)
     cores = os.cpu_count() or 1
     gpus = _gpu_count() if engine == "local" and options.device in ("auto", "cuda") else 0  # cuda:N: that GPU alone
     for name, value in (("workers", workers), ("threads", threads)):

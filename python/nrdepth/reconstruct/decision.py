@@ -56,17 +56,28 @@ class SheetDecision:
 
     def line(self) -> str:
         what = "the sheet's shape from inextensibility" if self.used else "the network's depth alone"
-        measured = "".join(f", {name} {value:.{digits}f}" for name, value, digits in
-                           (("texture", self.texture, 2), ("motion px", self.motion, 2), ("held", self.held, 2), ("contrast", self.contrast, 2),
-                            ("focal estimate px", self.focal_estimate, 1), ("strain", self.strain, 4), ("scale", self.scale, 2))
-                           if value is not None)
+        measured = "".join(
+            f", {name} {value:.{digits}f}"
+            for name, value, digits in (
+                ("texture", self.texture, 2),
+                ("motion px", self.motion, 2),
+                ("held", self.held, 2),
+                ("contrast", self.contrast, 2),
+                ("focal estimate px", self.focal_estimate, 1),
+                ("strain", self.strain, 4),
+                ("scale", self.scale, 2),
+            )
+            if value is not None
+        )
         template = f", template {self.template}" if self.template else ""
         # read through the estimate: focal was set from focal_estimate itself, so they are equal exactly
         if self.focal is None:  # the stage did not run: no camera, no points
             return f"sheet: {what} ({self.reason}; {self.frames} frames)"
         given = "" if not self.guessed else " estimated" if self.focal[0] == self.focal_estimate else " guessed"
-        return (f"sheet: {what} ({self.reason}; focal {self.focal[0]:g},{self.focal[1]:g} px{given}, {self.frames} frames, "
-                f"{self.points} points{template}{measured})")
+        return (
+            f"sheet: {what} ({self.reason}; focal {self.focal[0]:g},{self.focal[1]:g} px{given}, {self.frames} frames, "
+            f"{self.points} points{template}{measured})"
+        )
 
     @property
     def camera(self) -> Optional[Camera]:

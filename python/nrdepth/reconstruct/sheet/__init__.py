@@ -47,8 +47,18 @@ from .settings import SheetSettings
 if TYPE_CHECKING:  # the options hold the stage's settings (.settings): no import at run time
     from ..options import ReconstructOptions
 
-__all__ = ["SheetStage", "stage_of", "sheet_region", "sheet_depth", "read_sheet", "read_beside", "SheetReading", "SheetDecision", "SheetSettings",
-           "Plan"]
+__all__ = [
+    "SheetStage",
+    "stage_of",
+    "sheet_region",
+    "sheet_depth",
+    "read_sheet",
+    "read_beside",
+    "SheetReading",
+    "SheetDecision",
+    "SheetSettings",
+    "Plan",
+]
 
 log = logging.getLogger("nrdepth.sheet")
 
@@ -70,13 +80,17 @@ def stage_of(options: ReconstructOptions, frame: Tuple[int, int]) -> SheetStage:
     that cannot be read is an error naming the option; by default it skips
     the stage, with a decision saying why, as do ``sheet_stage=False``,
     ``units="pixels"`` and ``temporal``."""
+
     def skipped(reason: str) -> SheetStage:
         return SheetStage(skipped=SheetDecision(False, reason))
 
     if not options.sheet_stage:
         return skipped("the sheet stage is off (sheet_stage=False, --no-sheet)")
     if not options.sheet_mode:
-        return skipped(f"the sheet stage runs with units='standard' and temporal off only (units={options.units!r}, temporal={options.temporal})")
+        return skipped(
+            "the sheet stage runs with units='standard' and temporal off only "
+            f"(units={options.units!r}, temporal={options.temporal})"
+        )
     try:
         return SheetStage(sheet_region(options, frame), options.sheet_camera(frame))
     except ValueError as error:
@@ -101,8 +115,11 @@ def sheet_region(options: ReconstructOptions, frame: Tuple[int, int]) -> np.ndar
     else:
         region = np.asarray(sheet)
         if region.dtype != np.bool_ or region.shape != tuple(frame) or region.sum() < 16:
-            raise option_error("sheet", f"expected a box (x, y, w, h) or a bool array of the video's frame {tuple(frame)} with at least 16 "
-                               f"pixels on the sheet, got {region.dtype} {region.shape}")
+            raise option_error(
+                "sheet",
+                f"expected a box (x, y, w, h) or a bool array of the video's frame {tuple(frame)} with at least 16 "
+                f"pixels on the sheet, got {region.dtype} {region.shape}",
+            )
     try:
         start_grid(region, frame, int(options.isometric_points), float(options.isometric_drop))
     except ValueError as error:  # the points' region is the user's sheet (or roi)
@@ -120,8 +137,15 @@ class SheetReading:
     depths: Optional[np.ndarray] = None
 
 
-def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera: Camera, region: np.ndarray,
-                frames: Callable[[], Iterable[np.ndarray]], reading: Optional["Future[SheetReading]"] = None) -> SheetDecision:
+def sheet_depth(
+    raw,
+    work: Tuple[int, int],
+    options: ReconstructOptions,
+    camera: Camera,
+    region: np.ndarray,
+    frames: Callable[[], Iterable[np.ndarray]],
+    reading: Optional["Future[SheetReading]"] = None,
+) -> SheetDecision:
     """Gives the stitched depth ``raw`` (T, h, w; an array or
     :class:`~..frames.DiskFrames`, changed in place, all or nothing) at the
     working resolution ``work`` its shape above the fusion's scale from the
@@ -141,8 +165,13 @@ def sheet_depth(raw, work: Tuple[int, int], options: ReconstructOptions, camera:
 
 
 @contextmanager
-def read_beside(frame_count: int, options: ReconstructOptions, camera: Camera, region: np.ndarray,
-                frames: Callable[[], Iterable[np.ndarray]]) -> Iterator["Future[SheetReading]"]:
+def read_beside(
+    frame_count: int,
+    options: ReconstructOptions,
+    camera: Camera,
+    region: np.ndarray,
+    frames: Callable[[], Iterable[np.ndarray]],
+) -> Iterator["Future[SheetReading]"]:
     """:func:`read_sheet` in a second thread while the caller works (the
     network's passes): the sheet's points need the frames alone. The same
     bytes as read in turn. Yields its future; on leaving (an interrupted
@@ -172,8 +201,14 @@ def read_beside(frame_count: int, options: ReconstructOptions, camera: Camera, r
         thread.join()
 
 
-def read_sheet(frame_count: int, options: ReconstructOptions, camera: Camera, region: np.ndarray,
-               frames: Callable[[], Iterable[np.ndarray]], check: Callable[[], None] = lambda: None) -> SheetReading:
+def read_sheet(
+    frame_count: int,
+    options: ReconstructOptions,
+    camera: Camera,
+    region: np.ndarray,
+    frames: Callable[[], Iterable[np.ndarray]],
+    check: Callable[[], None] = lambda: None,
+) -> SheetReading:
     """The sheet's points and their depths from its inextensibility, or why
     not: points over ``region`` (:func:`sheet_region`, bool (H, W))
     followed through ``frames()`` (a fresh stream of the ``frame_count``
@@ -190,7 +225,12 @@ def read_sheet(frame_count: int, options: ReconstructOptions, camera: Camera, re
     way and carries what the deciding reading measured."""
     settings: SheetSettings = options.sheet_settings
     camera = camera.at(region.shape)
-    base = dict(focal=tuple(map(float, camera.focal)), centre=tuple(map(float, camera.centre)), frames=frame_count, guessed=options.focal is None)
+    base = dict(
+        focal=tuple(map(float, camera.focal)),
+        centre=tuple(map(float, camera.centre)),
+        frames=frame_count,
+        guessed=options.focal is None,
+    )
     try:
         enough_frames(frame_count, settings, options.sheet_given)
         readings = plans(options, frame_count >= settings.min_frames_by_default)
@@ -204,8 +244,14 @@ def read_sheet(frame_count: int, options: ReconstructOptions, camera: Camera, re
                 if not tracks:
                     base.update(texture=texture(first, region))
                     enough_texture(base["texture"], settings)
-                tracks[plan.hold] = tracked(_chain(first, stream), region, int(options.isometric_points), float(options.isometric_drop),
-                                            plan.hold, settings)
+                tracks[plan.hold] = tracked(
+                    _chain(first, stream),
+                    region,
+                    int(options.isometric_points),
+                    float(options.isometric_drop),
+                    plan.hold,
+                    settings,
+                )
             measured = {}  # the reading's own: a decision never mixes two readings' values
             try:
                 found = read(tracks[plan.hold], region.shape, plan, options, settings, camera, measured, check)
@@ -234,6 +280,8 @@ def _failed(error: Exception, step: str, options: ReconstructOptions, decision: 
     depth, the error its reason; with ``focal`` or ``sheet`` given, an error naming it."""
     what = " ".join(f"{type(error).__name__}: {error}".split())
     if options.sheet_given:
-        raise option_error("focal" if options.focal is not None else "sheet", f"the sheet stage failed {step} ({what})") from error
+        raise option_error(
+            "focal" if options.focal is not None else "sheet", f"the sheet stage failed {step} ({what})"
+        ) from error
     log.debug("the sheet stage failed %s; the network's depth stays", step, exc_info=error)
     return dataclasses.replace(decision, used=False, reason=f"the stage failed {step} ({what})", scale=None)

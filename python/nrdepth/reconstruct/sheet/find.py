@@ -21,12 +21,15 @@ from .settings import SheetSettings
 __all__ = ["tracked", "texture", "checked", "read_points", "found_points"]
 
 
-def tracked(frames: Iterable[np.ndarray], region: np.ndarray, points: int, drop: float, hold: bool, settings: SheetSettings) -> np.ndarray:
+def tracked(
+    frames: Iterable[np.ndarray], region: np.ndarray, points: int, drop: float, hold: bool, settings: SheetSettings
+) -> np.ndarray:
     """About ``points`` points over ``region`` (H, W) followed through
     ``frames`` (:func:`~nrdepth.isometric.track_grid`, ``drop`` of them left
     out, ``hold``: found again by their look in the first frame), in frames
     shrunk to :attr:`~.SheetSettings.track_side` where larger: their tracks
     (T, n, 2) in the video's pixels."""
+
     def follow(frames: Iterable[np.ndarray], region: np.ndarray) -> np.ndarray:
         return track_grid(frames, region, points=points, drop=drop, margin=settings.flow_margin, hold=hold)
 
@@ -46,7 +49,12 @@ def tracked(frames: Iterable[np.ndarray], region: np.ndarray, points: int, drop:
 def texture(frame: np.ndarray, region: np.ndarray) -> float:
     """The 90th percentile of the absolute gray-level steps to the next pixel right and down, over ``region``."""
     f = frame.astype(np.float32)
-    steps = np.concatenate([np.abs(np.diff(f, axis=1))[region[:, 1:] & region[:, :-1]], np.abs(np.diff(f, axis=0))[region[1:] & region[:-1]]])
+    steps = np.concatenate(
+        [
+            np.abs(np.diff(f, axis=1))[region[:, 1:] & region[:, :-1]],
+            np.abs(np.diff(f, axis=0))[region[1:] & region[:-1]],
+        ]
+    )
     return float(np.percentile(steps, 90)) if steps.size else 0.0
 
 
@@ -69,8 +77,15 @@ def read_points(xy: np.ndarray, frame: tuple, hold: bool, every_frame: bool, set
     return read
 
 
-def found_points(xy: np.ndarray, read: np.ndarray, camera: Camera, asked: int, settings: SheetSettings, measured: dict,
-                 check: Callable[[], None]) -> np.ndarray:
+def found_points(
+    xy: np.ndarray,
+    read: np.ndarray,
+    camera: Camera,
+    asked: int,
+    settings: SheetSettings,
+    measured: dict,
+    check: Callable[[], None],
+) -> np.ndarray:
     """The sheet found among the points ``read`` (bool (n,)) of ``xy``: of
     them, those that move (:attr:`~.SheetSettings.moving_share`: none on a
     still background) and whose pairs keep their lengths through ``camera``
@@ -80,7 +95,9 @@ def found_points(xy: np.ndarray, read: np.ndarray, camera: Camera, asked: int, s
     count and motion. Raises :class:`~.GaveWay`."""
     held_in = f"held in {settings.keep_held:.0%} of their frames and in every frame"
     farthest = np.nanmax(np.linalg.norm(xy - xy[:1], axis=2), axis=0)
-    motion = float(np.median(farthest[read])) if read.any() else 0.0  # a point lost at once never moves from where it starts
+    motion = (
+        float(np.median(farthest[read])) if read.any() else 0.0
+    )  # a point lost at once never moves from where it starts
     measured.update(points=int(read.sum()), motion=motion)
     enough_points(int(read.sum()), asked, settings, held_in, "too faint a texture")
     read = read.copy()
@@ -91,7 +108,9 @@ def found_points(xy: np.ndarray, read: np.ndarray, camera: Camera, asked: int, s
     enough_points(int(read.sum()), asked, settings, f"{held_in} move", "no sheet that bends")
     check()
     try:
-        read[read] = unstrained_points(xy[:, read], camera, settings.keyframes, settings.neighbours, settings.trim, jump=settings.jump)
+        read[read] = unstrained_points(
+            xy[:, read], camera, settings.keyframes, settings.neighbours, settings.trim, jump=settings.jump
+        )
     except NotSolved as error:
         raise GaveWay(NO_ANSWER.format(error.status)) from None
     measured.update(points=int(read.sum()))

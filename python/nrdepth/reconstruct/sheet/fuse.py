@@ -23,7 +23,9 @@ from ..frames import CHUNK, DiskFrames
 __all__ = ["fused"]
 
 
-def fused(raw, work: Tuple[int, int], roi, region_shape: Tuple[int, int], xy: np.ndarray, depths: np.ndarray, scale: float) -> None:
+def fused(
+    raw, work: Tuple[int, int], roi, region_shape: Tuple[int, int], xy: np.ndarray, depths: np.ndarray, scale: float
+) -> None:
     """``raw`` (T, h, w: an array or :class:`~..frames.DiskFrames`) fused in
     place with the points ``xy`` (T, n, 2, the video's pixels) at ``depths``
     (T, n), a chunk at a time, at ``scale``; ``roi`` (x, y, w, h, or None:
@@ -38,7 +40,11 @@ def fused(raw, work: Tuple[int, int], roi, region_shape: Tuple[int, int], xy: np
             chunk = np.asarray(raw[a:b])
             on = np.isfinite(chunk)
             spread = densify(working[a:b], depths[a:b], chunk.shape)
-            staged.append(np.where(on, fuse(np.where(on, chunk, 0.0), spread, scale * min(h, w), mask=on), np.nan).astype(np.float32))
+            staged.append(
+                np.where(on, fuse(np.where(on, chunk, 0.0), spread, scale * min(h, w), mask=on), np.nan).astype(
+                    np.float32
+                )
+            )
         staged.commit()
     finally:
         staged.discard()

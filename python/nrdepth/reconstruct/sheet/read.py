@@ -19,7 +19,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Callable, List
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
 
 from ...camera import Camera
 from ...isometric import NotSolved, TooFewPoints, estimate_focal, held_share, mdh_depths, template_strain
@@ -44,7 +43,9 @@ class Plan:
 
     def name(self) -> str:
         """The reading's name in the log line: whose points, through which template."""
-        return ("the sheet's held" if self.find else "held" if self.hold else "the flow's") + f" points through {self.template}"
+        return (
+            "the sheet's held" if self.find else "held" if self.hold else "the flow's"
+        ) + f" points through {self.template}"
 
 
 @dataclass(frozen=True)
@@ -68,13 +69,23 @@ def plans(options: ReconstructOptions, long_enough: bool) -> List[Plan]:
     if not auto:
         return [Plan(options.isometric_template, hold, False, False)]
     held, joint = Plan("refined", True, False, True), Plan("joint", hold, False, False)
-    if options.sheet is None and long_enough:  # focal alone: a region that may hold more than the sheet, found first as by default
+    if (
+        options.sheet is None and long_enough
+    ):  # focal alone: a region that may hold more than the sheet, found first as by default
         return [Plan("refined", True, True, True), held, joint]
     return [held, joint]
 
 
-def read(xy: np.ndarray, frame: tuple, plan: Plan, options: ReconstructOptions, settings: SheetSettings, camera: Camera, measured: dict,
-         check: Callable[[], None]) -> Reading:
+def read(
+    xy: np.ndarray,
+    frame: tuple,
+    plan: Plan,
+    options: ReconstructOptions,
+    settings: SheetSettings,
+    camera: Camera,
+    measured: dict,
+    check: Callable[[], None],
+) -> Reading:
     """The points read of ``xy`` (T, n, 2, tracked over frames of ``frame``
     (H, W) as ``plan.hold`` says) and their depths through ``camera``, as
     ``plan`` reads them; raises :class:`~.gate.GaveWay` where the video
@@ -108,8 +119,17 @@ def read(xy: np.ndarray, frame: tuple, plan: Plan, options: ReconstructOptions, 
     from ..options import ISOMETRIC_EACH_FRAME
 
     gate_template = "refined" if plan.through else plan.template
-    # Through, the gate's program is the same whatever the options ask (refined, each frame the default way); the shape's, as asked.
-    depths, distances = _solve(xy, camera, gate_template, ISOMETRIC_EACH_FRAME if plan.through else options.isometric_each_frame, plan, settings, check)
+    # Through, the gate's program is the same whatever the options ask (refined, each frame the default way);
+    # the shape's, as asked.
+    depths, distances = _solve(
+        xy,
+        camera,
+        gate_template,
+        ISOMETRIC_EACH_FRAME if plan.through else options.isometric_each_frame,
+        plan,
+        settings,
+        check,
+    )
     if plan.through:
         strain = template_strain(xy, depths, camera, distances, settings.keyframes, settings.neighbours)
         measured.update(strain=strain)
@@ -123,25 +143,50 @@ def read(xy: np.ndarray, frame: tuple, plan: Plan, options: ReconstructOptions, 
             raise GaveWay(NO_ANSWER.format(error.status)) from None
         measured.update(contrast=estimate.contrast, focal_estimate=estimate.focal)
         focal_picked(estimate.contrast, settings)
-        if options.focal is None and estimate.inside:  # the gates passed through the guess; the shape through the focal length the strain picks
+        if (
+            options.focal is None and estimate.inside
+        ):  # the gates passed through the guess; the shape through the focal length the strain picks
             seen = Camera(estimate.focal, camera.centre)
     if plan.through:  # the gates read the points as tracked; the shape fused, from them smoothed in time
         if settings.read_smooth > 0:
+            from scipy.ndimage import gaussian_filter1d  # scipy loads with the stage, not with nrdepth
+
             xy = gaussian_filter1d(xy, settings.read_smooth, axis=0, mode="nearest")
         depths = _solve(xy, seen, plan.template, options.isometric_each_frame, plan, settings, check)[0]
         measured.update(focal=tuple(map(float, seen.focal)))
     refined = plan.through and plan.template == "refined"
-    scale = options.isometric_scale if options.isometric_scale is not None else settings.refined_scale if refined else settings.joint_scale
+    scale = (
+        options.isometric_scale
+        if options.isometric_scale is not None
+        else settings.refined_scale
+        if refined
+        else settings.joint_scale
+    )
     return Reading(xy, depths, seen, float(scale))
 
 
-def _solve(xy: np.ndarray, camera: Camera, template: str, each_frame: str, plan: Plan, settings: SheetSettings, check: Callable[[], None]) -> tuple:
-    """:func:`~nrdepth.isometric.mdh_depths` of ``xy`` through ``camera``: (depths (T, n), template distances); raises :class:`~.gate.GaveWay`."""
+def _solve(
+    xy: np.ndarray,
+    camera: Camera,
+    template: str,
+    each_frame: str,
+    plan: Plan,
+    settings: SheetSettings,
+    check: Callable[[], None],
+) -> tuple:
+    """:func:`~nrdepth.isometric.mdh_depths` of ``xy`` through ``camera``: (depths (T, n), template distances);
+    raises :class:`~.gate.GaveWay`."""
     check()
-    cheaper = dict(keyframes=settings.keyframes, every=settings.every, neighbours=settings.neighbours) if template == "joint" or plan.through else {}
+    cheaper = (
+        dict(keyframes=settings.keyframes, every=settings.every, neighbours=settings.neighbours)
+        if template == "joint" or plan.through
+        else {}
+    )
     try:
         return mdh_depths(xy, camera, template=template, each_frame=each_frame, with_distances=True, **cheaper)
     except TooFewPoints as error:
         raise GaveWay(f"too few points held in frames {error.frames[:5]}") from None
-    except NotSolved as error:  # e.g. a focal length far too long: rays nearly parallel, no perspective to read the shape by
+    except (
+        NotSolved
+    ) as error:  # e.g. a focal length far too long: rays nearly parallel, no perspective to read the shape by
         raise GaveWay(NO_ANSWER.format(error.status)) from None

@@ -130,10 +130,20 @@ class SheetSettings:
             if f.name == "jump" and value is None:
                 continue
             if f.name in _INTS:
-                ok = not isinstance(value, bool) and isinstance(value, int) and value >= (0 if f.name == "flow_margin" else 1)
+                ok = (
+                    not isinstance(value, bool)
+                    and isinstance(value, int)
+                    and value >= (0 if f.name == "flow_margin" else 1)
+                )
                 if ok and f.name == "track_side":
                     ok = value >= 8
-                expected = "an integer ≥ 0" if f.name == "flow_margin" else "an integer ≥ 8" if f.name == "track_side" else "an integer ≥ 1"
+                expected = (
+                    "an integer ≥ 0"
+                    if f.name == "flow_margin"
+                    else "an integer ≥ 8"
+                    if f.name == "track_side"
+                    else "an integer ≥ 1"
+                )
             elif f.name in _SHARES:
                 ok, expected = is_number(value) and 0 <= value <= 1, "a share in [0, 1]"
             else:
@@ -152,9 +162,14 @@ class SheetSettings:
             key, _, value = item.partition("=")
             key = key.strip().replace("-", "_")
             if key not in names or not value:
-                raise option_error("sheet_settings", f"expected key=value pairs joined by ':', the keys {', '.join(names)}; got {item!r}")
+                raise option_error(
+                    "sheet_settings",
+                    f"expected key=value pairs joined by ':', the keys {', '.join(names)}; got {item!r}",
+                )
             try:
-                given[key] = None if key == "jump" and value.lower() == "none" else int(value) if key in _INTS else float(value)
+                given[key] = (
+                    None if key == "jump" and value.lower() == "none" else int(value) if key in _INTS else float(value)
+                )
             except ValueError:
                 raise option_error("sheet_settings", f"{key}: expected a number, got {value!r}") from None
         return cls(**given)
