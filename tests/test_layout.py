@@ -9,7 +9,7 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "python" / "nrdepth"
 MAX_LINES = 500
-HEAVY = {"torch", "cv2", "plotly", "matplotlib", "scipy", "av", "h5py", "clarabel", "threadpoolctl", "safetensors", "tqdm", "selenium", "ray"}
+HEAVY = {"torch", "cv2", "plotly", "matplotlib", "scipy", "av", "h5py", "clarabel", "threadpoolctl", "safetensors", "tqdm", "selenium", "ray", "mitsuba", "PIL"}
 """Libraries whose import costs enough that a module may defer it to the function that needs it."""
 
 

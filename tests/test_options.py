@@ -35,6 +35,7 @@ FLAGS = [
       "--isometric-each-frame", "mirror", "--isometric-drop", "0.3", "--isometric-points", "900", "--isometric-hold"],
      {"focal": (500.0, 510.0), "centre": (10.0, 20.0), "sheet": (0, 0, 8, 8), "isometric_scale": 0.1, "isometric_template": "refined",
       "isometric_each_frame": "mirror", "isometric_drop": 0.3, "isometric_points": 900, "isometric_hold": True}),
+    (["--sheet-settings", "min_contrast=1.5:jump=none"], {"sheet_settings": nrdepth.SheetSettings(min_contrast=1.5, jump=None)}),
     (["--flip", "--png16", "--ply", "--ply-relief", "0.1", "--no-viewer", "--overwrite"],
      {"flip": True, "png16": True, "ply": True, "ply_relief": 0.1, "viewer": False, "overwrite": True}),
 ]

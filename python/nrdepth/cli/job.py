@@ -53,7 +53,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
     (t, h, w), _ = npz_header(out / "depth.npz", "depth")
     with np.load(out / "depth.npz") as saved:  # the sheet stage's decision, in one line (depth.npz keeps it as "sheet")
         if "sheet" in saved:
-            print(SheetDecision(**json.loads(str(saved["sheet"]))).line())
+            print(SheetDecision.from_dict(json.loads(str(saved["sheet"]))).line())
         network = json.loads(str(saved["network"]))
     print(f"wrote {out}: depth of {t} frames of {w}×{h} in {seconds:.1f} s on {network['device']} ({network['precision']}) "
           f"(depth.npz, depth.mp4, side_by_side.mp4{', viewer.html' if options.viewer else ''}{', png16/' if options.png16 else ''}{', ply/' if options.ply else ''})")

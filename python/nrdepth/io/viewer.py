@@ -215,12 +215,8 @@ def view(
 
 
 def sheet_note(sheet: Optional[str]) -> str:
-    """The page's line for the sheet stage's decision (``depth.npz``'s ``sheet``, JSON), or "" where there is none."""
-    if not sheet:
-        return ""
-    from ..reconstruct.decision import SheetDecision  # the page says what the job decided, in the job's words
-
-    return SheetDecision(**json.loads(sheet)).line()
+    """The page's line for the sheet stage's decision (``depth.npz``'s ``sheet``, JSON, with its ``line``), or ""."""
+    return str(json.loads(sheet).get("line", "")) if sheet else ""
 
 
 def _view_folder(folder: Path, path: Optional[PathLike], title: str) -> Path:

@@ -16,11 +16,13 @@ differently at other thread counts).
 from __future__ import annotations
 
 import csv
+import ctypes
 import glob
 import io
 import json
 import os
 import signal
+import socket
 import sys
 import threading
 import time
@@ -241,8 +243,6 @@ def _die_with(parent: int) -> None:
     parent-death signal on Linux, and everywhere a thread that watches the parent."""
     if sys.platform.startswith("linux"):
         try:
-            import ctypes
-
             ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
         except (OSError, AttributeError):
             pass
@@ -308,8 +308,6 @@ RAY_REACH = 10.0
 
 def _check_ray_address(address: str) -> None:
     """Refuses a Ray ``address`` (``host:port`` or ``ray://host:port``) that no TCP connection reaches within :data:`RAY_REACH`."""
-    import socket
-
     if address in ("auto", "local") or not isinstance(address, str):
         return
     host, _, port = address.split("://", 1)[-1].rpartition(":")

@@ -4,7 +4,7 @@ measured; the job's log line and ``depth.npz``'s ``sheet``."""
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from typing import Optional, Tuple
 
 from ..camera import Camera
@@ -52,7 +52,14 @@ class SheetDecision:
     scale: Optional[float] = None
 
     def as_dict(self) -> dict:
-        return asdict(self)
+        """The decision as ``depth.npz``'s ``sheet`` keeps it (JSON): its fields and its ``line``."""
+        return {**asdict(self), "line": self.line()}
+
+    @classmethod
+    def from_dict(cls, saved: dict) -> "SheetDecision":
+        """The decision :meth:`as_dict` kept (its ``line`` made again, not read)."""
+        names = {f.name for f in fields(cls)}
+        return cls(**{key: tuple(value) if isinstance(value, list) else value for key, value in saved.items() if key in names})
 
     def line(self) -> str:
         what = "the sheet's shape from inextensibility" if self.used else "the network's depth alone"

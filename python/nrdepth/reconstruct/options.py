@@ -26,7 +26,7 @@ from ..camera import GUESSED_VIEW, Camera
 from ..checks import is_number, option_error
 from ..isometric import DROP, EACH_FRAME, TEMPLATES
 from .fine import check_tile
-from .sheet.settings import SheetSettings
+from .sheet.settings import ISOMETRIC_EACH_FRAME, SheetSettings
 from .network import PRECISIONS
 from .stitch import ALIGNMENTS, COARSE_WEIGHT, TEMPORAL_WEIGHT, WINDOWS, check_stitching
 
@@ -59,17 +59,6 @@ and reads the sheet 11 % worse than the flow's tracks, which the rule's
 checks forbid; on ``kinect_paper``'s true points the tracks' 95th
 percentile falls from 1.86 to 0.65 px (docs/campaign.md, "Held points
 on a warp fitted to the points held")."""
-
-ISOMETRIC_EACH_FRAME = "lengths"
-"""With a camera's focal length, what each solved frame's depths are
-(:func:`nrdepth.isometric.mdh_depths`' ``each_frame``): refined so that
-each pair keeps its template distance, in every frame or, where one
-refined frame would change its shape, in none. By the rule fixed
-beforehand, on 32 generated paper-like sheets −0.0129 ± 0.0059 per frame
-against the program's; both real videos read as the program's, every
-frame falling back (docs/campaign.md, "Sheets that bend as real sheets
-do, and each frame's lengths kept")."""
-
 
 def _option(default: Any, help: str, flag: Optional[str] = None, **argparse_kwargs: Any) -> Any:
     """A field of :class:`ReconstructOptions`: its default, its help (the API's and the

@@ -24,7 +24,7 @@ from ...camera import Camera
 from ...isometric import NotSolved, TooFewPoints, estimate_focal, held_share, mdh_depths, template_strain
 from .find import found_points, read_points
 from .gate import NO_ANSWER, GaveWay, enough_held, enough_motion, focal_picked, lengths_kept
-from .settings import SheetSettings
+from .settings import ISOMETRIC_EACH_FRAME, SheetSettings
 
 if TYPE_CHECKING:  # the options hold the stage's settings: imported where used
     from ..options import ReconstructOptions
@@ -116,8 +116,6 @@ def read(
     measured.update(points=xy.shape[1])
     if xy.shape[1] < 3:
         raise GaveWay(f"{xy.shape[1]} points held in every frame, fewer than the 3 a program needs")
-    from ..options import ISOMETRIC_EACH_FRAME
-
     gate_template = "refined" if plan.through else plan.template
     # Through, the gate's program is the same whatever the options ask (refined, each frame the default way);
     # the shape's, as asked.
