@@ -1,4 +1,6 @@
-"""The shipped sheet stage on ``kinect_paper`` (191 frames, 640×480): for each
+"""The shipped sheet stage, on real paper and on sheets rendered by another renderer.
+
+``kinect``: the stage on ``kinect_paper`` (191 frames, 640×480): for each
 setting and each job, the whole ``nrdepth.reconstruct`` timed, its error on
 the Kinect's sparse truth (mm, per-frame GBR) and its decision's line, beside
 the rest of the job (the network alone over the roi) and a 2048² sgemm
@@ -14,12 +16,25 @@ length), ``true`` (the roi, the focal length and the print's box) and
 Every setting runs the stage the job ships (:func:`job_options`): there is
 no other implementation of it to drift from.
 
-    python benchmarks/bench_sheet_stage.py --jobs default,whole --settings ",min_contrast=1.5" [--threads 2]
+    python benchmarks/bench_sheet_stage.py kinect --jobs default,whole --settings ",min_contrast=1.5" [--threads 2]
+
+``render``: renders the seeds' scenes (``nrdepth.scores.rendered``: Mitsuba 3's
+path tracer, ``pip install mitsuba``) into the cache, skipping those there.
+``rendered``: the stage on them, per video and job (``default``: nothing
+given; ``focal``: the true focal length; ``box``: the true focal length and
+the sheet's box in the first frame), beside the network alone and the flat
+plane on the sheet's pixels: MAE-SN per frame, the relief's sign right, the
+decision; a CSV a row each, and a summary by set (even seeds select, odd
+seeds report: fixed before any score was read).
+
+    python benchmarks/bench_sheet_stage.py render --seeds 0-23 [--frames 64]
+    python benchmarks/bench_sheet_stage.py rendered --seeds 0-23 --jobs default,focal,box --csv docs/sheet-stage/rendered.csv
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import time
 import warnings
 
@@ -58,12 +73,12 @@ def kinect_jobs() -> dict:
             "true": dict(roi=KINECT_ROI, focal=camera, sheet=KINECT_INNER), "guessed": dict(roi=KINECT_ROI, sheet=KINECT_INNER)}
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
+def kinect(argv) -> None:
+    parser = argparse.ArgumentParser(prog="bench_sheet_stage.py kinect", description=__doc__.split("\n\n")[1])
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--jobs", default="default", help=f"comma-separated, of {', '.join(JOBS)}")
     parser.add_argument("--settings", default="", help="comma-separated settings (--sheet-settings' text each); the empty one: the defaults")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     jobs = args.jobs.split(",")
     if not set(jobs) <= set(JOBS):
         raise SystemExit(f"--jobs: expected some of {', '.join(JOBS)}, got {args.jobs!r}")
@@ -100,5 +115,118 @@ def main() -> None:
     print(f"sgemm 2048²: {sgemm():.0f} GFLOP/s", flush=True)
 
 
+def seeds_of(text: str) -> list:
+    """``0-23,40,42``: the seeds."""
+    out = []
+    for part in filter(None, text.split(",")):
+        a, _, b = part.partition("-")
+        out += list(range(int(a), int(b or a) + 1))
+    return out
+
+
+def render(argv) -> None:
+    from nrdepth.scores.rendered import cache_folder, render_video, scene_of
+
+    parser = argparse.ArgumentParser(prog="bench_sheet_stage.py render")
+    parser.add_argument("--seeds", required=True)
+    parser.add_argument("--frames", type=int, default=None, help="frames a video (default: the scene's own, 64-128)")
+    args = parser.parse_args(argv)
+    for seed in seeds_of(args.seeds):
+        if (cache_folder() / f"sheet_{seed}.npz").exists():
+            continue
+        start = time.perf_counter()
+        scene = scene_of(seed, frames=args.frames)
+        render_video(scene)
+        print(f"seed {seed}: {scene.frames} frames of {scene.size[1]}×{scene.size[0]} in {time.perf_counter() - start:.0f} s ({scene})", flush=True)
+
+
+ROW = ("seed", "set", "job", "frames", "size", "fov", "print_kind", "finish", "background", "light", "bend", "used", "reason", "contrast",
+       "focal_estimate", "focal", "true_focal", "network", "stage", "plane", "sign_network", "sign_stage", "seconds")
+
+
+def rendered(argv) -> None:
+    import cv2
+    import torch
+
+    import nrdepth
+    from nrdepth.scores.rendered import load_video, split_of
+
+    parser = argparse.ArgumentParser(prog="bench_sheet_stage.py rendered")
+    parser.add_argument("--seeds", required=True)
+    parser.add_argument("--jobs", default="default,focal,box")
+    parser.add_argument("--settings", default="", help="the stage's settings (--sheet-settings' text)")
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--csv", default=None)
+    parser.add_argument("--from-csv", nargs="+", default=None, help="summarise these CSVs of earlier runs; read no video")
+    args = parser.parse_args(argv)
+    if args.from_csv:
+        rows = [row for path in args.from_csv for row in csv.DictReader(open(path, newline=""))]
+        for row in rows:
+            row.update({key: float(row[key]) for key in ("network", "stage", "plane", "sign_network", "sign_stage")}, used=int(row["used"]))
+        return summarise(rows, args.jobs.split(","))
+    torch.set_num_threads(args.threads)
+    cv2.setNumThreads(args.threads)
+    print(f"sgemm 2048²: {sgemm():.0f} GFLOP/s, {args.threads} threads", flush=True)
+    rows = []
+    for seed in seeds_of(args.seeds):
+        data = load_video(seed)
+        video, truth, sheet, scene = data["video"], data["depth"].astype(np.float64), data["sheet"], data["scene"]
+        on = sheet & np.isfinite(truth)
+        network = nrdepth.reconstruct(video, sheet_stage=False).astype(np.float64)
+        ys, xs = np.nonzero(sheet[0])
+        box = (int(xs.min()), int(ys.min()), int(xs.max() - xs.min() + 1), int(ys.max() - ys.min() + 1))
+        given = {"default": {}, "focal": {"focal": float(data["focal"])}, "box": {"focal": float(data["focal"]), "sheet": box}}
+        plane = nrdepth.flat_baseline(truth, mask=on)
+        for job in args.jobs.split(","):
+            start = time.perf_counter()
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                depth, decision = nrdepth.reconstruct(video, options=job_options(args.settings, **given[job]), with_decision=True)
+            seconds = time.perf_counter() - start
+            row = dict(seed=seed, set=split_of(seed), job=job, frames=len(video), size=video.shape[1], fov=round(scene["fov"], 1),
+                       print_kind=scene["print_kind"], finish=scene["finish"], background=scene["background"], light=scene["light"],
+                       bend=scene["bend"], used=int(decision.used), reason=decision.reason[:160], contrast=decision.contrast,
+                       focal_estimate=decision.focal_estimate, focal=None if decision.focal is None else round(decision.focal[0], 1),
+                       true_focal=round(float(data["focal"]), 1), network=nrdepth.mae_sn(network, truth, mask=on),
+                       stage=nrdepth.mae_sn(depth.astype(np.float64), truth, mask=on), plane=plane,
+                       sign_network=nrdepth.sign_rates(network, truth, mask=on)["sign_correct"],
+                       sign_stage=nrdepth.sign_rates(depth.astype(np.float64), truth, mask=on)["sign_correct"], seconds=round(seconds, 1))
+            rows.append(row)
+            print(" ".join(f"{key}={value:.4f}" if isinstance(value, float) else f"{key}={value}" for key, value in row.items()), flush=True)
+            if args.csv:
+                with open(args.csv, "w", newline="") as out:
+                    writer = csv.DictWriter(out, ROW)
+                    writer.writeheader()
+                    writer.writerows(rows)
+    summarise(rows, args.jobs.split(","))
+    print(f"sgemm 2048²: {sgemm():.0f} GFLOP/s", flush=True)
+
+
+def summarise(rows: list, jobs: list) -> None:
+    """Each set and job: the videos read, per frame against the plane, the relief's sign right; then by bend."""
+    for split in ("selection", "report"):
+        for job in jobs:
+            chosen = [r for r in rows if r["set"] == split and r["job"] == job]
+            if not chosen:
+                continue
+            mean = lambda key, rs=chosen: float(np.mean([r[key] for r in rs]))  # noqa: E731
+            print(f"{split} {job}: {len(chosen)} videos, read {sum(r['used'] for r in chosen)}; per frame the stage {mean('stage'):.4f} "
+                  f"({mean('stage') / mean('plane'):.2f}× the plane), the network {mean('network'):.4f} ({mean('network') / mean('plane'):.2f}×), "
+                  f"the plane {mean('plane'):.4f}; sign right {mean('sign_stage'):.0%} (the network {mean('sign_network'):.0%})", flush=True)
+            for bend in ("away", "toward", "turning"):
+                some = [r for r in chosen if r["bend"] == bend]
+                if some:
+                    print(f"    bent {bend}: {len(some)} videos, read {sum(r['used'] for r in some)}, the stage {mean('stage', some) / mean('plane', some):.2f}× "
+                          f"the plane (the network {mean('network', some) / mean('plane', some):.2f}×), sign right {mean('sign_stage', some):.0%} "
+                          f"(the network {mean('sign_network', some):.0%})", flush=True)
+
+
+COMMANDS = {"kinect": kinect, "render": render, "rendered": rendered}
+
+
 if __name__ == "__main__":
-    main()
+    import sys
+
+    if len(sys.argv) < 2 or sys.argv[1] not in COMMANDS:
+        raise SystemExit(f"usage: python {sys.argv[0]} {{{'|'.join(COMMANDS)}}} [options]")
+    COMMANDS[sys.argv[1]](sys.argv[2:])
