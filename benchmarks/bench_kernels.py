@@ -210,15 +210,11 @@ def main_stitch() -> None:
         print(f"  {stitch:8s} {seconds:7.1f} s ({seconds / paper[0]:.2f}× the paper's)   peak memory {gb:5.2f} GB ({gb / paper[1]:.2f}×)", flush=True)
 
 
-
 COMMANDS = {"densify": main_densify, "write-over": main_write_over, "stitch": main_stitch}
 
 
 if __name__ == "__main__":
-    import sys as _sys
+    import sys
 
-    if len(_sys.argv) < 2 or _sys.argv[1] not in COMMANDS:
-        raise SystemExit(f"usage: python {_sys.argv[0]} {{{'|'.join(COMMANDS)}}} [options]  (each command's --help says more)")
-    command = _sys.argv.pop(1)
-    _sys.argv[0] = f"{_sys.argv[0]} {command}"
+    command = sys.argv.pop(1) if sys.argv[1:] and sys.argv[1] in COMMANDS else sys.exit(f"usage: {sys.argv[0]} {{{'|'.join(COMMANDS)}}} [--help]")
     COMMANDS[command]()

@@ -221,15 +221,11 @@ def main_table3() -> None:
         kinect(model, args.K, args.d_fraction, args.out)
 
 
-
 COMMANDS = {"mocap": main_mocap, "table3": main_table3}
 
 
 if __name__ == "__main__":
-    import sys as _sys
+    import sys
 
-    if len(_sys.argv) < 2 or _sys.argv[1] not in COMMANDS:
-        raise SystemExit(f"usage: python {_sys.argv[0]} {{{'|'.join(COMMANDS)}}} [options]  (each command's --help says more)")
-    command = _sys.argv.pop(1)
-    _sys.argv[0] = f"{_sys.argv[0]} {command}"
+    command = sys.argv.pop(1) if sys.argv[1:] and sys.argv[1] in COMMANDS else sys.exit(f"usage: {sys.argv[0]} {{{'|'.join(COMMANDS)}}} [--help]")
     COMMANDS[command]()

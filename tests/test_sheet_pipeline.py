@@ -6,28 +6,15 @@ import warnings
 
 import numpy as np
 import pytest
-import torch
 
 import nrdepth
 import nrdepth.model
 from nrdepth import GeneratorConfig, SheetSettings, generate_clips
 from nrdepth.reconstruct import reconstruct_file
 
-from test_sheet_stage import LOOSE, OPTIONS, step_module
+from test_sheet_stage import LOOSE, OPTIONS, bending, model, step_module  # noqa: F401 (bending and model: the same fixtures)
 
 NOTHING_GIVEN = {key: value for key, value in OPTIONS.items() if key != "focal"}
-
-
-@pytest.fixture(scope="module")
-def model():
-    torch.manual_seed(0)
-    return nrdepth.model.UNet3D(base=2)
-
-
-@pytest.fixture(scope="module")
-def bending():
-    config = GeneratorConfig(frames=37, size=64, grid=64, sheet_probability=1.0, sheet_phases=2, camera_fov=(1.0, 1.0), crop_share=(1.0, 1.0))
-    return generate_clips(1, seed=5, config=config).video[0]
 
 
 @pytest.fixture(scope="module")
