@@ -15,25 +15,23 @@ __all__ = ["SheetDecision"]
 @dataclass(frozen=True)
 class SheetDecision:
     """What the sheet stage did: ``used`` its shape, or left the network's
-    depth alone for ``reason``; the camera's ``focal`` and ``centre``
-    (pixels) the shape was read through (None where the stage did not run:
-    off, or skipped, the ``reason`` says why), ``guessed`` where no focal length
-    was given (then ``focal`` is :meth:`~nrdepth.Camera.guessed`'s, or the
-    ``focal_estimate`` where the shape was read through it; the log line
-    says ``estimated``), the ``frames`` read, the ``points`` read (after the drop and, held, :data:`~.sheet.KEEP_HELD`),
-    the ``texture`` (gray levels, :data:`~.sheet.MIN_TEXTURE`), ``motion``
-    (pixels, :data:`~.sheet.MIN_MOTION`) and the share of point-frames ``held``
-    its checks measured (None where not reached), the
-    ``template`` whose points were read last, with nothing given the
-    ``contrast`` with which their strain picks a focal length
-    (:data:`~.sheet.MIN_CONTRAST`) and the ``focal_estimate`` it picks (pixels,
-    :func:`~nrdepth.isometric.estimate_focal`: 518 px on ``kinect_paper``
-    with its roi, the Kinect's 528; with nothing given, the shape is read
-    through it where :attr:`~nrdepth.isometric.FocalEstimate.inside`),
-    the held points' ``strain``
-    under ``refined`` (:data:`~.sheet.MAX_STRAIN`) and the fusion's ``scale`` (a
-    fraction of the shorter side) where used. :meth:`line` is the job's log
-    line; ``depth.npz`` keeps :meth:`as_dict` as JSON under ``sheet``."""
+    depth alone for ``reason`` (a check that gave way, an error inside the
+    stage, or why the stage did not run). The camera's ``focal`` and
+    ``centre`` (pixels) it read through, None where it did not run;
+    ``guessed`` where no focal length was given (``focal`` is then the
+    guessed pinhole's, or the ``focal_estimate`` where the shape was read
+    through it: the line says ``estimated``). What the deciding reading
+    measured, None where not reached, each against its
+    :class:`~nrdepth.SheetSettings` bound: the ``frames``, the ``points``
+    read, the ``texture`` (``min_texture``), the ``motion`` in pixels
+    (``min_motion``), the share of point-frames ``held`` (``min_held``), the
+    ``template``, the ``contrast`` with which the points' strain picks a
+    focal length (``min_contrast``) and the ``focal_estimate`` it picks, the
+    held points' ``strain`` under ``refined`` (``max_strain``), and the
+    fusion's ``scale`` (a fraction of the shorter side) where used.
+    :meth:`line` is the job's log line; ``depth.npz`` keeps :meth:`as_dict`
+    as JSON under ``sheet``; :attr:`camera` is the camera as a
+    :class:`~nrdepth.Camera`."""
 
     used: bool
     reason: str
