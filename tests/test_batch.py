@@ -208,17 +208,32 @@ def _alive(pid: int) -> bool:
         return False
 
 
+def _long_batch(batch: Path, tmp_path: Path) -> Path:
+    """Four videos long enough that a batch of them is still under way when a test stops it."""
+    videos = tmp_path / "long"
+    videos.mkdir()
+    for seed in range(4):
+        np.save(videos / f"v{seed}.npy", drifting(64, seed, 96, 128))
+    return videos
+
+
+def _under_way(process: subprocess.Popen) -> List[int]:
+    """The batch's processes once its two workers run (and, a moment later, its resource tracker)."""
+    deadline, children = time.time() + 120, []
+    while time.time() < deadline and len(children) < 2 and process.poll() is None:
+        children = _children(process.pid)
+        time.sleep(0.05)
+    time.sleep(1.0)  # the workers under way
+    assert process.poll() is None and len(children) >= 2, children
+    return _children(process.pid)
+
+
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads the process table from /proc")
 def test_a_batch_killed_by_kill_9_leaves_no_process_of_its_own_behind(batch, tmp_path):
-    argv = [sys.executable, "-m", "nrdepth", "reconstruct-many", str(batch / "videos"), "-o", str(tmp_path / "out"), "--model",
+    argv = [sys.executable, "-m", "nrdepth", "reconstruct-many", str(_long_batch(batch, tmp_path)), "-o", str(tmp_path / "out"), "--model",
             str(batch / "model.safetensors"), "--device", "cpu", "--workers", "2", "--threads", "1", "--quiet"]
     process = subprocess.Popen(argv, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline, workers = time.time() + 120, []
-    while time.time() < deadline and len(workers) < 3:  # two workers and the resource tracker
-        workers = _children(process.pid)
-        time.sleep(0.1)
-    assert len(workers) >= 2, workers
-    time.sleep(1.0)  # the workers under way
+    workers = _under_way(process)
     process.kill()  # the batch alone, as a crash or the OOM killer would: not its process group
     process.wait()
     deadline = time.time() + 10
@@ -231,18 +246,20 @@ def test_a_batch_killed_by_kill_9_leaves_no_process_of_its_own_behind(batch, tmp
         os.killpg(process.pid, signal.SIGKILL) if left else None
 
 
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads the process table from /proc")
 def test_ctrl_c_in_a_batch_says_one_line_from_every_process(batch, tmp_path):
-    argv = [sys.executable, "-m", "nrdepth", "reconstruct-many", str(batch / "videos"), "-o", str(tmp_path / "out"), "--model",
+    argv = [sys.executable, "-m", "nrdepth", "reconstruct-many", str(_long_batch(batch, tmp_path)), "-o", str(tmp_path / "out"), "--model",
             str(batch / "model.safetensors"), "--device", "cpu", "--workers", "2", "--threads", "1"]
     process = subprocess.Popen(argv, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.time() + 120
-    while time.time() < deadline and len(_children(process.pid)) < 3:
-        time.sleep(0.1)
-    time.sleep(1.5)
+    _under_way(process)
     os.killpg(process.pid, signal.SIGINT)  # as a terminal's Ctrl-C: every process of the group
     out, err = process.communicate(timeout=120)
     assert process.returncode == 130, err[-2000:]
     assert "Traceback" not in err and "KeyboardInterrupt" not in err, err[-2000:]
+    from nrdepth.io.folder import check_complete
+
+    for folder in (tmp_path / "out").iterdir():  # a video finished before the Ctrl-C stands whole; none is left half done
+        assert folder.name == SUMMARY or (folder.is_dir() and not folder.name.startswith(".") and check_complete(folder) > 0), folder.name
 
 
 def test_a_ray_address_that_cannot_be_reached_fails_at_once_naming_it(batch, tmp_path):
