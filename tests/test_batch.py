@@ -250,7 +250,9 @@ def test_a_batch_killed_by_kill_9_leaves_no_process_of_its_own_behind(batch, tmp
 def test_ctrl_c_in_a_batch_says_one_line_from_every_process(batch, tmp_path):
     argv = [sys.executable, "-m", "nrdepth", "reconstruct-many", str(_long_batch(batch, tmp_path)), "-o", str(tmp_path / "out"), "--model",
             str(batch / "model.safetensors"), "--device", "cpu", "--workers", "2", "--threads", "1"]
-    process = subprocess.Popen(argv, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # As from a terminal: a test run started in the background (nohup, CI) hands its children SIGINT ignored.
+    process = subprocess.Popen(argv, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     _under_way(process)
     os.killpg(process.pid, signal.SIGINT)  # as a terminal's Ctrl-C: every process of the group
     out, err = process.communicate(timeout=120)
