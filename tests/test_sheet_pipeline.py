@@ -173,6 +173,8 @@ def test_a_benchmarks_setting_and_the_command_lines_give_the_same_bytes(tmp_path
         assert json.loads(str(api["sheet"]))["used"] and api["depth"].tobytes() == cli["depth"].tobytes()
     with pytest.raises(ValueError, match="sheet_settings: min_contrast: expected a finite number"):
         SheetSettings.parse("min_contrast=-1")
+    with pytest.raises(ValueError, match="sheet_settings: keyframes: expected an integer ≥ 2"):
+        SheetSettings(keyframes=1)
     with pytest.raises(ValueError, match="sheet_settings: expected key=value pairs"):
         SheetSettings.parse("min_contrats=1")
     assert SheetSettings.parse(SheetSettings(jump=None, keyframes=12).text()) == SheetSettings(jump=None, keyframes=12)

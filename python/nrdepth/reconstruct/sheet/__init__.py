@@ -93,10 +93,10 @@ def stage_of(options: ReconstructOptions, frame: Tuple[int, int]) -> SheetStage:
         )
     try:
         return SheetStage(sheet_region(options, frame), options.sheet_camera(frame))
-    except ValueError as error:
+    except Exception as error:  # noqa: BLE001 - by default the stage never fails the job: it steps aside and says why
         if options.sheet_given:
             raise
-        return skipped(f"the stage cannot run here ({error})")
+        return skipped(f"the stage cannot run here ({' '.join(f'{type(error).__name__}: {error}'.split())})")
 
 
 def sheet_region(options: ReconstructOptions, frame: Tuple[int, int]) -> np.ndarray:

@@ -140,20 +140,10 @@ class SheetSettings:
             if f.name == "jump" and value is None:
                 continue
             if f.name in _INTS:
-                ok = (
-                    not isinstance(value, bool)
-                    and isinstance(value, int)
-                    and value >= (0 if f.name == "flow_margin" else 1)
-                )
-                if ok and f.name == "track_side":
-                    ok = value >= 8
-                expected = (
-                    "an integer ≥ 0"
-                    if f.name == "flow_margin"
-                    else "an integer ≥ 8"
-                    if f.name == "track_side"
-                    else "an integer ≥ 1"
-                )
+                # a program needs two keyframes
+                least = {"flow_margin": 0, "track_side": 8, "keyframes": 2}.get(f.name, 1)
+                ok = not isinstance(value, bool) and isinstance(value, int) and value >= least
+                expected = f"an integer ≥ {least}"
             elif f.name in _SHARES:
                 ok, expected = is_number(value) and 0 <= value <= 1, "a share in [0, 1]"
             else:
