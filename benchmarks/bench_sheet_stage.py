@@ -29,6 +29,14 @@ seeds report: fixed before any score was read).
 
     python benchmarks/bench_sheet_stage.py render --seeds 0-23 [--frames 64]
     python benchmarks/bench_sheet_stage.py rendered --seeds 0-23 --jobs default,focal,box --csv docs/sheet-stage/rendered.csv
+
+``noise``: what must stay unread: generated coloured-noise videos (the
+default generator's stretching surfaces, 256²×64 through pinholes of
+40–80°, the evaluation's seed from ``--start``), nothing given, for each
+setting: the videos read, and per frame the job against the network alone,
+paired.
+
+    python benchmarks/bench_sheet_stage.py noise --videos 16 --start 2100 --settings ",bridge=4"
 """
 
 from __future__ import annotations
@@ -221,7 +229,45 @@ def summarise(rows: list, jobs: list) -> None:
                           f"(the network {mean('sign_network', some):.0%})", flush=True)
 
 
-COMMANDS = {"kinect": kinect, "render": render, "rendered": rendered}
+def noise(argv) -> None:
+    import cv2
+    import torch
+
+    import nrdepth
+    from nrdepth.learning.evaluate import TEST_SEED
+
+    parser = argparse.ArgumentParser(prog="bench_sheet_stage.py noise")
+    parser.add_argument("--videos", type=int, default=16)
+    parser.add_argument("--start", type=int, default=2100, help="the first clip's index at the evaluation's seed")
+    parser.add_argument("--settings", default="", help="comma-separated settings (--sheet-settings' text each); the empty one: the defaults")
+    parser.add_argument("--threads", type=int, default=2)
+    args = parser.parse_args(argv)
+    torch.set_num_threads(args.threads)
+    cv2.setNumThreads(args.threads)
+    print(f"sgemm 2048²: {sgemm():.0f} GFLOP/s, {args.threads} threads", flush=True)
+    config = nrdepth.GeneratorConfig(frames=64, size=256, grid=128, camera_fov=(0.7, 1.4), crop_share=(1.0, 1.0))
+    settings = args.settings.split(",")
+    read, gaps = {s: 0 for s in settings}, {s: [] for s in settings}
+    for clip in range(args.start, args.start + args.videos):
+        clips = nrdepth.generate_clips(1, seed=TEST_SEED, config=config, start=clip)
+        video, truth = clips.video[0], clips.depth[0].astype(np.float64)
+        network = nrdepth.mae_sn(nrdepth.reconstruct(video, sheet_stage=False).astype(np.float64), truth)
+        line = [f"clip {clip}: the network {network:.4f}"]
+        for setting in settings:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                depth, decision = nrdepth.reconstruct(video, options=job_options(setting), with_decision=True)
+            read[setting] += int(decision.used)
+            gaps[setting].append(nrdepth.mae_sn(depth.astype(np.float64), truth) - network)
+            line.append(f"[{setting or 'defaults'}] {'read' if decision.used else 'not read'} {gaps[setting][-1]:+.4f}: {decision.reason[:90]}")
+        print("; ".join(line), flush=True)
+    for setting in settings:
+        g = np.array(gaps[setting])
+        print(f"{setting or 'defaults'}: read {read[setting]} of {args.videos}; per frame against the network "
+              f"{g.mean():+.4f} ± {g.std(ddof=1) / np.sqrt(len(g)) if len(g) > 1 else 0:.4f} (mean ± SE, paired)", flush=True)
+
+
+COMMANDS = {"kinect": kinect, "render": render, "rendered": rendered, "noise": noise}
 
 
 if __name__ == "__main__":

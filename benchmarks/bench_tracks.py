@@ -21,7 +21,12 @@ tracker, on three kinds of truth:
   400-point grid (over a backdrop, the grid's points on the sheet)
   followed from their true positions in the first frame,
   their distance (px) from the true ones (``nrdepth.image_points``) in every
-  frame while in view.
+  frame while in view;
+- sheets rendered by Mitsuba 3's path tracer (``--rendered`` seeds, cached
+  by ``bench_sheet_stage.py render``; noisy at 4 samples a pixel): a
+  400-point grid over the sheet in the first frame (its mask shrunk by 4
+  px), their distance (px) from where the scene's geometry puts them
+  (``nrdepth.scores.rendered.true_tracks``) in every frame while seen.
 
 Each line: median, 95th percentile and largest distance, the share of
 point-frames lost (NaN), and the seconds; for the sheets, the videos'
@@ -29,7 +34,7 @@ point-frames lost (NaN), and the seconds; for the sheets, the videos'
 (``track_points``' ``hold``, ``backward``, ``flow``, ``margin``, ``stride``, ``scale`` its ``flow_scale``; ``ncc`` and ``fb``: the held tracker's thresholds; an empty one
 is its defaults).
 
-    python benchmarks/bench_tracks.py [--trackers ",margin=48:hold=1"] [--videos 16] [--start 96] [--skip generated] [--lights below] [--set FIELD=V]
+    python benchmarks/bench_tracks.py [--trackers ",margin=48:hold=1"] [--videos 16] [--start 96] [--skip generated] [--lights below] [--set FIELD=V] [--rendered 0-23]
 """
 
 from __future__ import annotations
@@ -201,6 +206,37 @@ def generated(trackers: list, videos: int, start: int, frames: int, phases: int,
               f"{np.median(per_video[name]):.2f} px; {seconds[name]:.1f} s", flush=True)
 
 
+def rendered(trackers: list, seeds: list) -> None:
+    import cv2
+
+    from nrdepth.isometric import start_grid
+    from nrdepth.scores.rendered import load_video, scene_of, true_tracks
+
+    per_video = {name: [] for name in trackers}
+    pooled = {name: [] for name in trackers}
+    seconds = {name: 0.0 for name in trackers}
+    for seed in seeds:
+        data = load_video(seed)
+        video = data["video"]
+        scene = scene_of(seed, frames=len(video), size=video.shape[1:])
+        on_sheet = cv2.erode(data["sheet"][0].astype(np.uint8), np.ones((9, 9), np.uint8)).astype(bool)
+        start = start_grid(on_sheet, video.shape[1:], 400)
+        truth = true_tracks(scene, start, data["depth"])
+        for name in trackers:
+            begin = time.perf_counter()
+            xy = track(video, start, name)
+            seconds[name] += time.perf_counter() - begin
+            errors = np.where(np.isfinite(truth[..., 0]), np.linalg.norm(xy - truth, axis=2), np.inf)[1:]
+            errors = errors[np.isfinite(errors) | np.isnan(errors)]  # seen: a distance, or NaN where the tracker lost it
+            per_video[name].append(np.nanpercentile(errors, 95))
+            pooled[name].append(errors)
+        print(f"  rendered {seed}: " + ", ".join(f"{name or 'default'} p95 {per_video[name][-1]:.2f} lost "
+                                                 f"{100 * np.isnan(pooled[name][-1]).mean():.0f} %" for name in trackers), flush=True)
+    for name in trackers:
+        print(f"rendered sheets ({len(seeds)}) {name or 'default':22s} {summary(np.concatenate(pooled[name]))}; the videos' p95s' median "
+              f"{np.median(per_video[name]):.2f} px; {seconds[name]:.1f} s", flush=True)
+
+
 def main() -> None:
     from isometric_generated import setting
 
@@ -215,6 +251,7 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=1, help="OpenCV's threads")
     parser.add_argument("--families", default=",".join(SHEET_FAMILIES), help="the generated sheets' texture families (comma-separated)")
     parser.add_argument("--skip", default="", help="comma-separated: kinect, phisft, generated")
+    parser.add_argument("--rendered", default="", help="rendered sheets' seeds (bench_sheet_stage.py's 0-23,40 form; default: none)")
     parser.add_argument("--lights", default="below,above", help="the generated sheets lit from below, above, or both (each its own --videos)")
     parser.add_argument("--set", action="append", default=[], metavar="FIELD=V[,V]", type=setting,
                         help="a GeneratorConfig field of the generated sheets, one value or lo,hi (e.g. the paper-like sheets' "
@@ -231,6 +268,10 @@ def main() -> None:
         phisft(trackers)
     if "generated" not in skip:
         generated(trackers, args.videos, args.start, args.frames, args.phases, tuple(args.families.split(",")), args.lights.split(","), args.set)
+    if args.rendered:
+        from bench_sheet_stage import seeds_of
+
+        rendered(trackers, seeds_of(args.rendered))
 
 
 if __name__ == "__main__":

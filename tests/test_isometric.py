@@ -372,6 +372,32 @@ def test_points_on_blank_paper_are_rarely_held_and_points_on_print_always():
             point_held_shares(bad, video.shape[1:])
 
 
+def test_bridged_gaps_agree_with_filling_each_short_gap_by_hand():
+    """Each gap of at most ``frames`` NaN frames between two found is filled linearly in time, point by point; a longer gap, one
+    before a point's first frame found or after its last (out of view), and the found frames stay as they were."""
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        T, n, frames = int(rng.integers(1, 14)), int(rng.integers(1, 5)), int(rng.integers(0, 5))
+        xy = rng.normal(size=(T, n, 2))
+        xy[rng.random((T, n)) < 0.45] = np.nan
+        by_hand = xy.copy()
+        for p in range(n):
+            found = [t for t in range(T) if np.isfinite(xy[t, p]).all()]
+            for a, b in zip(found, found[1:]):
+                if b - a - 1 <= frames:
+                    for t in range(a + 1, b):
+                        by_hand[t, p] = xy[a, p] + (t - a) / (b - a) * (xy[b, p] - xy[a, p])
+        np.testing.assert_allclose(isometric.bridge_gaps(xy, frames), by_hand, rtol=0, atol=1e-12)
+    line = np.arange(6.0)[:, None, None] * np.array([[2.0, -1.0]])
+    gapped = line.copy()
+    gapped[2:4] = np.nan
+    np.testing.assert_allclose(isometric.bridge_gaps(gapped, 2), line)  # a point moving steadily is given back exactly
+    assert np.isnan(isometric.bridge_gaps(gapped, 1)[2:4]).all()
+    for bad, frames, match in ((line[0], 1, "xy: expected tracks"), (line, -1, "frames: expected"), (line, 1.5, "frames: expected")):
+        with pytest.raises(ValueError, match=match):
+            isometric.bridge_gaps(bad, frames)
+
+
 def test_held_points_beside_blank_paper_are_not_pulled_by_its_flow():
     """The warp that pulls each frame back is fitted to the points held in the frame before: the flow's guesses on blank paper, where
     no point is found again, would bend it, and the points held beside it would be found through a bent warp (up to 1.2 px off)."""

@@ -62,3 +62,17 @@ def test_a_render_shows_the_sheet_where_the_scenes_pinhole_puts_it(tmp_path):
     assert abs(xs.min() - left) < 2.5 and abs(xs.max() - right) < 2.5
     z = depth[0][sheet[0]]
     assert points[:, 2].min() - 1e-3 <= z.min() and z.max() <= points[:, 2].max() + 1e-3  # the depth along the axis, on the sheet
+
+
+def test_true_tracks_carry_the_sheets_own_vertices_and_leave_points_off_it_out():
+    """A start on a vertex of the sheet's mesh is that vertex in every frame (its projection through the scene's pinhole);
+    a start off the sheet is NaN throughout."""
+    scene = rendered.scene_of(3, frames=5, size=(64, 80))
+    first = rendered.sheet_vertices(scene, 0.0)
+    picked = np.array([rendered.GRID[0] * row + col for row in (5, 20, 40) for col in (3, 20, 37)])  # inside the grid
+    project = lambda p: np.stack([scene.focal * p[:, 0] / p[:, 2] + 39.5, scene.focal * p[:, 1] / p[:, 2] + 31.5], axis=1)  # noqa: E731
+    start = np.concatenate([project(first[picked]), [[-500.0, -500.0]]])
+    tracks = rendered.true_tracks(scene, start)
+    for t in range(scene.frames):
+        np.testing.assert_allclose(tracks[t, :-1], project(rendered.sheet_vertices(scene, t / 4)[picked]), atol=1e-6)
+    assert np.isnan(tracks[:, -1]).all()

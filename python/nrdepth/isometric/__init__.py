@@ -60,7 +60,7 @@ from .found import moving_points, unstrained_points
 from .fuse import fuse
 from .mirror import SHAPE_KEPT, keep_lengths, mirror_depths, mirror_or_not, shape_kept
 from .mdh import EACH_FRAME, TEMPLATES, NotSolved, TooFewPoints, keyframe_indices, mdh_depths, neighbour_pairs, pair_strain, template_strain
-from .points import BORDER, DROP, FLOWS, frames_of, held_share, inside, least_disagreeing, PLACES, point_held_shares, start_grid, start_texture, track_grid, track_points
+from .points import BORDER, DROP, FLOWS, bridge_gaps, frames_of, held_share, inside, least_disagreeing, PLACES, point_held_shares, start_grid, start_texture, track_grid, track_points
 
-__all__ = ["track_grid", "start_grid", "start_texture", "PLACES", "track_points", "least_disagreeing", "inside", "held_share", "point_held_shares", "neighbour_pairs", "mdh_depths", "pair_strain", "template_strain", "keyframe_indices", "estimate_focal", "FocalEstimate", "moving_points", "unstrained_points", "fuse", "mirror_depths", "keep_lengths", "mirror_or_not", "shape_kept", "SHAPE_KEPT",
+__all__ = ["track_grid", "bridge_gaps", "start_grid", "start_texture", "PLACES", "track_points", "least_disagreeing", "inside", "held_share", "point_held_shares", "neighbour_pairs", "mdh_depths", "pair_strain", "template_strain", "keyframe_indices", "estimate_focal", "FocalEstimate", "moving_points", "unstrained_points", "fuse", "mirror_depths", "keep_lengths", "mirror_or_not", "shape_kept", "SHAPE_KEPT",
            "frames_of", "TooFewPoints", "NotSolved", "TEMPLATES", "EACH_FRAME", "DROP", "BORDER", "FLOWS"]

@@ -23,7 +23,7 @@ import numpy as np
 from ..checks import option_error
 from .hold import HOLD_WINDOW, Anchor
 
-__all__ = ["track_grid", "start_grid", "start_texture", "PLACES", "track_points", "least_disagreeing", "inside", "held_share", "point_held_shares", "check_video", "frames_of", "DROP", "BORDER", "FLOWS"]
+__all__ = ["track_grid", "start_grid", "start_texture", "PLACES", "track_points", "least_disagreeing", "inside", "held_share", "point_held_shares", "check_video", "frames_of", "bridge_gaps", "DROP", "BORDER", "FLOWS"]
 
 DROP = 0.2
 """``reconstruct(focal=...)``'s share of the
@@ -393,3 +393,31 @@ def _held_counts(xy: np.ndarray, shape: Tuple[int, int]) -> Tuple[np.ndarray, np
         held += found
         lost += ~found & ~gone
     return held, lost
+
+
+def bridge_gaps(xy: np.ndarray, frames: int) -> np.ndarray:
+    """Tracks (T, n, 2) with each point's runs of at most ``frames`` NaN
+    frames between two frames where it is found filled in, linearly in
+    time between those two; longer gaps, and those before its first or
+    after its last frame found (out of view), stay NaN. Held tracks lose a
+    point for a frame where noise moves Lucas–Kanade's way back by a few
+    tenths of a pixel; over a few frames a sheet's points move nearly
+    linearly (the programs' ``every`` assumes as much). 0: a copy."""
+    xy = np.array(xy, np.float64)
+    if xy.ndim != 3 or xy.shape[2] != 2:
+        raise ValueError(f"xy: expected tracks (T, n, 2), got shape {xy.shape}")
+    if not (isinstance(frames, (int, np.integer)) and frames >= 0):
+        raise ValueError(f"frames: expected an int >= 0 (the longest gap bridged), got {frames!r}")
+    found = np.isfinite(xy).all(axis=2)
+    if frames == 0 or found.all():
+        return xy
+    T = len(xy)
+    t = np.arange(T)[:, None]
+    before = np.maximum.accumulate(np.where(found, t, -1), axis=0)  # the last frame found at or before each
+    after = np.minimum.accumulate(np.where(found, t, T)[::-1], axis=0)[::-1]  # the first at or after
+    bridged = ~found & (before >= 0) & (after < T) & (after - before - 1 <= frames)
+    frame, point = np.nonzero(bridged)
+    a, b = before[frame, point], after[frame, point]
+    weight = ((frame - a) / (b - a))[:, None]
+    xy[frame, point] = (1 - weight) * xy[a, point] + weight * xy[b, point]
+    return xy

@@ -35,7 +35,7 @@ from typing import Dict, Optional, Tuple
 
 import numpy as np
 
-__all__ = ["Scene", "scene_of", "render_video", "load_video", "cache_folder", "SELECTION", "REPORT", "split_of"]
+__all__ = ["Scene", "scene_of", "render_video", "load_video", "cache_folder", "true_tracks", "SELECTION", "REPORT", "split_of"]
 
 PRINTS, BACKGROUNDS, LIGHTS, BENDS, FINISHES = ("photo", "text", "map"), ("table", "wall", "plain"), ("above", "below", "beside", "camera"), \
     ("away", "toward", "turning"), ("matte", "glossy")
@@ -132,6 +132,42 @@ def sheet_vertices(scene: Scene, t: float) -> np.ndarray:
     ry = np.array([[math.cos(ay), 0, math.sin(ay)], [0, 1, 0], [-math.sin(ay), 0, math.cos(ay)]])
     drift = np.array([0.02 * math.sin(2 * math.pi * t), 0.015 * math.cos(2 * math.pi * 0.8 * t), 0.0])
     return points @ (ry @ rx).T + np.array([0.0, 0.0, scene.distance]) + drift
+
+
+def _pixels(scene: Scene, points: np.ndarray) -> np.ndarray:
+    """Where camera-frame ``points`` (..., 3) appear: (..., 2) column, row, pixel centres at integers."""
+    H, W = scene.size
+    return np.stack([scene.focal * points[..., 0] / points[..., 2] + W / 2 - 0.5,
+                     scene.focal * points[..., 1] / points[..., 2] + H / 2 - 0.5], axis=-1)
+
+
+def true_tracks(scene: Scene, start: np.ndarray, depth: Optional[np.ndarray] = None) -> np.ndarray:
+    """Where the sheet's points seen at ``start`` (n, 2) in the first frame
+    are in each of the scene's frames: (T, n, 2) column, row, from the
+    sheet's own geometry (each start's place on the sheet, then that place
+    carried through :func:`sheet_vertices`). NaN for a start off the sheet;
+    with the render's ``depth`` (T, H, W), also where a point is hidden (its
+    depth not the render's within 1 %) or out of the frame."""
+    from scipy.interpolate import RegularGridInterpolator, griddata
+
+    start = np.asarray(start, np.float64)
+    T, (H, W) = scene.frames, scene.size
+    on_sheet = griddata(_pixels(scene, sheet_vertices(scene, 0.0)), sheet_uv(), start, method="linear")  # (u, v) of each start
+    found = np.isfinite(on_sheet).all(axis=1)
+    axes = (np.linspace(0, 1, GRID[1]), np.linspace(0, 1, GRID[0]))  # v along, u across: the vertices' grid
+    out = np.full((T, len(start), 2), np.nan)
+    for t in range(T):
+        place = RegularGridInterpolator(axes, sheet_vertices(scene, t / max(T - 1, 1)).reshape(GRID[1], GRID[0], 3))(on_sheet[found][:, ::-1])
+        out[t, found] = _pixels(scene, place)
+        if depth is not None:
+            xy = out[t, found]
+            inside = (xy[:, 0] >= 0) & (xy[:, 0] <= W - 1) & (xy[:, 1] >= 0) & (xy[:, 1] <= H - 1)
+            rendered = np.full(len(xy), np.nan)
+            rows, cols = np.rint(xy[inside, 1]).astype(int), np.rint(xy[inside, 0]).astype(int)
+            rendered[inside] = depth[t][rows, cols]
+            seen = inside & (np.abs(rendered - place[:, 2]) <= 0.01 * place[:, 2])
+            out[t, np.flatnonzero(found)[~seen]] = np.nan
+    return out
 
 
 def sheet_faces() -> np.ndarray:

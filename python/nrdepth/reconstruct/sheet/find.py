@@ -13,7 +13,7 @@ from typing import Callable, Iterable, Iterator
 import numpy as np
 
 from ...camera import Camera
-from ...isometric import NotSolved, moving_points, point_held_shares, start_grid, track_grid, unstrained_points
+from ...isometric import NotSolved, bridge_gaps, moving_points, point_held_shares, start_grid, track_grid, unstrained_points
 from ..frames import as_uint8, as_unit_float, resize, working_shape
 from .gate import NO_ANSWER, GaveWay, enough_motion, enough_points
 from .settings import SheetSettings
@@ -65,16 +65,20 @@ def checked(frames: Iterable[np.ndarray], check: Callable[[], None]) -> Iterator
         yield frame
 
 
-def read_points(xy: np.ndarray, frame: tuple, hold: bool, every_frame: bool, settings: SheetSettings) -> np.ndarray:
-    """Which of the points ``xy`` (T, n, 2) are read, bool (n,): held, those
-    found again in :attr:`~.SheetSettings.keep_held` of their frames in view;
-    with ``every_frame``, only those found in every frame."""
+def read_points(xy: np.ndarray, frame: tuple, hold: bool, every_frame: bool, settings: SheetSettings) -> tuple:
+    """Which of the points ``xy`` (T, n, 2) are read, bool (n,), and their
+    tracks to read (T, n, 2): held, those found again in
+    :attr:`~.SheetSettings.keep_held` of their frames in view, their gaps of
+    at most :attr:`~.SheetSettings.bridge` frames bridged
+    (:func:`~nrdepth.isometric.bridge_gaps`); with ``every_frame``, only
+    those then found in every frame."""
     read = np.ones(xy.shape[1], bool)
     if hold:
         read &= point_held_shares(xy, frame) >= settings.keep_held
+        xy = bridge_gaps(xy, settings.bridge)
     if every_frame:
         read &= np.isfinite(xy).all(axis=(0, 2))
-    return read
+    return read, xy
 
 
 def found_points(

@@ -107,7 +107,7 @@ def read(
     measured.update(points=xy.shape[1], motion=float(np.median(farthest)), held=held, template=plan.template)
     if plan.hold and not plan.find:  # first: the motion is measured on the points held
         enough_held(held, settings)
-    chosen = read_points(xy, frame, plan.hold, plan.through or plan.find, settings)
+    chosen, xy = read_points(xy, frame, plan.hold, plan.through or plan.find, settings)
     if plan.find:
         chosen = found_points(xy, chosen, camera, int(options.isometric_points), settings, measured, check)
     else:

@@ -30,7 +30,7 @@ against the program's; both real videos read as the program's, every
 frame falling back (docs/campaign.md, "Sheets that bend as real sheets
 do, and each frame's lengths kept")."""
 
-_INTS = ("flow_margin", "track_side", "keyframes", "every", "neighbours", "min_frames", "min_frames_by_default")
+_INTS = ("flow_margin", "track_side", "keyframes", "every", "neighbours", "min_frames", "min_frames_by_default", "bridge")
 _SHARES = ("min_held", "min_read", "moving_share", "keep_held")
 
 
@@ -115,6 +115,11 @@ class SheetSettings:
     in view are read (a point on blank paper is rarely found): on 32
     generated print sheets −0.0146 ± 0.0089 per frame against every held
     point."""
+    bridge: int = 0
+    """Frames: a held point's gaps of at most this many frames between two
+    where it is found are filled in, linearly in time, before the points
+    found in every frame are counted (:func:`~nrdepth.isometric.bridge_gaps`;
+    noise loses a point for a frame at a time). 0: none bridged."""
     read_smooth: float = 1.0
     """Frames: the points read are smoothed in time by a Gaussian this wide
     before the shape that is fused is solved; every gate reads them as
@@ -141,7 +146,7 @@ class SheetSettings:
                 continue
             if f.name in _INTS:
                 # a program needs two keyframes
-                least = {"flow_margin": 0, "track_side": 8, "keyframes": 2}.get(f.name, 1)
+                least = {"flow_margin": 0, "track_side": 8, "keyframes": 2, "bridge": 0}.get(f.name, 1)
                 ok = not isinstance(value, bool) and isinstance(value, int) and value >= least
                 expected = f"an integer ≥ {least}"
             elif f.name in _SHARES:
