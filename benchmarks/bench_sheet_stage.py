@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import itertools
 import time
 import warnings
 
@@ -148,7 +149,7 @@ def render(argv) -> None:
         print(f"seed {seed}: {scene.frames} frames of {scene.size[1]}×{scene.size[0]} in {time.perf_counter() - start:.0f} s ({scene})", flush=True)
 
 
-ROW = ("seed", "set", "job", "frames", "size", "fov", "print_kind", "finish", "background", "light", "bend", "used", "reason", "contrast",
+ROW = ("seed", "set", "job", "setting", "frames", "size", "fov", "print_kind", "finish", "background", "light", "bend", "used", "reason", "points", "held", "strain", "contrast",
        "focal_estimate", "focal", "true_focal", "network", "stage", "plane", "sign_network", "sign_stage", "seconds")
 
 
@@ -162,7 +163,7 @@ def rendered(argv) -> None:
     parser = argparse.ArgumentParser(prog="bench_sheet_stage.py rendered")
     parser.add_argument("--seeds", required=True)
     parser.add_argument("--jobs", default="default,focal,box")
-    parser.add_argument("--settings", default="", help="the stage's settings (--sheet-settings' text)")
+    parser.add_argument("--settings", default="", help="comma-separated settings (--sheet-settings' text each); the empty one: the defaults")
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--csv", default=None)
     parser.add_argument("--from-csv", nargs="+", default=None, help="summarise these CSVs of earlier runs; read no video")
@@ -170,8 +171,9 @@ def rendered(argv) -> None:
     if args.from_csv:
         rows = [row for path in args.from_csv for row in csv.DictReader(open(path, newline=""))]
         for row in rows:
-            row.update({key: float(row[key]) for key in ("network", "stage", "plane", "sign_network", "sign_stage")}, used=int(row["used"]))
-        return summarise(rows, args.jobs.split(","))
+            row.update({key: float(row[key]) for key in ("network", "stage", "plane", "sign_network", "sign_stage")}, used=int(row["used"]),
+                       setting=row.get("setting", ""))
+        return summarise(rows, args.jobs.split(","), args.settings.split(","))
     torch.set_num_threads(args.threads)
     cv2.setNumThreads(args.threads)
     print(f"sgemm 2048²: {sgemm():.0f} GFLOP/s, {args.threads} threads", flush=True)
@@ -185,15 +187,16 @@ def rendered(argv) -> None:
         box = (int(xs.min()), int(ys.min()), int(xs.max() - xs.min() + 1), int(ys.max() - ys.min() + 1))
         given = {"default": {}, "focal": {"focal": float(data["focal"])}, "box": {"focal": float(data["focal"]), "sheet": box}}
         plane = nrdepth.flat_baseline(truth, mask=on)
-        for job in args.jobs.split(","):
+        for job, setting in itertools.product(args.jobs.split(","), args.settings.split(",")):
             start = time.perf_counter()
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                depth, decision = nrdepth.reconstruct(video, options=job_options(args.settings, **given[job]), with_decision=True)
+                depth, decision = nrdepth.reconstruct(video, options=job_options(setting, **given[job]), with_decision=True)
             seconds = time.perf_counter() - start
-            row = dict(seed=seed, set=split_of(seed), job=job, frames=len(video), size=video.shape[1], fov=round(scene["fov"], 1),
+            row = dict(seed=seed, set=split_of(seed), job=job, setting=setting, frames=len(video), size=video.shape[1], fov=round(scene["fov"], 1),
                        print_kind=scene["print_kind"], finish=scene["finish"], background=scene["background"], light=scene["light"],
-                       bend=scene["bend"], used=int(decision.used), reason=decision.reason[:160], contrast=decision.contrast,
+                       bend=scene["bend"], used=int(decision.used), reason=decision.reason[:160], points=decision.points, held=decision.held,
+                       strain=decision.strain, contrast=decision.contrast,
                        focal_estimate=decision.focal_estimate, focal=None if decision.focal is None else round(decision.focal[0], 1),
                        true_focal=round(float(data["focal"]), 1), network=nrdepth.mae_sn(network, truth, mask=on),
                        stage=nrdepth.mae_sn(depth.astype(np.float64), truth, mask=on), plane=plane,
@@ -206,27 +209,26 @@ def rendered(argv) -> None:
                     writer = csv.DictWriter(out, ROW)
                     writer.writeheader()
                     writer.writerows(rows)
-    summarise(rows, args.jobs.split(","))
+    summarise(rows, args.jobs.split(","), args.settings.split(","))
     print(f"sgemm 2048²: {sgemm():.0f} GFLOP/s", flush=True)
 
 
-def summarise(rows: list, jobs: list) -> None:
-    """Each set and job: the videos read, per frame against the plane, the relief's sign right; then by bend."""
-    for split in ("selection", "report"):
-        for job in jobs:
-            chosen = [r for r in rows if r["set"] == split and r["job"] == job]
-            if not chosen:
-                continue
-            mean = lambda key, rs=chosen: float(np.mean([r[key] for r in rs]))  # noqa: E731
-            print(f"{split} {job}: {len(chosen)} videos, read {sum(r['used'] for r in chosen)}; per frame the stage {mean('stage'):.4f} "
-                  f"({mean('stage') / mean('plane'):.2f}× the plane), the network {mean('network'):.4f} ({mean('network') / mean('plane'):.2f}×), "
-                  f"the plane {mean('plane'):.4f}; sign right {mean('sign_stage'):.0%} (the network {mean('sign_network'):.0%})", flush=True)
-            for bend in ("away", "toward", "turning"):
-                some = [r for r in chosen if r["bend"] == bend]
-                if some:
-                    print(f"    bent {bend}: {len(some)} videos, read {sum(r['used'] for r in some)}, the stage {mean('stage', some) / mean('plane', some):.2f}× "
-                          f"the plane (the network {mean('network', some) / mean('plane', some):.2f}×), sign right {mean('sign_stage', some):.0%} "
-                          f"(the network {mean('sign_network', some):.0%})", flush=True)
+def summarise(rows: list, jobs: list, settings: list) -> None:
+    """Each set, job and setting: the videos read, per frame against the plane, the relief's sign right; then by bend."""
+    for split, job, setting in itertools.product(("selection", "report"), jobs, settings):
+        chosen = [r for r in rows if r["set"] == split and r["job"] == job and r["setting"] == setting]
+        if not chosen:
+            continue
+        mean = lambda key, rs=chosen: float(np.mean([r[key] for r in rs]))  # noqa: E731
+        print(f"{split} {job}{f' [{setting}]' if setting else ''}: {len(chosen)} videos, read {sum(r['used'] for r in chosen)}; per frame the stage {mean('stage'):.4f} "
+              f"({mean('stage') / mean('plane'):.2f}× the plane), the network {mean('network'):.4f} ({mean('network') / mean('plane'):.2f}×), "
+              f"the plane {mean('plane'):.4f}; sign right {mean('sign_stage'):.0%} (the network {mean('sign_network'):.0%})", flush=True)
+        for bend in ("away", "toward", "turning"):
+            some = [r for r in chosen if r["bend"] == bend]
+            if some:
+                print(f"    bent {bend}: {len(some)} videos, read {sum(r['used'] for r in some)}, the stage {mean('stage', some) / mean('plane', some):.2f}× "
+                      f"the plane (the network {mean('network', some) / mean('plane', some):.2f}×), sign right {mean('sign_stage', some):.0%} "
+                      f"(the network {mean('sign_network', some):.0%})", flush=True)
 
 
 def noise(argv) -> None:
